@@ -1,0 +1,60 @@
+import numpy as np
+import pytest
+import torch
+
+from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.motion import Motion
+from mrlib.rotations import axis_angle_to_matrix, geodesic_distance
+
+rng = np.random.default_rng(0)
+
+
+def _motion(T=30, fps=30.0):
+    return Motion(rng.normal(size=(T, 24, 3)) * 0.5, np.cumsum(rng.normal(size=(T, 3)) * 0.01, 0), fps)
+
+
+def test_shapes_and_defaults():
+    m = _motion()
+    assert m.poses.dtype == np.float32 and m.poses.shape == (30, 24, 3)
+    assert m.betas.shape == (10,) and m.contacts is None
+    assert len(m) == 30 and m.duration == pytest.approx(1.0)
+    # (T, 72) flat poses are accepted too
+    assert Motion(m.poses.reshape(30, 72), m.trans, 30).poses.shape == (30, 24, 3)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"poses": np.zeros((5, 23, 3))}, "poses must have shape"),
+        ({"trans": np.zeros((4, 3))}, "trans has 4 frames"),
+        ({"fps": 0}, "fps must be a positive"),
+        ({"poses": np.full((5, 24, 3), np.nan)}, "NaN or inf"),
+        ({"contacts": np.zeros((5, 5))}, "contacts must have shape"),
+    ],
+)
+def test_bad_input_raises_typed_errors(kwargs, match):
+    args = {"poses": np.zeros((5, 24, 3)), "trans": np.zeros((5, 3)), "fps": 30} | kwargs
+    with pytest.raises(MotionValueError, match=match):
+        Motion(**args)
+
+
+def test_empty_and_empty_slice():
+    with pytest.raises(ClipTooShortError):
+        Motion(np.zeros((0, 24, 3)), np.zeros((0, 3)), 30)
+    with pytest.raises(ClipTooShortError):
+        _motion().slice(10, 10)
+
+
+def test_resample_keeps_endpoints_and_is_smooth():
+    m = _motion(T=31)
+    up = m.resample(60)
+    assert up.num_frames == 61 and up.fps == 60
+    R = lambda p: axis_angle_to_matrix(torch.from_numpy(p).double())  # noqa: E731
+    # every other frame of the upsampled clip is an original frame
+    assert geodesic_distance(R(up.poses[::2]), R(m.poses)).max() < 1e-5
+    # a midpoint lies between its neighbours on the geodesic
+    d_ab = geodesic_distance(R(m.poses[:-1]), R(m.poses[1:]))
+    d_am = geodesic_distance(R(m.poses[:-1]), R(up.poses[1::2]))
+    assert torch.allclose(d_am, d_ab / 2, atol=1e-4)
+    down = m.resample(25)
+    assert down.num_frames == 26 and np.allclose(down.trans[0], m.trans[0])
