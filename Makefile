@@ -1,0 +1,55 @@
+# mrlib — two commands to know: `make demo` and `make test`.
+# Both create the virtual environment (.venv) on first use.
+
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+READY := $(VENV)/.mrlib-ready
+
+# Real motion capture used by the real-data tests, notebooks and benchmarks.
+export MRLIB_DATA_DIR ?= $(abspath ../shared/data/bandai-namco-motion-1)
+# Headless rendering (pyvista/VTK through EGL) and plotting.
+export PYVISTA_OFF_SCREEN ?= true
+export PYVISTA_JUPYTER_BACKEND ?= static
+export VTK_DEFAULT_OPENGL_WINDOW ?= vtkEGLRenderWindow
+export MPLBACKEND ?= Agg
+
+.PHONY: env demo test lint format lab bench clean
+
+$(READY): pyproject.toml constraints.txt
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -c constraints.txt -e ".[dev]"
+	$(BIN)/python -m ipykernel install --sys-prefix --name python3 --display-name "Python 3 (mrlib)" >/dev/null
+	touch $(READY)
+
+env: $(READY)
+
+## End-to-end demo on data that ships with the repo; writes to outputs/.
+demo: $(READY)
+	$(BIN)/mrlib demo --out outputs
+
+## Lint, unit and real-data tests, and every notebook executed headless.
+test: $(READY)
+	$(BIN)/ruff check mrlib tests bench tools
+	$(BIN)/python -m pytest --nbmake --nbmake-timeout=900 -p no:cacheprovider tests notebooks
+
+lint: $(READY)
+	$(BIN)/ruff check mrlib tests bench tools
+	$(BIN)/ruff format --check mrlib tests bench tools
+
+format: $(READY)
+	$(BIN)/ruff format mrlib tests bench tools
+	$(BIN)/ruff check --fix mrlib tests bench tools
+
+## JupyterLab on the notebooks.
+lab: $(READY)
+	$(BIN)/jupyter lab notebooks/
+
+## Speed and memory benchmarks (print tables, write JSON to bench/results/).
+bench: $(READY)
+	$(BIN)/python bench/load_speed.py
+	$(BIN)/python bench/metrics_speed.py
+	$(BIN)/python bench/train_speed.py
+
+clean:
+	rm -rf $(VENV) outputs .pytest_cache
