@@ -1,0 +1,194 @@
+"""Tests for mrlib.io.bvh: parser, Euler angles, forward kinematics, writer."""
+
+import numpy as np
+import pytest
+
+from mrlib.errors import BVHFormatError, MotionFileError
+from mrlib.io.bvh import (
+    _forward_kinematics_naive,
+    bvh_forward_kinematics,
+    bvh_local_transforms,
+    euler_to_matrix,
+    format_bvh,
+    forward_kinematics,
+    matrix_to_euler,
+    parse_bvh,
+    read_bvh,
+    write_bvh,
+)
+
+# A root with 6 channels in ZXY order, a joint with 3 rotation channels in XYZ order and
+# one with a channel subset (only Yrotation) - plus End Sites.
+SMALL = """HIERARCHY
+ROOT Hips
+{
+\tOFFSET 0 0 0
+\tCHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+\tJOINT Spine
+\t{
+\t\tOFFSET 0 10 0
+\t\tCHANNELS 3 Xrotation Yrotation Zrotation
+\t\tEnd Site
+\t\t{
+\t\t\tOFFSET 0 5 0
+\t\t}
+\t}
+\tJOINT Leg {
+\t\tOFFSET 2 -1 0
+\t\tCHANNELS 1 Yrotation
+\t\tEnd Site { OFFSET 0 -8 0 }
+\t}
+}
+MOTION
+Frames: 2
+Frame Time: 0.04
+1 2 3 0 0 0 0 0 0 0
+0 100 0 90 0 0 0 0 90 45
+"""
+
+
+def test_parse_small():
+    b = parse_bvh(SMALL)
+    sk = b.skeleton
+    assert sk.names == ("Hips", "Spine", "Leg")
+    assert sk.parents == (-1, 0, 0)
+    assert sk.channels[1] == ("Xrotation", "Yrotation", "Zrotation")
+    assert sk.channels[2] == ("Yrotation",)
+    assert sk.num_channels == 10
+    np.testing.assert_array_equal(sk.channel_starts(), [0, 6, 9])
+    assert [j for j, _ in sk.end_sites] == [1, 2]
+    np.testing.assert_allclose(sk.end_sites[1][1], [0, -8, 0])
+    assert b.motion.shape == (2, 10) and b.fps == pytest.approx(25.0)
+
+
+def test_fk_hand_computed():
+    b = parse_bvh(SMALL)
+    g, p = bvh_forward_kinematics(b)
+    # frame 0: no rotation, root at (1, 2, 3)
+    np.testing.assert_allclose(p[0], [[1, 2, 3], [1, 12, 3], [3, 1, 3]], atol=1e-12)
+    # frame 1: root at (0,100,0) rotated 90 deg about Z: local +Y -> world -X, +X -> +Y.
+    np.testing.assert_allclose(p[1, 1], [-10, 100, 0], atol=1e-9)
+    np.testing.assert_allclose(p[1, 2], [1, 102, 0], atol=1e-9)  # offset (2,-1,0) -> (1,2,0)
+    # Spine: Xrot 0, Yrot 0, Zrot 90 -> global = Rz(90) @ Rz(90) = Rz(180)
+    Rz = np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    np.testing.assert_allclose(g[1, 1], np.diag([-1.0, -1, 1]), atol=1e-12)
+    # Leg has a single Yrotation channel (45 deg)
+    r = np.deg2rad(45)
+    Ry45 = np.array([[np.cos(r), 0, np.sin(r)], [0, 1, 0], [-np.sin(r), 0, np.cos(r)]])
+    np.testing.assert_allclose(g[1, 2], Rz @ Ry45, atol=1e-12)
+
+
+def test_position_channels_replace_offset():
+    text = SMALL.replace("CHANNELS 1 Yrotation", "CHANNELS 2 Yrotation Xposition")
+    text = text.replace("0 0 0 0 0 0 0\n", "0 0 0 0 0 0 0 7\n", 1)
+    text = text.replace("0 90 45\n", "0 90 45 2\n")
+    rot, trans = bvh_local_transforms(parse_bvh(text))
+    np.testing.assert_allclose(trans[0, 2], [7, -1, 0])  # X replaced, Y and Z kept
+    np.testing.assert_allclose(trans[:, 1], [[0, 10, 0]] * 2)
+
+
+@pytest.mark.parametrize("order", ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"])
+def test_euler_round_trip(order):
+    rng = np.random.default_rng(1)
+    ang = rng.uniform(-180, 180, size=(500, 3))
+    ang[:5, 1] = [90, -90, 89.9999999, -90, 90]  # gimbal lock
+    R = euler_to_matrix(ang, order)
+    np.testing.assert_allclose(
+        R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape), atol=1e-12
+    )
+    back = matrix_to_euler(R, order)
+    assert np.all(np.abs(back[:, 1]) <= 90 + 1e-9)
+    np.testing.assert_allclose(euler_to_matrix(back, order), R, atol=1e-10)
+
+
+def test_euler_composition_order():
+    # "ZX" means Rz @ Rx: rotate X first in the child's frame
+    R = euler_to_matrix(np.array([90.0, 90.0]), "ZX")
+    np.testing.assert_allclose(R @ [0, 1, 0], [0, 0, 1], atol=1e-12)  # Rx: y->z, Rz keeps z
+    np.testing.assert_allclose(R @ [0, 0, 1], [1, 0, 0], atol=1e-12)  # Rx: z->-y, Rz: -y->x
+
+
+def test_fk_matches_naive():
+    rng = np.random.default_rng(2)
+    parents = (-1, 0, 1, 1, 0, 4)
+    rot = euler_to_matrix(rng.uniform(-180, 180, (7, 6, 3)), "ZXY")
+    trans = rng.normal(size=(7, 6, 3))
+    g, p = forward_kinematics(parents, rot, trans)
+    g0, p0 = _forward_kinematics_naive(parents, rot, trans)
+    np.testing.assert_allclose(g, g0, atol=1e-12)
+    np.testing.assert_allclose(p, p0, atol=1e-12)
+
+
+def test_write_read_round_trip(tmp_path):
+    b = parse_bvh(SMALL)
+    path = write_bvh(tmp_path / "x.bvh", b)
+    b2 = read_bvh(path)
+    assert b2.skeleton.names == b.skeleton.names and b2.skeleton.channels == b.skeleton.channels
+    np.testing.assert_allclose(b2.motion, b.motion, atol=1e-6)
+    np.testing.assert_allclose(b2.skeleton.offsets, b.skeleton.offsets)
+    assert b2.frame_time == pytest.approx(b.frame_time)
+    assert format_bvh(b2) == format_bvh(b)
+
+
+def _lines(text):
+    return text.splitlines()
+
+
+@pytest.mark.parametrize(
+    "mutate, line, match",
+    [
+        # truncated inside the hierarchy
+        (lambda t: "\n".join(_lines(t)[:9]), 9, "truncated hierarchy"),
+        # truncated frame data
+        (
+            lambda t: "\n".join(_lines(t)[:-1]),
+            24,
+            r"'Frames: 2' but the file has 1 frame lines \(truncated",
+        ),
+        # more frame lines than declared
+        (lambda t: t + "0 0 0 0 0 0 0 0 0 0\n", 26, "more frame lines than declared"),
+        # wrong number of values on a frame line
+        (
+            lambda t: t.replace("1 2 3 0 0 0 0 0 0 0", "1 2 3 0 0 0 0 0 0"),
+            24,
+            "expected 10 values in frame 1.*got 9",
+        ),
+        # a non-numeric value
+        (lambda t: t.replace("0 100 0 90", "0 abc 0 90"), 25, "value 2 is not a number: 'abc'"),
+        # NaN in the frames
+        (lambda t: t.replace("0 100 0 90", "0 nan 0 90"), 25, "value 2 is not finite"),
+        # misspelt keyword
+        (
+            lambda t: t.replace("\tOFFSET 0 10 0", "\tOFSET 0 10 0"),
+            8,
+            "expected 'OFFSET', got 'OFSET'",
+        ),
+        # unknown channel name
+        (
+            lambda t: t.replace("Xrotation Yrotation Zrotation", "Xrotation Yrotation Wrotation"),
+            9,
+            "channel name",
+        ),
+        # non-numeric offset
+        (lambda t: t.replace("OFFSET 2 -1 0", "OFFSET 2 x 0"), 16, "expected a number for OFFSET"),
+        # missing MOTION section
+        (lambda t: t[: t.index("MOTION")], 20, "expected a 'MOTION' section"),
+        # bad Frames header
+        (lambda t: t.replace("Frames: 2", "Frame: 2"), 22, "expected 'Frames: <number>'"),
+        (lambda t: t.replace("Frame Time: 0.04", "Frame Time: 0"), 23, "must be a positive number"),
+        # no HIERARCHY keyword
+        (lambda t: t.replace("HIERARCHY", "HIERARCHIE"), 1, "expected 'HIERARCHY'"),
+        (lambda t: "", 1, "empty"),
+    ],
+)
+def test_malformed_raises_with_line(mutate, line, match):
+    with pytest.raises(BVHFormatError, match=match) as info:
+        parse_bvh(mutate(SMALL), source="bad.bvh")
+    msg = str(info.value)
+    assert msg.startswith("bad.bvh: ") and f"line {line}:" in msg, msg
+    assert isinstance(info.value, MotionFileError)
+
+
+def test_missing_file_is_typed(tmp_path):
+    with pytest.raises(BVHFormatError, match="cannot read"):
+        read_bvh(tmp_path / "nope.bvh")
