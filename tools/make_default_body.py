@@ -71,9 +71,9 @@ BASE_PHENOTYPE = dict(gender=0.5, age=2 / 3, muscle=0.5, weight=0.5, height=0.35
 # Shape directions, in beta order: (name, kind, key, step). beta = +1 is the change
 # of the phenotype value / local-change coefficient by ``step`` (central difference).
 SHAPE_DIRECTIONS = (
-    ("height", "phenotype", "height", 0.25),
-    ("weight", "phenotype", "weight", 0.25),
-    ("muscle", "phenotype", "muscle", 0.25),
+    # anny's height phenotype spans ~1.3 m to ~2.4 m over [0, 1]: 0.065 is ~7 cm of stature
+    ("height", "phenotype", "height", 0.065),
+    ("weight", "phenotype", "weight", 0.5),  # MakeHuman's weight range is a subtle girth change
     ("upper_leg_length", "local", "upperlegs-height-incr", 0.5),
     ("lower_leg_length", "local", "lowerlegs-height-incr", 0.5),
     ("upper_arm_length", "local", "measure-upperarm-length-incr", 0.5),
@@ -81,6 +81,7 @@ SHAPE_DIRECTIONS = (
     ("shoulder_width", "local", "measure-shoulder-dist-incr", 0.5),
     ("torso_length", "local", "measure-napetowaist-dist-incr", 0.5),
     ("hip_width", "local", "hip-scale-horiz-incr", 0.5),
+    ("neck_length", "local", "measure-neck-height-incr", 0.5),
 )
 NUM_POSE_BASIS = 207  # SMPL's 23 joints x 9; the default body has no pose correctives
 TARGET_VERTICES = 6900  # about SMPL's 6890
@@ -212,12 +213,13 @@ def contact_vertices(v: np.ndarray, w: np.ndarray) -> list[int]:
         on_foot = w[:, [ankle, foot]].sum(1) > 0.5
         sole = on_foot & (v[:, 1] < v[on_foot, 1].min() + 0.012)
         cand = np.flatnonzero(sole)
-        x = side * v[cand, 0]  # lateral coordinate (outward positive)
+        lat = side * v[cand, 0]  # lateral coordinate, outward positive
         z = v[cand, 2]  # forward
-        xm, xr = x.mean(), np.ptp(x)
-        big = cand[np.argmax(z - 0.8 * np.abs(x - (xm - 0.3 * xr)))]
-        small = cand[np.argmax(z - 0.8 * np.abs(x - (xm + 0.3 * xr)) - 0.0 * z)]
-        heel = cand[np.argmin(z + 0.3 * np.abs(x - xm))]
+        length = np.ptp(z)
+        toes = z > z.max() - 0.2 * length  # front fifth of the sole
+        big = cand[toes][np.argmax(z[toes] - 0.5 * lat[toes])]  # tip, medial side
+        small = cand[toes][np.argmax(lat[toes] + 0.5 * z[toes])]  # lateral toe
+        heel = cand[np.argmin(z + 0.3 * np.abs(lat - lat.mean()))]  # back, centred
         ids += [int(big), int(small), int(heel)]
     return ids
 
