@@ -19,13 +19,15 @@ J = 24 joints, V vertices, K selected vertices, NB = ``num_betas``. Units: metre
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import io
 import os
 import pickle
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import smplx
@@ -50,7 +52,15 @@ SMPL_LICENSE = (
     "SMPL Model License (non-commercial scientific use; "
     "see https://smpl.is.tue.mpg.de/modellicense.html)"
 )
-_REQUIRED_KEYS = ("v_template", "f", "shapedirs", "posedirs", "J_regressor", "kintree_table", "weights")
+_REQUIRED_KEYS = (
+    "v_template",
+    "f",
+    "shapedirs",
+    "posedirs",
+    "J_regressor",
+    "kintree_table",
+    "weights",
+)
 # File names the official SMPL downloads use, tried inside a folder.
 _OFFICIAL_NAMES = {
     "neutral": ("basicModel_neutral_lbs_10_207_0_v1.0.0.pkl",),
@@ -68,17 +78,17 @@ def default_body_path() -> Path:
 class _ChumpyArray:
     """Stands in for any chumpy object while unpickling; keeps only its numpy value.
 
-    A pickled ``chumpy.Ch`` stores its value under ``"x"`` in its state dict."""
+    A pickled ``chumpy.Ch`` stores its value under ``"x"`` in its state dict. Pickles
+    may create the object without calling ``__init__``, hence the class defaults."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        self.value: np.ndarray | None = None
-        self.state_keys: list[str] = []
+    value: np.ndarray | None = None
+    state_keys: tuple[str, ...] = ()
 
     def __setstate__(self, state: Any) -> None:
         if isinstance(state, tuple) and len(state) == 2:  # (dict, slots) form
             state = state[0]
         if isinstance(state, dict):
-            self.state_keys = sorted(map(str, state))
+            self.state_keys = tuple(sorted(map(str, state)))
             if "x" in state:
                 self.value = np.asarray(_to_numpy(state["x"]))
 
@@ -86,9 +96,8 @@ class _ChumpyArray:
 class _SparseMatrix:
     """Stands in for a pickled scipy.sparse CSC/CSR/COO matrix; converted to dense."""
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        self.state: dict = {}
-        self.kind = "csc"
+    kind = "csc"
+    state: dict = {}
 
     def __setstate__(self, state: Any) -> None:
         self.state = state if isinstance(state, dict) else {}
@@ -116,19 +125,7 @@ class _SparseMatrix:
         return out
 
 
-def _sparse_class(kind: str) -> type:
-    return type(f"_{kind}_matrix", (_SparseMatrix,), {"__init__": _sparse_init(kind)})
-
-
-def _sparse_init(kind: str):
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        _SparseMatrix.__init__(self)
-        self.kind = kind
-
-    return __init__
-
-
-_SPARSE = {k: _sparse_class(k) for k in ("csc", "csr", "coo")}
+_SPARSE = {k: type(f"_{k}_matrix", (_SparseMatrix,), {"kind": k}) for k in ("csc", "csr", "coo")}
 
 
 def _safe_reconstructor(cls: Any, base: Any, state: Any) -> Any:
@@ -155,6 +152,9 @@ class _SMPLUnpickler(pickle.Unpickler):
         ("numpy", "dtype"),
     }
 
+    # plain containers that chumpy objects keep in their state
+    _BUILTINS = {t.__name__: t for t in (object, set, frozenset, list, dict, tuple, complex, slice)}
+
     def find_class(self, module: str, name: str) -> Any:
         if (module, name) in self._NUMPY:
             return getattr(np, name) if module == "numpy" else _numpy_global(name)
@@ -164,8 +164,10 @@ class _SMPLUnpickler(pickle.Unpickler):
             return _SPARSE[name[:3]]
         if module in ("copy_reg", "copyreg") and name == "_reconstructor":
             return _safe_reconstructor
-        if module in ("__builtin__", "builtins") and name == "object":
-            return object
+        if module in ("__builtin__", "builtins") and name in self._BUILTINS:
+            return self._BUILTINS[name]
+        if module == "_codecs" and name == "encode":  # bytes in protocol-0..2 pickles
+            return codecs.encode
         raise pickle.UnpicklingError(
             f"refusing to load global {module}.{name}: not part of an SMPL model file"
         )
@@ -214,7 +216,9 @@ def read_smpl_arrays(path: str | Path) -> dict[str, np.ndarray]:
         except Exception as e:
             raise BodyModelError(f"{path}: not a readable .npz file ({e})") from e
     if suffix != ".pkl":
-        raise BodyModelError(f"{path}: unsupported body model file type {suffix!r} (want .pkl or .npz)")
+        raise BodyModelError(
+            f"{path}: unsupported body model file type {suffix!r} (want .pkl or .npz)"
+        )
     try:
         with open(path, "rb") as fh:
             data = _SMPLUnpickler(fh, encoding="latin1").load()
@@ -267,9 +271,13 @@ def _validate(arrays: dict[str, Any], path: Path) -> dict[str, np.ndarray]:
     }
     for k, shape in expect.items():
         got = a[k].shape
-        if len(got) != len(shape) or any(s is not None and s != g for s, g in zip(shape, got)):
+        if len(got) != len(shape) or any(
+            s is not None and s != g for s, g in zip(shape, got, strict=True)
+        ):
             want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
-            raise BodyModelError(f"{path}: {k} has shape {got}, expected {want} for a 24-joint SMPL model")
+            raise BodyModelError(
+                f"{path}: {k} has shape {got}, expected {want} for a 24-joint SMPL model"
+            )
     for k in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights"):
         if not np.isfinite(a[k]).all():
             raise BodyModelError(f"{path}: {k} has NaN or inf values")
@@ -431,7 +439,9 @@ class BodyModel(torch.nn.Module):
             :class:`BodyOutput` with ``joints (..., 24, 3)`` and ``vertices (..., K, 3)``.
         """
         if rotmat.ndim < 3 or tuple(rotmat.shape[-3:]) != (NUM_JOINTS, 3, 3):
-            raise BodyModelError(f"rotmat must have shape (..., 24, 3, 3), got {tuple(rotmat.shape)}")
+            raise BodyModelError(
+                f"rotmat must have shape (..., 24, 3, 3), got {tuple(rotmat.shape)}"
+            )
         lead = tuple(rotmat.shape[:-3])
         N = int(np.prod(lead)) if lead else 1
         R = rotmat.to(self.dtype).reshape(N, NUM_JOINTS, 3, 3)
@@ -460,14 +470,20 @@ class BodyModel(torch.nn.Module):
         smpl = self.smpl
         if isinstance(vertex_ids, str):
             if vertex_ids != "all":
-                raise BodyModelError(f"vertex_ids must be None, 'all' or indices, got {vertex_ids!r}")
+                raise BodyModelError(
+                    f"vertex_ids must be None, 'all' or indices, got {vertex_ids!r}"
+                )
             ids = None
             v_t, dirs, W = smpl.v_template, smpl.shapedirs, smpl.lbs_weights
             posedirs = smpl.posedirs
         else:
-            ids = torch.as_tensor(np.asarray(vertex_ids), device=self.device, dtype=torch.long).reshape(-1)
+            ids = torch.as_tensor(
+                np.asarray(vertex_ids), device=self.device, dtype=torch.long
+            ).reshape(-1)
             if len(ids) and (ids.min() < 0 or ids.max() >= self.num_vertices):
-                raise BodyModelError(f"vertex_ids must be in [0, {self.num_vertices}), got {ids.tolist()[:8]}...")
+                raise BodyModelError(
+                    f"vertex_ids must be in [0, {self.num_vertices}), got {ids.tolist()[:8]}..."
+                )
             v_t, dirs, W = smpl.v_template[ids], smpl.shapedirs[ids], smpl.lbs_weights[ids]
             posedirs = None
         if b.ndim == 1:
@@ -580,7 +596,9 @@ def load_body_model(
             "(the 6 foot contact vertices); add them to the npz"
         )
     if len(foot_ids) != 6 or min(foot_ids) < 0 or max(foot_ids) >= V:
-        raise BodyModelError(f"{file}: vertex_ids must be 6 vertex indices in [0, {V}), got {foot_ids}")
+        raise BodyModelError(
+            f"{file}: vertex_ids must be 6 vertex indices in [0, {V}), got {foot_ids}"
+        )
 
     # smplx appends keypoints picked from SMPL-topology vertex ids (nose, ears, toes,
     # fingertips) to its joints; mrlib only uses the first 24, but the ids must exist on
@@ -589,8 +607,14 @@ def load_body_model(
     kwargs: dict[str, Any] = {}
     if V != 6890:
         top = int(np.argmax(arrays["v_template"][:, 1]))
-        vid = dict(zip(("nose", "reye", "leye", "rear", "lear"), [top] * 5))
-        vid.update(zip(("LBigToe", "LSmallToe", "LHeel", "RBigToe", "RSmallToe", "RHeel"), foot_ids))
+        vid = dict(zip(("nose", "reye", "leye", "rear", "lear"), [top] * 5, strict=True))
+        vid.update(
+            zip(
+                ("LBigToe", "LSmallToe", "LHeel", "RBigToe", "RSmallToe", "RHeel"),
+                foot_ids,
+                strict=True,
+            )
+        )
         kwargs = dict(vertex_ids=vid, use_hands=False, use_feet_keypoints=True)
     struct = smplx.utils.Struct(**{k: arrays[k] for k in _REQUIRED_KEYS})
     try:
@@ -601,7 +625,9 @@ def load_body_model(
                 create_transl=False, **kwargs,
             )  # fmt: skip
     except Exception as e:
-        raise BodyModelError(f"{file}: smplx could not build the model ({type(e).__name__}: {e})") from e
+        raise BodyModelError(
+            f"{file}: smplx could not build the model ({type(e).__name__}: {e})"
+        ) from e
 
     beta_names = [str(s) for s in arrays["beta_names"]] if "beta_names" in arrays else None
     model = BodyModel(

@@ -136,7 +136,7 @@ def t_pose_rotations(joints: np.ndarray) -> np.ndarray:
     chains = {+1.0: (16, 18, 20, 22), -1.0: (17, 19, 21, 23)}
     for side, chain in chains.items():
         target = np.array([side, 0.0, 0.0])
-        for j, child in zip(chain[:-1], chain[1:]):
+        for j, child in zip(chain[:-1], chain[1:], strict=True):
             G = forward_kinematics(local, joints)
             posed = G[:, :3, :3] @ joints[..., None]
             posed = posed[..., 0] + G[:, :3, 3]
@@ -181,7 +181,9 @@ def fit_joint_regressor(v: np.ndarray, w: np.ndarray, joints: np.ndarray) -> np.
             if len(idx) < 8:
                 continue
             lam = 1e-4
-            A = np.concatenate([v[idx].T, 10.0 * np.ones((1, len(idx))), np.sqrt(lam) * np.eye(len(idx))])
+            A = np.concatenate(
+                [v[idx].T, 10.0 * np.ones((1, len(idx))), np.sqrt(lam) * np.eye(len(idx))]
+            )
             b = np.concatenate([joints[j], [10.0], np.zeros(len(idx))])
             x, _ = nnls(A, b, maxiter=20 * len(idx))
             x = x / x.sum()
@@ -248,7 +250,9 @@ def build(out_path: Path) -> None:
     joint_of_bone[bones.index("Root")] = 0
     for b, name in enumerate(bones):  # finger bones all belong to SMPL's *_hand
         if any(name.startswith(f) for f in ("index", "middle", "ring", "pinky", "thumb")):
-            joint_of_bone[b] = JOINT_NAMES.index("left_hand" if name.endswith("_l") else "right_hand")
+            joint_of_bone[b] = JOINT_NAMES.index(
+                "left_hand" if name.endswith("_l") else "right_hand"
+            )
     vbi = model.vertex_bone_indices.numpy()
     vbw = model.vertex_bone_weights.numpy()
     W = np.zeros((len(vbi), 24))
@@ -320,14 +324,20 @@ def build(out_path: Path) -> None:
         meta=np.array(json.dumps(meta)),
     )
     height = v0[:, 1].max() - v0[:, 1].min()
-    print(f"saved {out_path}: {len(v0)} vertices, {len(faces)} faces, height {height:.3f} m, "
-          f"{out_path.stat().st_size / 1e6:.2f} MB, foot vertices {foot_ids}")
+    print(
+        f"saved {out_path}: {len(v0)} vertices, {len(faces)} faces, height {height:.3f} m, "
+        f"{out_path.stat().st_size / 1e6:.2f} MB, foot vertices {foot_ids}"
+    )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("mrlib/assets/default_body.npz"),
-                    help="where to write the npz")
+    ap.add_argument(
+        "--out",
+        type=Path,
+        default=Path("mrlib/assets/default_body.npz"),
+        help="where to write the npz",
+    )
     args = ap.parse_args()
     build(args.out)
 
