@@ -527,6 +527,10 @@ def _fmt(x: float) -> str:
 def format_bvh(bvh: BVH, *, precision: int = 6) -> str:
     """BVH text of ``bvh`` (tab-indented hierarchy, one frame per line).
 
+    The hierarchy is written depth first; joints stored in another order (e.g. SMPL's
+    breadth-first one) are reordered, and their frame values with them, so reading the
+    text back gives the same skeleton up to joint order.
+
     ``precision`` is the number of decimals of the frame values (6 keeps Euler angles in
     degrees to 1e-6, i.e. about 2e-8 rad).
     """
@@ -540,7 +544,10 @@ def format_bvh(bvh: BVH, *, precision: int = 6) -> str:
         ends.setdefault(j, []).append(off)
     out = ["HIERARCHY"]
 
+    order: list[int] = []  # joints in the order written: frame values must follow it
+
     def emit(j: int, depth: int) -> None:
+        order.append(j)
         ind = "\t" * depth
         kw = "ROOT" if sk.parents[j] < 0 else "JOINT"
         out.append(f"{ind}{kw} {sk.names[j]}")
@@ -566,7 +573,12 @@ def format_bvh(bvh: BVH, *, precision: int = 6) -> str:
     out += ["MOTION", f"Frames: {bvh.num_frames}", f"Frame Time: {bvh.frame_time:.8f}"]
     text = "\n".join(out) + "\n"
     if bvh.num_frames:
-        body = np.char.mod(f"%.{precision}f", np.round(bvh.motion, precision) + 0.0)
+        starts = sk.channel_starts()
+        cols = np.concatenate(
+            [np.arange(starts[j], starts[j] + len(sk.channels[j])) for j in order]
+        )
+        values = bvh.motion[:, cols.astype(np.int64)]
+        body = np.char.mod(f"%.{precision}f", np.round(values, precision) + 0.0)
         text += "\n".join(" ".join(row) for row in body) + "\n"
     return text
 

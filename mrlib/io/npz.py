@@ -1,0 +1,333 @@
+"""SMPL parameter files: AMASS-style ``.npz`` (read and write) and EasyMocap output folders.
+
+AMASS-style npz keys (https://amass.is.tue.mpg.de/):
+
+* ``poses`` ``(T, 72)`` SMPL, ``(T, 156)`` SMPL-H or ``(T, 165)`` SMPL-X axis-angle. The
+  first 22 joints (pelvis ... right wrist) are the same in all three. SMPL's joints 22 and
+  23 (``left_hand``, ``right_hand``) have no counterpart in SMPL-H/SMPL-X, which replace
+  them by finger joints: they are set to **zero rotation** and the fingers are dropped
+  (``Motion.meta["dropped_hand_pose"]`` says so).
+* ``trans`` ``(T, 3)`` metres; ``betas`` (any length; the first 10 are kept, since the
+  shape spaces of different body models do not correspond anyway);
+  ``mocap_framerate`` or ``mocap_frame_rate`` (frames per second).
+* ``up_axis``: not an AMASS key. AMASS is **Z up**, so files without it are read as
+  ``"z"``; mrlib's own files store ``up_axis="y"``. The rotation to mrlib's Y-up frame
+  is applied to the global orientation and to the translation (about the body's rest
+  pelvis: ``mrlib.io.retarget.change_up_axis``).
+
+mrlib's npz (``save_npz``) uses the same keys with ``poses (T, 72)``, ``up_axis="y"`` and
+optionally ``contacts (T, 6)``, ``label``, ``name`` and ``meta_json``.
+
+EasyMocap writes one JSON file per frame, each a list of people
+``{"id", "Rh" (1, 3), "Th" (1, 3), "poses" (1, 72 or 69), "shapes" (1, 10)}``; its body
+is posed with a zero root rotation and then moved rigidly:
+``v_world = R(Rh) v + Th``. In SMPL's convention that is a global orientation
+``R(Rh) R(poses[:3])`` and a translation ``R(Rh) J_pelvis + Th - J_pelvis``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.io.retarget import (
+    change_up_axis,
+    default_body,
+    detect_up_axis,
+    rest_pelvis,
+    up_axis_rotation,
+)
+from mrlib.motion import NUM_BETAS, Motion
+from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from mrlib.skeleton import NUM_CONTACTS, NUM_JOINTS
+
+__all__ = ["load_npz", "save_npz", "load_easymocap", "POSE_WIDTHS"]
+
+# Pose vector widths and the body model they come from.
+POSE_WIDTHS = {72: "SMPL", 156: "SMPL-H", 165: "SMPL-X"}
+_FPS_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps")
+
+
+def _finite(path, key: str, arr: np.ndarray) -> np.ndarray:
+    if not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr.reshape(len(arr), -1) if arr.ndim else arr[None]))[0, 0]
+        raise MotionFileError(path, f"'{key}' has NaN or inf values (first at index {bad})")
+    return arr
+
+
+def _array(path, data, key: str, ndim: int | None = None) -> np.ndarray:
+    if key not in data:
+        raise MotionFileError(path, f"missing key '{key}' (keys: {sorted(data.keys())})")
+    try:
+        arr = np.asarray(data[key], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MotionFileError(path, f"'{key}' is not numeric") from None
+    if ndim is not None and arr.ndim != ndim:
+        raise MotionFileError(path, f"'{key}' must have {ndim} dimensions, got shape {arr.shape}")
+    return _finite(path, key, arr)
+
+
+def _text_value(data, key: str) -> str | None:
+    if key not in data:
+        return None
+    v = np.asarray(data[key])
+    return str(v.item() if v.ndim == 0 else v.reshape(-1)[0])
+
+
+def _to_y_up(poses, trans, betas, up_axis, body) -> tuple[np.ndarray, np.ndarray]:
+    """Rotate SMPL parameters from an ``up_axis``-up world to mrlib's Y-up world."""
+    if up_axis == "y":
+        return poses, trans
+    body = default_body() if body is None else body
+    G = axis_angle_to_matrix(torch.from_numpy(poses[:, 0])).numpy()
+    G, trans = change_up_axis(G, trans, rest_pelvis(body, betas), up_axis)
+    poses = poses.copy()
+    poses[:, 0] = matrix_to_axis_angle(torch.from_numpy(G)).numpy()
+    return poses, trans
+
+
+def _check_axis(path, axis: str) -> str:
+    try:
+        up_axis_rotation(axis)
+    except ValueError as e:
+        raise MotionFileError(path, str(e)) from None
+    return str(axis).lower()
+
+
+def load_npz(
+    path: str | Path,
+    fps: float | None = None,
+    *,
+    up_axis: str | None = None,
+    body=None,
+) -> Motion:
+    """Read an AMASS-style or mrlib npz (see the module docstring for the keys).
+
+    Args:
+        path: the ``.npz`` file.
+        fps: resample to this frame rate (the file's own rate is used when None); if the
+            file has no frame-rate key, ``fps`` is required and taken as its rate.
+        up_axis: the file's up axis, overriding its ``up_axis`` key (default ``"z"``,
+            AMASS's, when the file has none).
+        body: body model for the rest pelvis used by the up-axis conversion (default:
+            mrlib's); only needed for files that are not Y up.
+
+    Returns:
+        A ``Motion`` named after the file stem; ``meta`` has ``source``, ``format``,
+        ``up_axis`` and, for SMPL-H/SMPL-X, ``dropped_hand_pose``.
+
+    Raises:
+        MotionFileError: unreadable file, missing keys, wrong shapes, NaN values.
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError) as e:
+        raise MotionFileError(path, f"cannot read npz: {e}") from None
+    poses = _array(path, data, "poses", ndim=2)
+    T, width = poses.shape
+    if width not in POSE_WIDTHS:
+        raise MotionFileError(
+            path,
+            f"'poses' has shape {poses.shape}; expected (T, 72) SMPL, (T, 156) SMPL-H or "
+            f"(T, 165) SMPL-X axis-angle",
+        )
+    if T == 0:
+        raise MotionFileError(path, "'poses' has no frames")
+    meta: dict[str, Any] = {"source": str(path), "format": f"npz ({POSE_WIDTHS[width]} poses)"}
+    if width == 72:
+        poses = poses.reshape(T, NUM_JOINTS, 3)
+    else:  # SMPL-H / SMPL-X: 22 shared joints, SMPL's hand joints 22, 23 set to zero
+        poses = np.concatenate([poses[:, :66], np.zeros((T, 6))], axis=1).reshape(T, NUM_JOINTS, 3)
+        meta["dropped_hand_pose"] = True
+    trans = _array(path, data, "trans", ndim=2)
+    if trans.shape != (T, 3):
+        raise MotionFileError(
+            path, f"'trans' must have shape ({T}, 3) like 'poses', got {trans.shape}"
+        )
+    betas = np.zeros(NUM_BETAS)
+    if "betas" in data:
+        b = _array(path, data, "betas").reshape(-1)
+        betas = b[:NUM_BETAS]
+    file_fps = next((k for k in _FPS_KEYS if k in data), None)
+    if file_fps is not None:
+        rate = float(_array(path, data, file_fps).reshape(-1)[0])
+        if not rate > 0:
+            raise MotionFileError(path, f"'{file_fps}' must be positive, got {rate}")
+    elif fps is None:
+        raise MotionFileError(
+            path,
+            "missing key 'mocap_framerate' (or 'mocap_frame_rate'); pass fps= to give the rate",
+        )
+    else:
+        rate = float(fps)
+    axis = up_axis if up_axis is not None else (_text_value(data, "up_axis") or "z")
+    axis = _check_axis(path, axis)
+    meta["up_axis"] = axis
+    poses, trans = _to_y_up(poses, trans, betas, axis, body)
+    contacts = None
+    if "contacts" in data:
+        contacts = _array(path, data, "contacts", ndim=2)
+        if contacts.shape != (T, NUM_CONTACTS):
+            raise MotionFileError(
+                path, f"'contacts' must have shape ({T}, {NUM_CONTACTS}), got {contacts.shape}"
+            )
+    if "meta_json" in data:
+        try:
+            meta = {**json.loads(_text_value(data, "meta_json") or "{}"), **meta}
+        except json.JSONDecodeError:
+            raise MotionFileError(path, "'meta_json' is not valid JSON") from None
+    try:
+        motion = Motion(
+            poses=poses,
+            trans=trans,
+            fps=rate,
+            betas=betas,
+            contacts=contacts,
+            label=_text_value(data, "label"),
+            name=_text_value(data, "name") or path.stem,
+            meta=meta,
+        )
+    except MotionValueError as e:
+        raise MotionFileError(path, str(e)) from None
+    return motion if fps is None or file_fps is None else motion.resample(fps)
+
+
+def save_npz(motion: Motion, path: str | Path) -> Path:
+    """Write ``motion`` as an AMASS-style npz with ``up_axis="y"`` (mrlib's frame).
+
+    Keys: ``poses (T, 72)``, ``trans (T, 3)``, ``betas``, ``mocap_framerate``,
+    ``up_axis``, ``gender="neutral"``, and when present ``contacts (T, 6)``, ``label``,
+    ``name``, ``meta_json`` (``Motion.meta`` as JSON, non-JSON values as strings).
+    """
+    path = Path(path)
+    out: dict[str, Any] = {
+        "poses": motion.poses.reshape(motion.num_frames, NUM_JOINTS * 3).astype(np.float32),
+        "trans": motion.trans.astype(np.float32),
+        "betas": np.asarray(motion.betas, dtype=np.float32),
+        "mocap_framerate": np.float64(motion.fps),
+        "up_axis": np.str_("y"),
+        "gender": np.str_("neutral"),
+    }
+    if motion.contacts is not None:
+        out["contacts"] = motion.contacts.astype(np.float32)
+    if motion.label is not None:
+        out["label"] = np.str_(motion.label)
+    if motion.name is not None:
+        out["name"] = np.str_(motion.name)
+    if motion.meta:
+        out["meta_json"] = np.str_(json.dumps(motion.meta, default=str))
+    with open(path, "wb") as f:  # np.savez would append ".npz" to other suffixes
+        np.savez(f, **out)
+    return path
+
+
+def _natural_key(p: Path):
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", p.name)]
+
+
+def load_easymocap(
+    folder: str | Path,
+    fps: float,
+    *,
+    person: int = 0,
+    up_axis: str = "auto",
+    body=None,
+) -> Motion:
+    """Read an EasyMocap SMPL output folder (one JSON file per frame).
+
+    Args:
+        folder: the folder of per-frame ``*.json`` files (sorted by the numbers in
+            their names).
+        fps: the capture frame rate (EasyMocap stores none); required.
+        person: the ``id`` of the person to read (every frame must contain them).
+        up_axis: the world's up axis. EasyMocap's world is the camera frame for
+            monocular capture (**Y down**, ``"-y"``) and the calibration board's frame
+            for multi-view capture (often ``"z"``). The default ``"auto"`` picks the
+            signed axis closest to the body's mean up direction (the pelvis's rest Y
+            axis), which is right for anyone mostly upright.
+        body: body model for the rest pelvis (default: mrlib's).
+
+    Returns:
+        A ``Motion`` named after the folder; ``meta["up_axis"]`` records the axis used.
+
+    Raises:
+        MotionFileError: no JSON files, unreadable JSON, the person missing from a frame,
+            missing keys (named) or wrong shapes.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise MotionFileError(folder, "EasyMocap input must be a folder of per-frame JSON files")
+    files = sorted(folder.glob("*.json"), key=_natural_key)
+    if not files:
+        raise MotionFileError(folder, "no *.json files in the folder")
+    if fps is None or not (np.isfinite(fps) and fps > 0):
+        raise MotionFileError(folder, "EasyMocap files store no frame rate: pass fps=")
+    Rh, Th, poses, shapes = [], [], [], []
+    for f in files:
+        try:
+            data = json.loads(f.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as e:
+            raise MotionFileError(f, f"cannot read JSON: {e}") from None
+        people = data.get("annots", data) if isinstance(data, dict) else data
+        if isinstance(people, dict):
+            people = [people]
+        who = [p for p in people if isinstance(p, dict) and int(p.get("id", 0)) == person]
+        if not who:
+            raise MotionFileError(f, f"no person with id {person} in this frame")
+        p = who[0]
+        Rh.append(_vector(f, p, "Rh", (3,)))
+        Th.append(_vector(f, p, "Th", (3,)))
+        pose = _vector(f, p, "poses", None)
+        if pose.size == 69:
+            pose = np.concatenate([np.zeros(3), pose])
+        elif pose.size != 72:
+            if pose.size < 66:
+                raise MotionFileError(f, f"'poses' has {pose.size} values; expected 72 or 69")
+            pose = np.concatenate([pose[:66], np.zeros(6)])  # SMPL-H layout: hands dropped
+        poses.append(pose.reshape(NUM_JOINTS, 3))
+        shapes.append(
+            _vector(f, p, "shapes", None)[:NUM_BETAS] if "shapes" in p else np.zeros(NUM_BETAS)
+        )
+    Rh, Th, poses = np.stack(Rh), np.stack(Th), np.stack(poses)
+    betas = np.mean(np.stack([np.pad(s, (0, NUM_BETAS - len(s))) for s in shapes]), axis=0)
+    body = default_body() if body is None else body
+    J0 = rest_pelvis(body, betas)
+    R_h = axis_angle_to_matrix(torch.from_numpy(Rh)).numpy()
+    G = R_h @ axis_angle_to_matrix(torch.from_numpy(poses[:, 0])).numpy()  # (T, 3, 3)
+    trans = R_h @ J0 + Th - J0  # SMPL's transl for EasyMocap's rigid (Rh, Th)
+    if up_axis == "auto":
+        up_axis = detect_up_axis(G[:, :, 1])  # the pelvis's rest up (Y) axis in the world
+    axis = _check_axis(folder, up_axis)
+    G, trans = change_up_axis(G, trans, J0, axis)
+    poses[:, 0] = matrix_to_axis_angle(torch.from_numpy(G)).numpy()
+    meta = {"source": str(folder), "format": "easymocap", "up_axis": axis, "person": person}
+    try:
+        return Motion(
+            poses=poses, trans=trans, fps=float(fps), betas=betas, name=folder.name, meta=meta
+        )
+    except MotionValueError as e:
+        raise MotionFileError(folder, str(e)) from None
+
+
+def _vector(path: Path, person: dict, key: str, size: tuple[int, ...] | None) -> np.ndarray:
+    if key not in person:
+        raise MotionFileError(path, f"missing key '{key}' for person {person.get('id', 0)}")
+    try:
+        v = np.asarray(person[key], dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise MotionFileError(path, f"'{key}' is not numeric") from None
+    if size is not None and v.shape != size:
+        raise MotionFileError(
+            path, f"'{key}' must have {size[0]} values (shape (1, {size[0]})), got {v.size}"
+        )
+    if not np.isfinite(v).all():
+        raise MotionFileError(path, f"'{key}' has NaN or inf values")
+    return v

@@ -1,0 +1,859 @@
+"""Retargeting a BVH skeleton onto SMPL, and the world-frame conversions mrlib's readers share.
+
+The BVH's joints are matched to SMPL's by a *joint map* (SMPL joint name -> BVH joint
+name). Maps ship for the Bandai Namco and CMU skeletons (``joint_maps/*.json``); users
+may pass their own (a dict, a JSON file, or the name of a shipped map), and a BVH whose
+joint names are SMPL's own (what ``mrlib.io.save_motion`` writes) is read back exactly.
+
+Method, in numbered steps (``retarget_bvh``):
+
+1. Forward kinematics of the source: global rotations ``R_s(t)`` and positions ``P_s(t)``.
+2. Units and axes: the file unit is the candidate (m, cm, mm, inch, CMU's 1/0.45 inch)
+   that makes the mapped bones closest in length to SMPL's; the up axis is the world
+   axis closest to the mean feet-to-head vector. Both can be overridden. A rotation ``A``
+   then brings the source into mrlib's frame (metres, Y up): ``R'_s = A R_s``,
+   ``P'_s = unit * A P_s``. The heading is left as captured.
+3. Body shape: SMPL's rest joints are linear in ``betas`` (``J(b) = J_0 + D b``), so the
+   betas are fitted, by a few Gauss-Newton steps of a ridge-regularised least squares
+   problem, to make the lengths of SMPL's mapped bones match the source's. What the
+   shape space cannot absorb is taken up by a uniform scale ``s`` applied to the source.
+4. Rest-pose alignment: one constant rotation ``C_j`` per mapped SMPL joint so that
+   ``G_j(t) = R'_{src(j)}(t) @ C_j`` is SMPL's global rotation. ``C_j`` maps SMPL's rest
+   bone directions (to the next mapped joint down each branch) onto the source bone
+   directions expressed in the source joint's local frame (Wahba's problem, solved by
+   SVD). When a joint has only one such direction, the free twist about that bone is
+   the one that keeps the joint's local rotation closest to identity on average over
+   the clip (closed form); when it has none (SMPL's head, feet, and wrists/hands when
+   the source ends there) the whole ``C_j`` is chosen that way. The source's own rest
+   pose is never used, so skeletons whose rest pose is not a T-pose (Bandai Namco: every
+   bone along +X) work the same.
+5. Unmapped SMPL joints (e.g. spine2 for Bandai Namco, the hands) get an identity local
+   rotation: they move rigidly with their parent, and the parent's ``C`` already aims
+   the rigid chain at the next mapped joint.
+6. Local rotations ``L_j = G_parent^T G_j`` become the axis-angle poses; the translation
+   makes SMPL's pelvis follow the (scaled) source hips: ``trans = s P'_hips - J_pelvis(b)``.
+7. Error report: SMPL joint positions from the body model's forward pass versus the
+   source's mapped joints ``s P'_src``, mean and max over frames and mapped joints in cm.
+   The offsets between where two skeletons put "the same" joint (hip centres, spine
+   segments, shoulder blades) are what keeps it above zero.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from scipy.optimize import lsq_linear
+
+from mrlib.errors import JointMapError, MotionFileError
+from mrlib.io.bvh import BVH, BVHSkeleton, bvh_forward_kinematics, matrix_to_euler
+from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+
+__all__ = [
+    "JointMap",
+    "RetargetResult",
+    "JOINT_MAP_DIR",
+    "UNITS",
+    "load_joint_map",
+    "shipped_joint_maps",
+    "detect_joint_map",
+    "up_axis_rotation",
+    "detect_up_axis",
+    "change_up_axis",
+    "retarget_bvh",
+    "smpl_to_bvh",
+]
+
+JOINT_MAP_DIR = Path(__file__).parent / "joint_maps"
+
+# Candidate file units (metres per file unit) for automatic detection. "cmu" is the unit
+# of the CMU database's ASF/AMC files and of their common BVH conversion: 1/0.45 inch.
+UNITS: dict[str, float] = {"m": 1.0, "cmu": 0.0254 / 0.45, "inch": 0.0254, "cm": 0.01, "mm": 0.001}
+
+_AXES = ("x", "y", "z", "-x", "-y", "-z")
+
+
+# ----------------------------------------------------------------------------------------
+# Joint maps
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class JointMap:
+    """Which source joint drives each SMPL joint.
+
+    Attributes:
+        name: short identifier (``"bandai_namco"``, ``"cmu"``, ``"smpl"``, ``"custom"``).
+        mapping: SMPL joint name -> source joint name; SMPL joints left out are unmapped.
+        description: free text.
+    """
+
+    name: str
+    mapping: Mapping[str, str]
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        bad = [k for k in self.mapping if k not in JOINT_NAMES]
+        if bad:
+            raise JointMapError(
+                None, f"joint map '{self.name}': {bad} are not SMPL joint names {list(JOINT_NAMES)}"
+            )
+        if "pelvis" not in self.mapping:
+            raise JointMapError(None, f"joint map '{self.name}' must map SMPL's 'pelvis'")
+        srcs = list(self.mapping.values())
+        dup = sorted({s for s in srcs if srcs.count(s) > 1})
+        if dup:
+            raise JointMapError(
+                None, f"joint map '{self.name}': source joints {dup} are used twice"
+            )
+
+    def source_indices(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
+        """``(24,)`` source joint index per SMPL joint, -1 where unmapped."""
+        return np.array(
+            [names.index(self.mapping[n]) if n in self.mapping else -1 for n in JOINT_NAMES]
+        )
+
+
+SMPL_JOINT_MAP = JointMap(
+    "smpl", {n: n for n in JOINT_NAMES}, "SMPL's own joint names (mrlib's BVH export)"
+)
+
+
+def _joint_map_from_json(path: Path) -> JointMap:
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        raise JointMapError(path, f"cannot read joint map: {e}") from None
+    if isinstance(data, dict) and isinstance(data.get("map"), dict):
+        return JointMap(
+            str(data.get("name", Path(path).stem)),
+            dict(data["map"]),
+            str(data.get("description", "")),
+        )
+    if isinstance(data, dict) and all(isinstance(v, str) for v in data.values()):
+        return JointMap(Path(path).stem, dict(data))
+    raise JointMapError(
+        path, 'expected {"map": {smpl_name: bvh_name, ...}} or a flat {smpl_name: bvh_name} object'
+    )
+
+
+@lru_cache(maxsize=1)
+def shipped_joint_maps() -> dict[str, JointMap]:
+    """The joint maps in ``mrlib/io/joint_maps/``, by name."""
+    maps = {}
+    for p in sorted(JOINT_MAP_DIR.glob("*.json")):
+        m = _joint_map_from_json(p)
+        maps[m.name] = m
+    return maps
+
+
+def load_joint_map(spec: str | Path | Mapping[str, str] | JointMap) -> JointMap:
+    """A ``JointMap`` from a shipped map's name, a JSON file or a ``{smpl: bvh}`` dict."""
+    if isinstance(spec, JointMap):
+        return spec
+    if isinstance(spec, Mapping):
+        return JointMap("custom", dict(spec))
+    if str(spec) == "smpl":
+        return SMPL_JOINT_MAP
+    shipped = shipped_joint_maps()
+    if str(spec) in shipped:
+        return shipped[str(spec)]
+    if Path(spec).suffix.lower() == ".json" or Path(spec).exists():
+        return _joint_map_from_json(Path(spec))
+    raise JointMapError(
+        None,
+        f"unknown joint map '{spec}'; shipped maps: {sorted(shipped)}, or pass a JSON path "
+        "or a dict",
+    )
+
+
+def detect_joint_map(
+    names: tuple[str, ...] | list[str], *, source: str | Path | None = None
+) -> JointMap:
+    """The map whose source joints all exist in ``names``: SMPL's own names first, then
+    the shipped map covering the most SMPL joints.
+
+    Raises:
+        JointMapError: no map fits; lists the unmapped joints of the closest map.
+    """
+    if set(JOINT_NAMES) <= set(names):
+        return SMPL_JOINT_MAP
+    best = None
+    for m in shipped_joint_maps().values():
+        missing = [s for s in m.mapping.values() if s not in names]
+        if not missing and (best is None or len(m.mapping) > len(best.mapping)):
+            best = m
+    if best is not None:
+        return best
+    closest = min(
+        shipped_joint_maps().values(), key=lambda m: sum(s not in names for s in m.mapping.values())
+    )
+    missing = {k: v for k, v in closest.mapping.items() if v not in names}
+    raise JointMapError(
+        source,
+        f"no joint map fits this skeleton. Closest shipped map '{closest.name}' leaves SMPL "
+        f"joints {sorted(missing)} unmapped (BVH lacks {sorted(missing.values())}). BVH "
+        f"joints: {list(names)}. Pass joint_map={{smpl_name: bvh_name, ...}}.",
+    )
+
+
+def _validate_map(
+    jmap: JointMap, names: tuple[str, ...], parents: tuple[int, ...], source
+) -> np.ndarray:
+    """Source index per SMPL joint after checking that the names exist and that the map
+    preserves ancestry (a mapped SMPL ancestor maps to a source ancestor)."""
+    missing = {k: v for k, v in jmap.mapping.items() if v not in names}
+    if missing:
+        raise JointMapError(
+            source,
+            f"joint map '{jmap.name}': BVH has no joints {sorted(missing.values())} (for SMPL "
+            f"{sorted(missing)}); BVH joints: {list(names)}",
+        )
+    src = jmap.source_indices(names)
+
+    def ancestors(i: int) -> set[int]:
+        out = set()
+        while parents[i] >= 0:
+            i = parents[i]
+            out.add(i)
+        return out
+
+    for j in range(1, NUM_JOINTS):
+        if src[j] < 0:
+            continue
+        a = _mapped_ancestor(j, src)
+        if src[a] not in ancestors(src[j]):
+            raise JointMapError(
+                source,
+                f"joint map '{jmap.name}': SMPL {JOINT_NAMES[j]} -> {names[src[j]]} but its SMPL "
+                f"ancestor {JOINT_NAMES[a]} -> {names[src[a]]}, which is not an ancestor of "
+                f"{names[src[j]]} in the BVH",
+            )
+    return src
+
+
+def _mapped_ancestor(j: int, src: np.ndarray) -> int:
+    a = PARENTS[j]
+    while a >= 0 and src[a] < 0:
+        a = PARENTS[a]
+    return a
+
+
+def _mapped_targets(j: int, src: np.ndarray) -> list[int]:
+    """Nearest mapped SMPL descendants of ``j`` (through unmapped joints)."""
+    out: list[int] = []
+    stack = [k for k in range(NUM_JOINTS) if PARENTS[k] == j]
+    while stack:
+        k = stack.pop()
+        if src[k] >= 0:
+            out.append(k)
+        else:
+            stack += [c for c in range(NUM_JOINTS) if PARENTS[c] == k]
+    return sorted(out)
+
+
+# ----------------------------------------------------------------------------------------
+# Up axes
+# ----------------------------------------------------------------------------------------
+def up_axis_rotation(axis: str) -> np.ndarray:
+    """``(3, 3)`` rotation taking a world whose up is ``axis`` to mrlib's Y-up world.
+
+    ``axis`` is one of ``x y z -x -y -z``. ``"z"`` is a -90 deg turn about X (AMASS:
+    ``(x, y, z) -> (x, z, -y)``); ``"-y"`` is 180 deg about X (camera frames).
+    """
+    a = str(axis).lower()
+    c = {
+        "y": np.eye(3),
+        "z": [[1, 0, 0], [0, 0, 1], [0, -1, 0]],
+        "-z": [[1, 0, 0], [0, 0, -1], [0, 1, 0]],
+        "-y": [[1, 0, 0], [0, -1, 0], [0, 0, -1]],
+        "x": [[0, -1, 0], [1, 0, 0], [0, 0, 1]],
+        "-x": [[0, 1, 0], [-1, 0, 0], [0, 0, 1]],
+    }.get(a)
+    if c is None:
+        raise ValueError(f"up axis must be one of {_AXES}, got {axis!r}")
+    return np.asarray(c, dtype=np.float64)
+
+
+def detect_up_axis(up_vectors: np.ndarray) -> str:
+    """The signed world axis closest to the mean of ``(..., 3)`` "up" vectors."""
+    v = np.asarray(up_vectors, dtype=np.float64).reshape(-1, 3).mean(0)
+    i = int(np.argmax(np.abs(v)))
+    return ("-" if v[i] < 0 else "") + "xyz"[i]
+
+
+def change_up_axis(
+    global_orient: np.ndarray, trans: np.ndarray, rest_pelvis: np.ndarray, axis: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Re-express SMPL parameters captured in an ``axis``-up world in mrlib's Y-up world.
+
+    SMPL rotates about the pelvis joint, so rotating the world by ``A`` changes the
+    translation by more than ``A``: ``G' = A G`` and ``trans' = A (J_pelvis + trans) - J_pelvis``.
+
+    Args:
+        global_orient: ``(T, 3, 3)`` pelvis rotations.
+        trans: ``(T, 3)`` SMPL translations.
+        rest_pelvis: ``(3,)`` the body's rest pelvis position for the clip's betas.
+        axis: the source up axis (``"z"`` for AMASS).
+
+    Returns:
+        ``(global_orient (T, 3, 3), trans (T, 3))`` in the Y-up frame.
+    """
+    A = up_axis_rotation(axis)
+    J0 = np.asarray(rest_pelvis, dtype=np.float64)
+    return A @ global_orient, (np.asarray(trans, np.float64) + J0) @ A.T - J0
+
+
+# ----------------------------------------------------------------------------------------
+# Body model access (only its public API: rest_joints and forward)
+# ----------------------------------------------------------------------------------------
+@lru_cache(maxsize=1)
+def default_body():
+    """The body model mrlib ships (loaded once)."""
+    from mrlib.body import load_body_model
+
+    return load_body_model()
+
+
+def _num_betas(body) -> int:
+    for attr in ("num_betas", "n_betas"):
+        n = getattr(body, attr, None)
+        if isinstance(n, int):
+            return n
+    return 10
+
+
+def _rest_joints(body, betas: np.ndarray | None) -> np.ndarray:
+    b = None if betas is None else torch.as_tensor(np.asarray(betas, np.float32))
+    J = body.rest_joints(b)
+    return np.asarray(J.detach().cpu().numpy() if torch.is_tensor(J) else J, dtype=np.float64)
+
+
+@lru_cache(maxsize=8)
+def _joint_shape_basis(body) -> tuple[np.ndarray, np.ndarray]:
+    """``J_0 (24, 3)`` and ``D (24, 3, B)`` with ``rest_joints(b) = J_0 + D b``.
+
+    Uses the body's ``J_template``/``J_shapedirs`` buffers when it has them, otherwise
+    reads the basis off the public ``rest_joints`` (it is linear in betas)."""
+    if hasattr(body, "J_template") and hasattr(body, "J_shapedirs"):
+        J0 = body.J_template.detach().cpu().double().numpy()
+        D = body.J_shapedirs.detach().cpu().double().numpy()
+        return J0, D
+    B = _num_betas(body)
+    J0 = _rest_joints(body, np.zeros(B))
+    D = np.stack([_rest_joints(body, np.eye(B)[i]) - J0 for i in range(B)], axis=-1)
+    return J0, D
+
+
+def rest_pelvis(body, betas: np.ndarray | None) -> np.ndarray:
+    """``(3,)`` rest position of the pelvis for ``betas`` (padded/truncated to the body)."""
+    J0, D = _joint_shape_basis(body)
+    return J0[0] + D[0] @ _fit_betas_length(betas, D.shape[-1])
+
+
+def _fit_betas_length(betas: np.ndarray | None, n: int) -> np.ndarray:
+    out = np.zeros(n)
+    if betas is not None:
+        b = np.asarray(betas, dtype=np.float64).reshape(-1)[:n]
+        out[: len(b)] = b
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# Retargeting
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RetargetResult:
+    """Output of ``retarget_bvh``.
+
+    Attributes:
+        poses: ``(T, 24, 3)`` SMPL axis-angle, radians, Y-up world.
+        trans: ``(T, 3)`` SMPL translation, metres.
+        betas: ``(B,)`` fitted shape (zeros when the body has no shape space or
+            ``fit_betas=False``).
+        offsets: ``(24, 3, 3)`` rest alignment ``C_j`` (identity where unmapped); pass it
+            back as ``offsets=`` to retarget other clips of the same skeleton identically.
+        joint_map: the map used.
+        unit: metres per file unit.
+        up_axis: the source's up axis.
+        scale: uniform scale applied to the source (after units) to fit the body.
+        error_mean_cm, error_max_cm: joint position error over frames and mapped joints.
+        joint_error_cm: ``(24,)`` mean error per SMPL joint, NaN where unmapped.
+    """
+
+    poses: np.ndarray
+    trans: np.ndarray
+    betas: np.ndarray
+    offsets: np.ndarray
+    joint_map: JointMap
+    unit: float
+    up_axis: str
+    scale: float
+    error_mean_cm: float
+    error_max_cm: float
+    joint_error_cm: np.ndarray = field(repr=False)
+
+    def meta(self) -> dict[str, Any]:
+        """JSON-friendly summary for ``Motion.meta``."""
+        per_joint = {
+            JOINT_NAMES[j]: round(float(e), 3)
+            for j, e in enumerate(self.joint_error_cm)
+            if np.isfinite(e)
+        }
+        return {
+            "joint_map": self.joint_map.name,
+            "joint_map_pairs": dict(self.joint_map.mapping),
+            "unit_m": self.unit,
+            "up_axis": self.up_axis,
+            "scale": self.scale,
+            "retarget_error_mean_cm": self.error_mean_cm,
+            "retarget_error_max_cm": self.error_max_cm,
+            "retarget_joint_error_cm": per_joint,
+        }
+
+
+def _kabsch(H: np.ndarray) -> np.ndarray:
+    """The rotation ``C`` maximising ``tr(C H)`` (``H = sum d a^T`` for ``C d ~ a``)."""
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+    return Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+
+
+def _min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Smallest rotation taking unit vector ``u`` to unit vector ``v``."""
+    w = np.cross(u, v)
+    c = float(u @ v)
+    if c < -1 + 1e-12:  # opposite: half-turn about any axis perpendicular to u
+        p = np.eye(3)[np.argmin(np.abs(u))]
+        k = np.cross(u, p)
+        k /= np.linalg.norm(k)
+        return 2 * np.outer(k, k) - np.eye(3)
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+    return np.eye(3) + K + K @ K / (1 + c)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def _axis_rotation(d: np.ndarray, theta: float) -> np.ndarray:
+    K = _skew(d)
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
+
+
+def _solve_offset(pairs: list[tuple[np.ndarray, np.ndarray, float]], M: np.ndarray) -> np.ndarray:
+    """Rest alignment ``C`` of one joint.
+
+    Args:
+        pairs: ``(d, a, w)``: SMPL rest bone direction ``d`` should map to source local
+            bone direction ``a`` (``C d = a``) with weight ``w``. Weighting by the product
+            of the bone lengths makes this the Procrustes fit of the child joints'
+            positions.
+        M: ``(3, 3)`` ``sum_t G_parent(t)^T R'_src(t)``: the local rotation is
+            ``M_t C``, and ``tr(M C)`` is largest when it is closest to identity.
+    """
+    if pairs:
+        H = sum(w * np.outer(d, a) for d, a, w in pairs)
+        sv = np.linalg.svd(H, compute_uv=False)
+        if len(pairs) >= 2 and sv[1] > 1e-3 * sv[0]:
+            return _kabsch(H)
+        # One direction (or all parallel): exact swing, twist from the data term.
+        d = sum(w * d for d, _, w in pairs)
+        a = sum(w * a for _, a, w in pairs)
+        d, a = d / np.linalg.norm(d), a / np.linalg.norm(a)
+        C0 = _min_rotation(d, a)
+        N = M @ C0  # maximise tr(N R_d(theta))
+        theta = np.arctan2(np.trace(N @ _skew(d)), np.trace(N) - d @ N @ d)
+        return C0 @ _axis_rotation(d, theta)
+    return _kabsch(M)
+
+
+def _smpl_fk(G: np.ndarray, J: np.ndarray, trans: np.ndarray) -> np.ndarray:
+    """SMPL joint positions ``(T, 24, 3)`` from global rotations ``(T, 24, 3, 3)``, rest
+    joints ``(24, 3)`` and translation ``(T, 3)`` (what SMPL's forward does to joints)."""
+    pos = np.empty(G.shape[:2] + (3,))
+    pos[:, 0] = J[0] + trans
+    for k in range(1, NUM_JOINTS):
+        p = PARENTS[k]
+        pos[:, k] = pos[:, p] + G[:, p] @ (J[k] - J[p])
+    return pos
+
+
+def _source_directions(
+    src: np.ndarray, Rw: np.ndarray, Pw: np.ndarray
+) -> dict[int, list[tuple[int, np.ndarray, float]]]:
+    """Per mapped SMPL joint j: ``(k, a, l)`` for each nearest mapped descendant k with a
+    source bone of non-zero length: ``a`` the mean unit direction of the bone in the
+    source joint's local frame, ``l`` its median length (Pw's unit)."""
+    out: dict[int, list[tuple[int, np.ndarray, float]]] = {}
+    for j in np.flatnonzero(src >= 0):
+        RsT = np.swapaxes(Rw[:, src[j]], -1, -2)  # (T, 3, 3) world -> source local
+        out[int(j)] = []
+        for k in _mapped_targets(j, src):
+            v = (RsT @ (Pw[:, src[k]] - Pw[:, src[j]])[..., None])[..., 0]  # (T, 3)
+            n = np.linalg.norm(v, axis=-1)
+            length = float(np.median(n))
+            if length < 1e-6:
+                continue  # zero-length source bone (CMU's collars): no direction
+            a = (v / np.maximum(n, 1e-12)[:, None]).mean(0)
+            out[int(j)].append((k, a / np.linalg.norm(a), length))
+    return out
+
+
+def _solve_offsets(
+    J: np.ndarray, src: np.ndarray, Rw: np.ndarray, dirs: dict[int, list]
+) -> np.ndarray:
+    """Rest alignment ``C (24, 3, 3)`` (identity where unmapped) for rest joints ``J``.
+
+    Args:
+        J: ``(24, 3)`` SMPL rest joints.
+        src: ``(24,)`` source joint per SMPL joint (-1: unmapped).
+        Rw: ``(T, Js, 3, 3)`` source global rotations in mrlib's frame (a subset of
+            frames is enough: only sums over frames are used).
+        dirs: ``_source_directions`` output.
+    """
+    T = len(Rw)
+    G = np.empty((T, NUM_JOINTS, 3, 3))
+    C_all = np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3)).copy()
+    for j in range(NUM_JOINTS):
+        p = PARENTS[j]
+        Gp = np.broadcast_to(np.eye(3), (T, 3, 3)) if p < 0 else G[:, p]
+        if src[j] < 0:
+            G[:, j] = Gp  # identity local rotation
+            continue
+        Rs = Rw[:, src[j]]
+        pairs = []
+        for k, a, length in dirs[j]:
+            d = J[k] - J[j]
+            dn = np.linalg.norm(d)
+            pairs.append((d / dn, a, dn * length))
+        M = (np.swapaxes(Gp, -1, -2) @ Rs).sum(0)  # sum_t Gp^T Rs
+        C_all[j] = _solve_offset(pairs, M)
+        G[:, j] = Rs @ C_all[j]
+    return C_all
+
+
+def _smpl_globals(C: np.ndarray, src: np.ndarray, Rw: np.ndarray) -> np.ndarray:
+    """SMPL global rotations ``(T, 24, 3, 3)``: ``R'_src(j) C_j`` where mapped, the
+    parent's where not (identity local rotation)."""
+    T = len(Rw)
+    G = np.empty((T, NUM_JOINTS, 3, 3))
+    for j in range(NUM_JOINTS):
+        if src[j] >= 0:
+            G[:, j] = Rw[:, src[j]] @ C[j]
+        else:
+            G[:, j] = np.eye(3) if PARENTS[j] < 0 else G[:, PARENTS[j]]
+    return G
+
+
+def _fit_shape_scale(
+    G: np.ndarray,
+    J0: np.ndarray,
+    D: np.ndarray,
+    Q: np.ndarray,
+    src: np.ndarray,
+    mapped: np.ndarray,
+    b: np.ndarray,
+    fit_betas: bool,
+    ridge: float,
+    bound: float,
+    scale: float | None,
+) -> tuple[np.ndarray, float]:
+    """Betas and scale ``s`` minimising ``mean |x_k(t) - s Q_k(t)|^2 + ridge |b|^2``.
+
+    For fixed global rotations ``G (T, 24, 3, 3)``, SMPL's pelvis-relative joints are
+    linear in the rest joints and so in the betas:
+    ``x_k(t) = sum_{c on the path to k} G_parent(c)(t) (J_c - J_parent(c))(b)``.
+    ``Q (T, Js, 3)`` are the source joints relative to the hips. Bounded linear least
+    squares (``|b_i| <= bound``); with ``fit_betas=False`` only ``s`` is fitted, with
+    ``scale`` given only the betas.
+    """
+    T = len(G)
+    B = D.shape[-1] if fit_betas else 0
+    par = np.array(PARENTS[1:])
+    dJ0 = np.concatenate([np.zeros((1, 3)), J0[1:] - J0[par]])  # (24, 3) rest bone vectors
+    dD = np.concatenate([np.zeros((1, 3, D.shape[-1])), D[1:] - D[par]])[..., :B]  # (24, 3, B)
+    if not fit_betas:
+        dJ0 = dJ0 + np.concatenate([np.zeros((1, 3)), (D[1:] - D[par]) @ b])
+    W = np.zeros((T, NUM_JOINTS, 3, B))  # d x_k / d b
+    Y = np.zeros((T, NUM_JOINTS, 3))  # x_k at b = 0
+    for k in range(1, NUM_JOINTS):
+        p = PARENTS[k]
+        W[:, k] = W[:, p] + G[:, p] @ dD[k]
+        Y[:, k] = Y[:, p] + G[:, p] @ dJ0[k]
+    ks = mapped[mapped > 0]
+    if len(ks) == 0:
+        return b, 1.0
+    A = np.concatenate([W[:, ks], -Q[:, src[ks], :, None]], axis=-1).reshape(-1, B + 1)
+    y = -Y[:, ks].reshape(-1)
+    if scale is not None:  # fixed scale: move its column to the right-hand side
+        y = y - scale * A[:, B]
+        A = A[:, :B]
+    nx = A.shape[1]
+    if nx == 0:
+        return b, float(scale)
+    # Reduce to the (nx, nx) triangular system first: the bounded solver is then cheap.
+    n = T * len(ks)  # residual vectors; the ridge is per mean squared error
+    L = np.linalg.cholesky(A.T @ A + 1e-12 * np.eye(nx))  # A^T A = L L^T
+    z = np.linalg.solve(L, A.T @ y)  # min |A x - y| <=> min |L^T x - z|
+    A = np.concatenate([L.T, np.sqrt(ridge * n) * np.eye(B, nx)])
+    y = np.concatenate([z, np.zeros(B)])
+    lo = np.r_[np.full(B, -bound), [1e-6] * (nx - B)]
+    hi = np.r_[np.full(B, bound), [np.inf] * (nx - B)]
+    x = lsq_linear(A, y, bounds=(lo, hi)).x
+    s_out = float(scale) if scale is not None else float(x[B])
+    return (x[:B] if fit_betas else b), s_out
+
+
+def retarget_bvh(
+    bvh: BVH,
+    joint_map: str | Path | Mapping[str, str] | JointMap | None = None,
+    *,
+    body=None,
+    up_axis: str = "auto",
+    unit: str | float = "auto",
+    fit_betas: bool = True,
+    betas: np.ndarray | None = None,
+    offsets: np.ndarray | None = None,
+    scale: float | str = "auto",
+    shape_ridge: float = 1e-5,
+    shape_bound: float = 3.0,
+) -> RetargetResult:
+    """Retarget a BVH clip onto the SMPL skeleton (method: module docstring).
+
+    Args:
+        bvh: a parsed BVH.
+        joint_map: a ``JointMap``, shipped map name, JSON path or ``{smpl: bvh}`` dict;
+            ``None`` detects it from the joint names.
+        body: a body model (``mrlib.body``); default: the one mrlib ships.
+        up_axis: the source's up axis (``x y z -x -y -z``) or ``"auto"``.
+        unit: metres per file unit, a name in ``UNITS``, or ``"auto"``.
+        fit_betas: fit SMPL's shape to the source's bone lengths.
+        betas: use these betas instead of fitting.
+        offsets: ``(24, 3, 3)`` rest alignment from an earlier call on the same skeleton.
+        scale: uniform scale applied to the source after unit conversion. ``"auto"``:
+            1 when betas are fitted (the capture keeps its metric size, so speeds and
+            strides stay true and the body's shape takes up the difference), fitted by
+            least squares otherwise; ``"fit"``: always fitted; or a number.
+        shape_ridge: ridge weight of the betas fit, per mean squared joint error in m^2
+            (at 1e-5 one unit of beta costs as much as 3 mm of RMS joint error).
+        shape_bound: bound on each fitted beta (keeps the body plausible).
+
+    Returns:
+        A ``RetargetResult``.
+
+    Raises:
+        JointMapError: the skeleton cannot be mapped.
+    """
+    sk = bvh.skeleton
+    if bvh.num_frames == 0:
+        raise MotionFileError(bvh.source, "the BVH has no frames")
+    jmap = (
+        detect_joint_map(sk.names, source=bvh.source)
+        if joint_map is None
+        else load_joint_map(joint_map)
+    )
+    src = _validate_map(jmap, sk.names, sk.parents, bvh.source)
+    body = default_body() if body is None else body
+    J_tmpl, D = _joint_shape_basis(body)
+    mapped = np.flatnonzero(src >= 0)
+
+    # 1. source forward kinematics (file units, file axes)
+    R, P = bvh_forward_kinematics(bvh)  # (T, Js, 3, 3), (T, Js, 3)
+    T = bvh.num_frames
+
+    # bone pairs (SMPL joint j -> nearest mapped descendant k) and their source lengths
+    pairs = [(j, k) for j in mapped for k in _mapped_targets(j, src)]
+    src_len = np.array(
+        [np.median(np.linalg.norm(P[:, src[k]] - P[:, src[j]], axis=-1)) for j, k in pairs]
+    )
+    keep = src_len > 1e-6 * max(src_len.max(initial=0.0), 1e-12)
+    len_pairs = [p for p, ok in zip(pairs, keep, strict=True) if ok]
+
+    # 2. units and axes
+    if unit == "auto":
+        smpl_len = np.array([np.linalg.norm(J_tmpl[k] - J_tmpl[j]) for j, k in len_pairs])
+        guess = smpl_len.sum() / max(src_len[keep].sum(), 1e-12)
+        unit_m = min(UNITS.values(), key=lambda u: abs(np.log(u / guess)))
+    else:
+        unit_m = float(UNITS.get(unit, unit)) if isinstance(unit, str) else float(unit)
+    if up_axis == "auto":
+        top = next(
+            (
+                src[JOINT_NAMES.index(n)]
+                for n in ("head", "neck", "spine3", "spine2", "spine1")
+                if src[JOINT_NAMES.index(n)] >= 0
+            ),
+            None,
+        )
+        feet = [
+            src[JOINT_NAMES.index(n)]
+            for n in ("left_ankle", "right_ankle")
+            if src[JOINT_NAMES.index(n)] >= 0
+        ]
+        bottom = P[:, feet].mean(1) if feet else P[:, src[0]]
+        up_axis = detect_up_axis(P[:, top] - bottom) if top is not None else "y"
+    A = up_axis_rotation(up_axis)
+    Rw = A @ R  # (T, Js, 3, 3) source joint frame -> mrlib world
+    Pw = unit_m * (P @ A.T)  # (T, Js, 3) metres, Y up
+
+    # 3.-4. shape, scale and rest alignment. The alignment depends on the shape (SMPL's
+    # rest bone directions), and for fixed rotations the joint positions are linear in
+    # (betas, scale); so alternate: align for the current shape, then refit both.
+    B = D.shape[-1]
+    if betas is not None:
+        b, fit_b = _fit_betas_length(betas, B), False
+    elif jmap.name == "smpl" and fit_betas:
+        # SMPL-named skeleton (mrlib's export): its offsets are SMPL rest joints, solve exactly
+        b, fit_b = _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A), False
+    else:
+        b, fit_b = np.zeros(B), fit_betas and bool(np.any(D))
+    Q = Pw - Pw[:, src[:1]]  # (T, Js, 3) source joints relative to the hips, metres
+    sub = np.unique(np.linspace(0, T - 1, min(T, 240)).round().astype(np.int64))
+    fixed_C = None
+    if offsets is not None:
+        fixed_C = np.asarray(offsets, dtype=np.float64).reshape(NUM_JOINTS, 3, 3)
+    elif jmap.name == "smpl":
+        fixed_C = np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3))
+    if scale == "auto":
+        fixed_s = 1.0 if fit_b else None
+    elif scale == "fit":
+        fixed_s = None
+    else:
+        fixed_s = float(scale)
+    # Offsets and shape are solved on at most 240 evenly spaced frames (sums over frames).
+    dirs = _source_directions(src, Rw[sub], Pw[sub])
+    for it in range(4 if fit_b else 1):
+        J = J_tmpl + D @ b  # (24, 3) rest joints for these betas
+        C_all = fixed_C if fixed_C is not None else _solve_offsets(J, src, Rw[sub], dirs)
+        if it == 3:
+            break
+        G = _smpl_globals(C_all, src, Rw[sub])
+        b_new, scale = _fit_shape_scale(
+            G, J_tmpl, D, Q[sub], src, mapped, b, fit_b, shape_ridge, shape_bound, fixed_s
+        )
+        converged = np.abs(b_new - b).max() < 1e-4
+        b = b_new
+        if converged:
+            J = J_tmpl + D @ b
+            if fixed_C is None:
+                C_all = _solve_offsets(J, src, Rw[sub], dirs)
+            break
+    Pw = scale * Pw
+    G = _smpl_globals(C_all, src, Rw)
+
+    # 6. local rotations, translation
+    L = G.copy()
+    for j in range(1, NUM_JOINTS):
+        L[:, j] = np.swapaxes(G[:, PARENTS[j]], -1, -2) @ G[:, j]
+    poses = matrix_to_axis_angle(torch.from_numpy(L)).numpy()
+    trans = Pw[:, src[0]] - J[0]
+
+    # 7. error: SMPL joints from the body's forward pass vs the scaled source joints
+    joints = _body_joints(body, L, trans, b, G, J)
+    err = np.linalg.norm(joints[:, mapped] - Pw[:, src[mapped]], axis=-1) * 100.0  # (T, M) cm
+    joint_err = np.full(NUM_JOINTS, np.nan)
+    joint_err[mapped] = err.mean(0)
+    return RetargetResult(
+        poses=poses,
+        trans=trans,
+        betas=b,
+        offsets=C_all,
+        joint_map=jmap,
+        unit=unit_m,
+        up_axis=up_axis,
+        scale=scale,
+        error_mean_cm=float(err.mean()),
+        error_max_cm=float(err.max()),
+        joint_error_cm=joint_err,
+    )
+
+
+def _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A) -> np.ndarray:
+    """Betas whose rest joints reproduce an SMPL-named BVH's offsets (linear least squares)."""
+    rows, rhs = [], []
+    for j in range(1, NUM_JOINTS):
+        p = PARENTS[j]
+        rows.append(D[j] - D[p])
+        rhs.append(A @ (unit_m * sk.offsets[src[j]]) - (J_tmpl[j] - J_tmpl[p]))
+    Mx, y = np.concatenate(rows), np.concatenate(rhs)
+    if Mx.size == 0 or not np.any(Mx):
+        return np.zeros(D.shape[-1])
+    return np.linalg.lstsq(Mx, y, rcond=None)[0]
+
+
+def _body_joints(body, L, trans, b, G, J) -> np.ndarray:
+    """Joint positions from the body model's forward pass (joints only)."""
+    fwd = getattr(body, "forward", None)
+    if fwd is None:
+        return _smpl_fk(G, J, trans)
+    with torch.no_grad():
+        out = fwd(
+            torch.from_numpy(L).float(),
+            torch.from_numpy(trans).float(),
+            torch.from_numpy(b).float(),
+        )
+    return out.joints.detach().cpu().numpy().astype(np.float64)
+
+
+# ----------------------------------------------------------------------------------------
+# SMPL -> BVH
+# ----------------------------------------------------------------------------------------
+_BVH_UNITS = {"cm": 100.0, "m": 1.0}
+
+
+def smpl_to_bvh(motion, *, body=None, unit: str = "cm", order: str = "ZXY") -> BVH:
+    """A BVH of ``motion`` on SMPL's skeleton (the inverse of the ``"smpl"`` joint map).
+
+    * Joints are SMPL's 24, named as in ``mrlib.skeleton.JOINT_NAMES``; the rest pose is
+      the body's T-pose for ``motion.betas`` (``OFFSET = J_k - J_parent``), so every
+      joint's local frame is world-aligned at rest and its rotation channels are exactly
+      SMPL's local rotation.
+    * ``pelvis`` is the ROOT with 6 channels (``X/Y/Zposition`` = the pelvis position
+      ``J_pelvis + trans``, then the three rotations); every other joint has 3 rotation
+      channels; leaves (head, feet, hands) end in an ``End Site``.
+    * Euler ``order`` (default ``ZXY``: ``R = Rz Rx Ry``), angles in degrees.
+    * ``unit`` ``"cm"`` (default, the usual BVH unit: import into Blender with scale
+      0.01) or ``"m"``. The world is mrlib's: Y up, facing +Z, which is what Blender's
+      BVH importer expects by default.
+
+    Args:
+        motion: a ``mrlib.Motion``.
+        body: body model for the rest joints (default: mrlib's).
+        unit: ``"cm"`` or ``"m"``.
+        order: any of the six Tait-Bryan orders (``"XYZ"``, ``"ZXY"``, ...).
+
+    Returns:
+        A ``BVH`` (write it with ``mrlib.io.bvh.write_bvh``).
+    """
+    if unit not in _BVH_UNITS:
+        raise ValueError(f"unit must be one of {sorted(_BVH_UNITS)}, got {unit!r}")
+    order = order.upper()
+    k = _BVH_UNITS[unit]
+    body = default_body() if body is None else body
+    J0, D = _joint_shape_basis(body)
+    J = J0 + D @ _fit_betas_length(motion.betas, D.shape[-1])  # (24, 3) metres
+    par = np.array(PARENTS)
+    offsets = np.concatenate([J[:1], J[1:] - J[par[1:]]]) * k
+    rot_ch = tuple(f"{a}rotation" for a in order)
+    channels = (("Xposition", "Yposition", "Zposition") + rot_ch,) + (rot_ch,) * (NUM_JOINTS - 1)
+    leaves = [j for j in range(NUM_JOINTS) if j not in par]
+    ends = tuple(
+        (j, k * (J[j] - J[PARENTS[j]]) * (1.0 if JOINT_NAMES[j] == "head" else 0.5)) for j in leaves
+    )
+    skeleton = BVHSkeleton(
+        names=JOINT_NAMES, parents=PARENTS, offsets=offsets, channels=channels, end_sites=ends
+    )
+    T = motion.num_frames
+    R = axis_angle_to_matrix(torch.from_numpy(motion.poses.astype(np.float64))).numpy()
+    euler = matrix_to_euler(R, order)  # (T, 24, 3) degrees
+    root = (motion.trans.astype(np.float64) + J[0]) * k
+    values = np.concatenate([root, euler.reshape(T, -1)], axis=1)  # (T, 3 + 72)
+    return BVH(
+        skeleton=skeleton, motion=values, frame_time=1.0 / motion.fps, source=str(motion.name)
+    )
