@@ -1,0 +1,297 @@
+"""Pictures of motion: posed meshes with pyvista, stick figures with matplotlib.
+
+This is the only module that imports pyvista (lazily, inside the functions), so mrlib
+works without it; install the ``render`` extra (``pip install mrlib[render]``).
+
+Off-screen rendering needs no display. On a headless Linux machine VTK renders through
+EGL (or OSMesa); ``render_meshes`` selects EGL by setting
+``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow`` and ``PYVISTA_OFF_SCREEN=true`` when no
+``DISPLAY`` is set (values you set yourself are kept).
+
+Conventions: metres, Y up, bodies face +Z in their rest pose (``mrlib.skeleton``).
+Side views look along -X: Z (forward) is horizontal, Y vertical.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mrlib.errors import MotionValueError
+from mrlib.skeleton import NUM_JOINTS, PARENTS
+
+__all__ = [
+    "render_meshes",
+    "plot_skeleton_strip",
+    "animate_skeleton",
+    "save_gif",
+    "evenly_spaced_frames",
+]
+
+SKIN = (0.83, 0.70, 0.58)
+CONTACT_COLOUR = (0.85, 0.1, 0.1)
+_LEFT = {1, 4, 7, 10, 13, 16, 18, 20, 22}  # left-side joints, drawn in blue
+_RIGHT = {2, 5, 8, 11, 14, 17, 19, 21, 23}
+
+
+def evenly_spaced_frames(num_frames: int, count: int = 5) -> list[int]:
+    """``count`` frame indices spread over ``[0, num_frames)``, first and last included."""
+    if num_frames < 1:
+        raise MotionValueError("a clip needs at least one frame")
+    return sorted(
+        set(np.linspace(0, num_frames - 1, min(count, num_frames)).round().astype(int).tolist())
+    )
+
+
+def _headless_defaults() -> None:
+    if not os.environ.get("DISPLAY") and os.name != "nt":
+        os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
+# -- meshes (pyvista) ---------------------------------------------------------------------
+def render_meshes(
+    motion: Any,
+    body: Any = None,
+    frames: Sequence[int] | None = None,
+    *,
+    layout: str = "strip",
+    highlight_contacts: bool = True,
+    contacts: np.ndarray | None = None,
+    spacing: float = 0.9,
+    window_size: tuple[int, int] = (1200, 520),
+    colour: tuple[float, float, float] = SKIN,
+    path: str | Path | None = None,
+) -> np.ndarray:
+    """Render the body mesh of ``motion`` at several frames, off-screen.
+
+    Args:
+        motion: a ``mrlib.Motion``.
+        body: a ``BodyModel``; None loads the default body.
+        frames: frame indices; default five evenly spaced frames.
+        layout: ``"strip"`` — the frames side by side along X, each centred on its root
+            (a comic strip, seen from the front-left); ``"path"`` — every frame at its
+            real position, overlaid along the trajectory.
+        highlight_contacts: draw a red sphere on each foot vertex that is in contact.
+        contacts: ``(T, 6)`` labels to show; default ``motion.contacts``, else computed
+            with ``mrlib.contacts.foot_contacts``.
+        spacing: distance between frames in the strip layout (metres).
+        window_size: ``(width, height)`` in pixels.
+        path: also save the image there (PNG).
+    Returns:
+        ``(H, W, 3)`` uint8 RGB image.
+    """
+    _headless_defaults()
+    import pyvista as pv
+
+    if body is None:
+        from mrlib.body import load_body_model
+
+        body = load_body_model()
+    if layout not in ("strip", "path"):
+        raise MotionValueError(f"layout must be 'strip' or 'path', got {layout!r}")
+    T = motion.num_frames
+    frames = evenly_spaced_frames(T) if frames is None else [int(f) for f in frames]
+    if not frames or min(frames) < -T or max(frames) >= T:
+        raise MotionValueError(f"frames {frames} out of range for a clip of {T} frames")
+    verts = body.motion_vertices(motion, frames)  # (F, V, 3)
+    if highlight_contacts and contacts is None:
+        if motion.contacts is not None:
+            contacts = motion.contacts
+        elif T >= 2:
+            from mrlib.contacts import foot_contacts
+
+            contacts = foot_contacts(motion, body)
+    if contacts is not None:
+        contacts = np.asarray(contacts)
+        if contacts.shape != (T, 6):
+            raise MotionValueError(f"contacts must have shape ({T}, 6), got {contacts.shape}")
+
+    # Place the frames: a strip centres each frame on its root and lines them up on X.
+    if layout == "strip":
+        root = np.asarray(motion.trans, np.float64)[frames]
+        offsets = np.zeros((len(frames), 3))
+        offsets[:, 0] = (np.arange(len(frames)) - (len(frames) - 1) / 2) * spacing - root[:, 0]
+        offsets[:, 2] = -root[:, 2]
+        verts = verts + offsets[:, None, :].astype(np.float32)
+    ground = float(verts[..., 1].min())
+
+    faces = np.hstack([np.full((len(body.faces), 1), 3), body.faces]).ravel()
+    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    pl.set_background("white")
+    for i, f in enumerate(frames):
+        pl.add_mesh(pv.PolyData(verts[i], faces), color=colour, smooth_shading=True)
+        if highlight_contacts and contacts is not None:
+            on = np.flatnonzero(contacts[f] > 0.5)
+            if len(on):
+                pts = verts[i, list(np.asarray(body.foot_vertex_ids)[on])]
+                pl.add_mesh(
+                    pv.PolyData(pts).glyph(geom=pv.Sphere(radius=0.025), scale=False, orient=False),
+                    color=CONTACT_COLOUR,
+                )
+    # Camera: from the front-left and a little above, framing the bodies (not the floor).
+    view = np.array([0.35, 0.25, 1.0]) if layout == "strip" else np.array([1.0, 0.6, 0.4])
+    lo, hi = verts.reshape(-1, 3).min(0), verts.reshape(-1, 3).max(0)
+    centre = (lo + hi) / 2
+    pl.camera_position = [tuple(centre + view), tuple(centre), (0, 1, 0)]
+    pl.reset_camera()
+    pl.camera.zoom(1.35 if layout == "strip" else 1.2)
+    size = max(hi[0] - lo[0], hi[2] - lo[2]) + 1.5
+    plane = pv.Plane(
+        center=(centre[0], ground, centre[2]), direction=(0, 1, 0), i_size=size, j_size=size
+    )
+    pl.add_mesh(plane, color=(0.9, 0.9, 0.9))
+    pl.reset_camera_clipping_range()
+    img = pl.screenshot(str(path) if path is not None else None, return_img=True)
+    pl.close()
+    return np.asarray(img)[..., :3].copy()
+
+
+# -- stick figures (matplotlib) --------------------------------------------------------------
+def _check_joints(joints: np.ndarray) -> np.ndarray:
+    j = np.asarray(joints, dtype=np.float64)
+    if j.ndim != 3 or j.shape[1:] != (NUM_JOINTS, 3):
+        raise MotionValueError(f"joints must have shape (T, 24, 3), got {j.shape}")
+    return j
+
+
+def _bone_colour(j: int) -> str:
+    return "tab:blue" if j in _LEFT else "tab:red" if j in _RIGHT else "0.25"
+
+
+def _draw_skeleton(ax: Any, xy: np.ndarray, **kw: Any) -> list:
+    """Draw one skeleton ``(24, 2)`` (already projected); returns the Line2D artists."""
+    lines = []
+    for j, p in enumerate(PARENTS):
+        if p < 0:
+            continue
+        (ln,) = ax.plot(xy[[p, j], 0], xy[[p, j], 1], color=_bone_colour(j), lw=2, **kw)
+        lines.append(ln)
+    return lines
+
+
+def plot_skeleton_strip(
+    joints: np.ndarray,
+    frames: Sequence[int] | None = None,
+    ax: Any = None,
+    *,
+    spacing: float = 0.7,
+    keep_trajectory: bool = False,
+    title: str | None = None,
+):
+    """Side view of the skeleton at several frames, as stick figures in a row.
+
+    Args:
+        joints: ``(T, 24, 3)`` joint positions (metres, Y up, e.g. ``BodyModel.motion_joints``).
+        frames: frame indices; default eight evenly spaced frames.
+        ax: a matplotlib Axes; a new figure when None.
+        spacing: horizontal distance between figures when ``keep_trajectory`` is False.
+        keep_trajectory: draw each figure at its real forward (Z) position instead.
+    Returns:
+        The Axes. Left limbs are blue, right limbs red.
+    """
+    import matplotlib.pyplot as plt
+
+    j = _check_joints(joints)
+    frames = evenly_spaced_frames(len(j), 8) if frames is None else [int(f) for f in frames]
+    if ax is None:
+        _, ax = plt.subplots(figsize=(max(4.0, 1.1 * len(frames)), 3.2))
+    for i, f in enumerate(frames):
+        xy = j[f][:, [2, 1]].copy()  # side view: forward (Z) horizontal, up (Y) vertical
+        if not keep_trajectory:
+            xy[:, 0] += i * spacing - j[f, 0, 2]
+        _draw_skeleton(ax, xy)
+    ax.axhline(j[frames][..., 1].min(), color="0.7", lw=1)
+    ax.set_aspect("equal")
+    ax.set_xlabel("forward (m)" if keep_trajectory else "frames")
+    ax.set_ylabel("up (m)")
+    if not keep_trajectory:
+        ax.set_xticks([i * spacing for i in range(len(frames))], [str(f) for f in frames])
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def animate_skeleton(
+    joints: np.ndarray, fps: float, *, follow: bool = True, title: str | None = None
+):
+    """A side-view and front-view animation of the skeleton.
+
+    Show it in a notebook with ``IPython.display.HTML(anim.to_jshtml())`` or save it with
+    :func:`save_gif`.
+
+    Args:
+        joints: ``(T, 24, 3)`` joint positions.
+        fps: playback frames per second.
+        follow: keep the root centred (the figure walks in place); otherwise the view
+            covers the whole trajectory.
+    Returns:
+        ``matplotlib.animation.FuncAnimation``.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.animation import FuncAnimation
+
+    j = _check_joints(joints)
+    if not (np.isfinite(fps) and fps > 0):
+        raise MotionValueError(f"fps must be positive, got {fps}")
+    fig, axes = plt.subplots(1, 2, figsize=(7, 3.6))
+    views = ((2, "side (forward, m)"), (0, "front (left, m)"))
+    lo, hi = j[..., 1].min(), j[..., 1].max()
+    artists = []
+    for ax, (h, label) in zip(axes, views, strict=True):
+        ax.set_aspect("equal")
+        ax.set_xlabel(label)
+        ax.axhline(lo, color="0.7", lw=1)
+        ax.set_ylim(lo - 0.1, hi + 0.1)
+        if follow:
+            ax.set_xlim(-1.0, 1.0)
+        else:
+            ax.set_xlim(j[..., h].min() - 0.3, j[..., h].max() + 0.3)
+        artists.append(_draw_skeleton(ax, np.zeros((NUM_JOINTS, 2))))
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+
+    def update(t: int):
+        out = []
+        for (h, _), lines in zip(views, artists, strict=True):
+            xy = j[t][:, [h, 1]].copy()
+            if follow:
+                xy[:, 0] -= j[t, 0, h]
+            k = 0
+            for jj, p in enumerate(PARENTS):
+                if p < 0:
+                    continue
+                lines[k].set_data(xy[[p, jj], 0], xy[[p, jj], 1])
+                k += 1
+            out += lines
+        return out
+
+    anim = FuncAnimation(fig, update, frames=len(j), interval=1000.0 / fps, blit=True)
+    plt.close(fig)  # keep notebooks from also showing the empty first frame
+    return anim
+
+
+def save_gif(frames_or_animation: Any, path: str | Path, fps: float = 15.0) -> Path:
+    """Write a GIF from a list of ``(H, W, 3)`` uint8 images or a matplotlib animation.
+
+    Returns:
+        The path written.
+    """
+    path = Path(path)
+    if not (np.isfinite(fps) and fps > 0):
+        raise MotionValueError(f"fps must be positive, got {fps}")
+    if hasattr(frames_or_animation, "save"):  # a matplotlib Animation
+        frames_or_animation.save(str(path), writer="pillow", fps=fps)
+        return path
+    import imageio.v2 as imageio
+
+    images = [np.asarray(f) for f in frames_or_animation]
+    if not images or any(im.ndim != 3 or im.shape[-1] not in (3, 4) for im in images):
+        raise MotionValueError("save_gif needs a non-empty list of (H, W, 3) images")
+    imageio.mimsave(path, images, duration=1000.0 / fps, loop=0)
+    return path
