@@ -1,0 +1,207 @@
+"""Configuration of the networks and of training, with the named presets ``paper`` and
+``tutorial``.
+
+Configs are frozen dataclasses; make variants with ``dataclasses.replace`` and save them
+as JSON next to every checkpoint (``config_to_json`` / ``config_from_json``).
+
+What the paper fixes (Moreno-Villamarin et al., CVMP 2024, Sec. 3-4): L = 8 levels for
+labels (10 for speech), F = 4/3, FiLM embedding of size 8, WGAN-GP, Adam with lr 1e-4,
+loss weights adv 1 / con 5 / rec 50 / smooth 5, blocks of two consecutive levels,
+15000 iterations for the first block (levels 1-2) and 25000 for each other block, style
+mixing on 90% of random generations.
+
+What it leaves open, taken from GANimator (Li et al., SIGGRAPH 2022, its option parser
+defaults and models/__init__.py): kernel size 5, reflect padding, four conv layers with
+128, 256, 256 hidden channels (rounded up to a multiple of the joint count), LeakyReLU
+0.2, skeleton neighbourhood radius 2, lambda_gp = 1, Adam betas = PyTorch's defaults
+(0.9, 0.999), 5 critic steps per generator step, one sample per clip and step, noise
+amplitudes from the data pyramid, full-channel N(0, 1) reconstruction noise z*_1.
+
+Our own choices (also open in the paper): the reconstruction and adversarial terms are
+summed into one generator step (the paper's Eq. 6; GANimator takes a separate
+reconstruction step); the smoothness term applies to the finer half of the levels
+("finer temporal resolution levels", Sec. 3.4), the contact term to every level.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from dataclasses import dataclass, field
+
+from mrlib.errors import MrlibError
+
+__all__ = [
+    "ModelConfig",
+    "LossWeights",
+    "TrainConfig",
+    "paper",
+    "tutorial",
+    "PRESETS",
+    "get_preset",
+    "config_to_json",
+    "config_from_json",
+]
+
+
+class ConfigError(MrlibError, ValueError):
+    """A configuration value is out of range or inconsistent."""
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Networks of the multi-resolution GAN."""
+
+    num_levels: int = 8  # L: 8 for labels, 10 for speech (paper, Sec. 3.2)
+    scale_factor: float = 4 / 3  # F between consecutive levels
+    kernel_size: int = 5  # temporal kernel of every conv (GANimator)
+    gen_hidden: tuple[int, ...] = (128, 256, 256)  # hidden widths of g_i, rounded up to 24k
+    disc_hidden: tuple[int, ...] = (128, 256, 256)  # hidden widths of D_i, rounded up to 24k
+    neighbour_radius: int = 2  # skeleton conv sees joints within this many hops (Aberman 2020)
+    film_dim: int = 8  # size of the condition embedding y_i (paper, Sec. 4.3)
+    # Joints whose channels FiLM modulates; None = every channel. Speech uses the upper
+    # body (mrlib.skeleton.UPPER_BODY_JOINTS) so the legs are left to the generator.
+    film_joints: tuple[int, ...] | None = None
+    leaky_slope: float = 0.2
+
+    def __post_init__(self):
+        if self.num_levels < 1:
+            raise ConfigError(f"num_levels must be >= 1, got {self.num_levels}")
+        if not self.scale_factor > 1:
+            raise ConfigError(f"scale_factor must be > 1, got {self.scale_factor}")
+        if self.kernel_size % 2 != 1:
+            raise ConfigError(f"kernel_size must be odd, got {self.kernel_size}")
+        if not self.gen_hidden or not self.disc_hidden:
+            raise ConfigError("gen_hidden and disc_hidden need at least one layer")
+        if self.film_joints is not None:
+            object.__setattr__(self, "film_joints", tuple(int(j) for j in self.film_joints))
+            if any(not 0 <= j < 24 for j in self.film_joints):
+                raise ConfigError(
+                    f"film_joints must be SMPL joint ids in [0, 24), got {self.film_joints}"
+                )
+        object.__setattr__(self, "gen_hidden", tuple(self.gen_hidden))
+        object.__setattr__(self, "disc_hidden", tuple(self.disc_hidden))
+
+
+@dataclass(frozen=True)
+class LossWeights:
+    """Weights of the generator objective (paper Eq. 6) and of the gradient penalty."""
+
+    adv: float = 1.0
+    con: float = 5.0  # contact consistency, velocities in m/s
+    rec: float = 50.0
+    smooth: float = 5.0  # joint positions in metres
+    gp: float = 1.0  # GANimator's lambda_gp (the paper does not give it)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Block-wise adversarial training."""
+
+    model: ModelConfig = field(default_factory=ModelConfig)
+    loss: LossWeights = field(default_factory=LossWeights)
+    block_size: int = 2  # consecutive levels trained together
+    block_iterations: tuple[int, ...] = (15000, 25000, 25000, 25000)  # one entry per block
+    lr: float = 1e-4
+    betas: tuple[float, float] = (0.9, 0.999)
+    n_critic: int = 5  # critic steps per generator step (GANimator's D_fact)
+    mix_prob: float = 0.9  # share of random generations that mix two conditions
+    samples_per_clip: int = 1  # random generations per training clip and step
+    smooth_from_level: int | None = None  # first level (1-based) with L_smooth; None: L//2+1
+    contact_from_level: int = 1  # first level with L_con
+    seed: int = 0
+    checkpoint_every: int = 1000  # iterations; 0 = only at the end of each block
+    log_every: int = 10  # iterations between CSV rows / progress-bar updates
+    device: str = "cpu"
+
+    def __post_init__(self):
+        object.__setattr__(self, "block_iterations", tuple(int(n) for n in self.block_iterations))
+        object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))
+        if self.block_size < 1:
+            raise ConfigError(f"block_size must be >= 1, got {self.block_size}")
+        if len(self.block_iterations) != self.num_blocks:
+            raise ConfigError(
+                f"{self.model.num_levels} levels in blocks of {self.block_size} make {self.num_blocks} "
+                f"blocks, but block_iterations has {len(self.block_iterations)} entries"
+            )
+        if any(n < 0 for n in self.block_iterations):
+            raise ConfigError("block_iterations must be >= 0")
+        if self.n_critic < 0 or self.samples_per_clip < 1:
+            raise ConfigError("n_critic must be >= 0 and samples_per_clip >= 1")
+        if not 0 <= self.mix_prob <= 1:
+            raise ConfigError(f"mix_prob must be in [0, 1], got {self.mix_prob}")
+
+    @property
+    def num_blocks(self) -> int:
+        return -(-self.model.num_levels // self.block_size)
+
+    @property
+    def blocks(self) -> list[list[int]]:
+        """0-based level indices of every block, e.g. ``[[0, 1], [2, 3], ...]``."""
+        L, s = self.model.num_levels, self.block_size
+        return [list(range(i, min(i + s, L))) for i in range(0, L, s)]
+
+    @property
+    def smooth_start(self) -> int:
+        """First level (1-based) that gets the smoothness loss."""
+        return (
+            self.model.num_levels // 2 + 1
+            if self.smooth_from_level is None
+            else self.smooth_from_level
+        )
+
+    def replace(self, **changes) -> TrainConfig:
+        return dataclasses.replace(self, **changes)
+
+
+def paper() -> TrainConfig:
+    """The paper's label-conditioned setting (Sec. 3-4): L = 8, F = 4/3, 15000 iterations
+    for levels 1-2 and 25000 for each further block, weights 1/5/50/5, Adam 1e-4."""
+    return TrainConfig(
+        model=ModelConfig(num_levels=8, scale_factor=4 / 3),
+        loss=LossWeights(adv=1.0, con=5.0, rec=50.0, smooth=5.0, gp=1.0),
+        block_size=2,
+        block_iterations=(15000, 25000, 25000, 25000),
+        lr=1e-4,
+    )
+
+
+def tutorial() -> TrainConfig:
+    """A CPU budget (about 10 minutes on 2 cores for four ~200-frame clips at 30 fps):
+    fewer levels and iterations, narrower networks, 2 critic steps per generator step."""
+    return TrainConfig(
+        model=ModelConfig(
+            num_levels=6, scale_factor=4 / 3, gen_hidden=(72, 144, 144), disc_hidden=(48, 96, 96)
+        ),
+        block_size=2,
+        block_iterations=(400, 300, 300),
+        n_critic=2,
+        checkpoint_every=200,
+        log_every=10,
+    )
+
+
+PRESETS = {"paper": paper, "tutorial": tutorial}
+
+
+def get_preset(name: str) -> TrainConfig:
+    """A named preset: ``"paper"`` or ``"tutorial"``."""
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
+    return PRESETS[name]()
+
+
+def config_to_json(config: TrainConfig) -> str:
+    return json.dumps(dataclasses.asdict(config), indent=2, sort_keys=True)
+
+
+def config_from_json(text: str | dict) -> TrainConfig:
+    d = json.loads(text) if isinstance(text, str) else dict(text)
+    d = dict(d)
+    model = ModelConfig(**d.pop("model"))
+    loss = LossWeights(**d.pop("loss"))
+    names = {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown = set(d) - names
+    if unknown:
+        raise ConfigError(f"unknown config fields {sorted(unknown)}")
+    return TrainConfig(model=model, loss=loss, **d)

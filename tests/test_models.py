@@ -1,0 +1,181 @@
+import numpy as np
+import pytest
+import torch
+
+from mrlib.config import ModelConfig
+from mrlib.features import NUM_FEATURES, channel_joint
+from mrlib.models import (
+    FiLM,
+    LevelGenerator,
+    PatchCritic,
+    SkeletonConv1d,
+    build_critics,
+    build_generator,
+    hidden_channel_joint,
+    skeleton_mask,
+)
+from mrlib.pyramid import RaggedLevels, reflect_pad_index
+from mrlib.skeleton import UPPER_BODY_JOINTS, graph_distances
+
+TINY = ModelConfig(num_levels=3, gen_hidden=(24, 48, 48), disc_hidden=(24, 48, 48))
+DIST = graph_distances()
+IO = channel_joint()
+C = NUM_FEATURES
+
+
+def _pad(T, B=1, p=2):
+    return reflect_pad_index(torch.full((B,), T), T, p)
+
+
+def test_hidden_channels_round_up_to_joint_groups():
+    owner = hidden_channel_joint(128)
+    assert (
+        len(owner) == 144 and (np.bincount(owner) == 6).all()
+    )  # GANimator: 128 -> 144 for 24 joints
+
+
+def test_skeleton_mask_is_a_buffer_and_respects_distance():
+    conv = SkeletonConv1d(C, 48, 5, skeleton_mask(hidden_channel_joint(48), IO, 2))
+    assert "mask" in dict(conv.named_buffers()) and "mask" not in dict(conv.named_parameters())
+    m = conv.mask[..., 0].bool().numpy()
+    expect = DIST[np.ix_(hidden_channel_joint(48), IO)] <= 2
+    assert (m == expect).all()
+    assert (conv.weight.detach()[~conv.mask.expand_as(conv.weight).bool()] == 0).all()
+
+
+def _joint_jacobian(fn, in_owner, out_owner, T=21):
+    """(J_out, J_in) bool: does any output channel of joint a depend on an input channel of
+    joint b (autograd, one backward per output joint)."""
+    x = torch.randn(1, len(in_owner), T, requires_grad=True)
+    y = fn(x)
+    dep = np.zeros((24, 24), bool)
+    for a in range(24):
+        sel = torch.from_numpy(out_owner == a)
+        if not sel.any():
+            continue
+        (g,) = torch.autograd.grad(y[:, sel].sum(), x, retain_graph=True)
+        per_channel = g.abs().sum((0, 2)).numpy() > 0
+        for b in range(24):
+            dep[a, b] = per_channel[in_owner == b].any()
+    return dep
+
+
+def test_one_skeleton_conv_only_reads_the_neighbourhood():
+    torch.manual_seed(0)
+    out_owner = hidden_channel_joint(48)
+    conv = SkeletonConv1d(C, len(out_owner), 5, skeleton_mask(out_owner, IO, 2))
+    dep = _joint_jacobian(lambda x: conv(x, _pad(x.shape[-1])), IO, out_owner)
+    assert (dep == (DIST <= 2)).all()
+
+
+def test_generator_level_is_local_on_the_skeleton():
+    """Four radius-2 convs: an output joint depends exactly on joints within 8 hops, so the
+    left hand (22) cannot move the left foot (10), 12 hops away; the FiLM layer and the
+    residual are per channel and keep it that way."""
+    torch.manual_seed(0)
+    level = LevelGenerator(TINY, cond_dim=3)
+    cond = torch.zeros(1, 21, 3)
+    cond[..., 1] = 1
+    z = torch.zeros(1, 1, 21)
+    dep = _joint_jacobian(lambda x: level(x, z, cond, _pad(21)), IO, IO)
+    assert (dep == (DIST <= 8)).all()
+    assert DIST[22, 10] == 12 and not dep[10, 22]
+    # finite-difference check of the same fact on the full output
+    x = torch.randn(1, C, 21)
+    x2 = x.clone()
+    x2[:, torch.from_numpy(IO == 22)] += 5.0
+    with torch.no_grad():
+        y, y2 = level(x, z, cond, _pad(21)), level(x2, z, cond, _pad(21))
+    foot = torch.from_numpy(IO == 10)
+    assert torch.equal(y[:, foot], y2[:, foot])
+    assert not torch.equal(y[:, torch.from_numpy(IO == 20)], y2[:, torch.from_numpy(IO == 20)])
+
+
+def test_temporal_receptive_fields():
+    torch.manual_seed(0)
+    critic = PatchCritic(TINY)
+    assert critic.receptive_field == 17
+    x = torch.randn(1, C, 60, requires_grad=True)
+    s = critic(x, _pad(60))
+    assert s.shape == (1, 60)
+    (g,) = torch.autograd.grad(s[0, 30], x)
+    touched = (g.abs().sum(1)[0] > 0).nonzero().flatten()
+    assert touched.min() == 22 and touched.max() == 38  # 17 frames around frame 30
+
+
+def test_film_identity_at_init_and_channel_mask():
+    torch.manual_seed(0)
+    film = FiLM(4, C, 8)
+    cond = torch.eye(4)[None, :, :].repeat(2, 5, 1)[:, :7]  # (2, 7, 4)
+    gamma, delta = film.params(cond)
+    assert gamma.shape == (2, C, 7) and (gamma - 1).abs().max() < 0.2 and delta.abs().max() < 0.2
+    mask = torch.from_numpy(np.isin(IO, UPPER_BODY_JOINTS))
+    film_m = FiLM(4, C, 8, channel_mask=mask)
+    gamma, delta = film_m.params(cond)
+    assert (gamma[:, ~mask] == 1).all() and (delta[:, ~mask] == 0).all()
+    assert (gamma[:, mask] != 1).any()
+
+
+def test_film_changes_the_output_when_the_condition_changes():
+    torch.manual_seed(0)
+    level = LevelGenerator(TINY, cond_dim=3)
+    x, z = torch.randn(1, C, 32), torch.randn(1, 1, 32)
+    a, b = torch.zeros(1, 32, 3), torch.zeros(1, 32, 3)
+    a[..., 0], b[..., 2] = 1, 1
+    with torch.no_grad():
+        ya, yb = level(x, z, a, _pad(32)), level(x, z, b, _pad(32))
+    assert (ya - yb).abs().max() > 1e-4
+    # a per-frame condition modulates frame by frame (receptive field: 8 frames each side)
+    c = a.clone()
+    c[:, 16:] = b[:, 16:]
+    with torch.no_grad():
+        yc = level(x, z, c, _pad(32))
+    assert torch.equal(yc[..., :8], ya[..., :8]) and torch.equal(yc[..., 25:], yb[..., 25:])
+    assert not torch.equal(yc[..., 8:25], ya[..., 8:25])
+
+
+def test_film_joints_config_restricts_modulation():
+    cfg = ModelConfig(
+        num_levels=2, gen_hidden=(24,), disc_hidden=(24,), film_joints=UPPER_BODY_JOINTS
+    )
+    level = LevelGenerator(cfg, cond_dim=5)
+    m = level.film.channel_mask[:, 0].bool().numpy()
+    assert (m == np.isin(IO, UPPER_BODY_JOINTS)).all()
+
+
+def test_shapes_through_every_level_with_ragged_batch():
+    torch.manual_seed(0)
+    gen = build_generator(TINY, cond_dim=2)
+    table = torch.tensor([[9, 12, 16], [12, 16, 21]])
+    lay = RaggedLevels.from_table(table)
+    noises = [torch.randn(2, C, 12)] + [torch.randn(2, 1, s) for s in lay.sizes[1:]]
+    conds = [torch.ones(2, s, 2) for s in lay.sizes]
+    outs = gen.run(lay, noises, conds, keep=True)
+    assert [o.shape for o in outs] == [(2, C, s) for s in lay.sizes]
+    # each sample of the ragged batch equals that sample generated alone
+    for b in range(2):
+        solo = RaggedLevels.from_table(table[b : b + 1])
+        n_b = [n[b : b + 1, :, : table[b, i]] for i, n in enumerate(noises)]
+        c_b = [c[b : b + 1, : table[b, i]] for i, c in enumerate(conds)]
+        alone = gen.run(solo, n_b, c_b, keep=True)
+        for i in range(3):
+            assert torch.allclose(outs[i][b, :, : table[b, i]], alone[i][0], atol=1e-5)
+    # levels can be run in two halves (frozen levels, then a block)
+    mid = gen.run(lay, noises, conds, 0, 2)
+    top = gen.run(lay, noises, conds, 2, 3, x=mid)
+    assert torch.allclose(top, outs[-1])
+
+
+def test_critics_score_patches_without_sigmoid():
+    critics = build_critics(TINY)
+    assert len(critics) == 3
+    x = torch.randn(2, C, 20) * 10
+    s = critics[0](x, _pad(20, B=2))
+    assert s.shape == (2, 20)
+    assert s.abs().max() > 1 or s.min() < 0  # unbounded scores
+
+
+@pytest.mark.parametrize("radius", [1, 2])
+def test_mask_density_shrinks_with_radius(radius):
+    m = skeleton_mask(hidden_channel_joint(24), hidden_channel_joint(24), radius)
+    assert m.float().mean() == pytest.approx(float((DIST <= radius).mean()))
