@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -145,3 +148,35 @@ def test_plot_contacts():
     assert ax.get_xlim() == (0.0, 3.0)
     with pytest.raises(MotionValueError):
         plot_contacts(c[:, :5], fps=30)
+
+
+# -- real data: Bandai-Namco walking clips -------------------------------------------------
+DATA_DIR = Path(
+    os.environ.get(
+        "MRLIB_DATA_DIR",
+        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
+    )
+)
+
+
+def rising_edges(c: np.ndarray) -> np.ndarray:
+    return np.flatnonzero((c[1:] > 0.5) & (c[:-1] < 0.5)) + 1
+
+
+@pytest.mark.skipif(not DATA_DIR.is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)")
+@pytest.mark.parametrize("style", ["normal", "tired"])
+def test_contacts_alternate_on_a_real_walk(body, style):
+    from mrlib.io import load_motion
+
+    motion = load_motion(DATA_DIR / "data" / f"dataset-1_walk_{style}_001.bvh", body=body)
+    c = foot_contacts(motion, body)
+    left, right = c[:, :3].max(1), c[:, 3:].max(1)
+    assert 0.35 < left.mean() < 0.75 and 0.35 < right.mean() < 0.75
+    assert np.maximum(left, right).mean() > 0.85  # walking: a foot is almost always down
+    # heel strikes: left and right interleave
+    strikes = sorted(
+        [(t, "L") for t in rising_edges(c[:, 2])] + [(t, "R") for t in rising_edges(c[:, 5])]
+    )
+    assert sum(s == "L" for _, s in strikes) >= 3 and sum(s == "R" for _, s in strikes) >= 3
+    alternating = np.mean([a[1] != b[1] for a, b in zip(strikes[:-1], strikes[1:], strict=True)])
+    assert alternating >= 0.8
