@@ -412,12 +412,15 @@ class BodyModel(torch.nn.Module):
             ``(24, 3)`` or ``(..., 24, 3)`` tensor.
         """
         b = self._betas(betas)
-        return self.J_template + torch.einsum("...l,jcl->...jc", b, self.J_shapedirs)
+        # J = J_template + sum_l b[..., l] J_shapedirs[j, c, l], as one matmul
+        offs = b @ self.J_shapedirs.reshape(NUM_JOINTS * 3, -1).T  # (..., J*3)
+        return self.J_template + offs.reshape(*b.shape[:-1], NUM_JOINTS, 3)
 
     def rest_vertices(self, betas: Any = None) -> torch.Tensor:
         """Rest-pose template ``(V, 3)`` (or ``(..., V, 3)``) for shape ``betas``."""
         b = self._betas(betas)
-        return self.smpl.v_template + torch.einsum("...l,vcl->...vc", b, self.smpl.shapedirs)
+        offs = b @ self.smpl.shapedirs.reshape(-1, self.num_betas).T  # (..., V*3)
+        return self.smpl.v_template + offs.reshape(*b.shape[:-1], -1, 3)
 
     # -- forward --------------------------------------------------------------------------
     def forward(
@@ -486,10 +489,12 @@ class BodyModel(torch.nn.Module):
                 )
             v_t, dirs, W = smpl.v_template[ids], smpl.shapedirs[ids], smpl.lbs_weights[ids]
             posedirs = None
+        # v[n, k, c] = v_t[k, c] + sum_l b[n, l] dirs[k, c, l]  (matmuls: einsum is slow here)
+        dirs = dirs.reshape(-1, dirs.shape[-1])  # (K*3, NB)
         if b.ndim == 1:
-            v = (v_t + torch.einsum("l,kcl->kc", b, dirs))[None]  # (1, K, 3)
+            v = (v_t + (dirs @ b).reshape(-1, 3))[None]  # (1, K, 3)
         else:
-            v = v_t + torch.einsum("nl,kcl->nkc", bN, dirs)  # (N, K, 3)
+            v = v_t + (bN @ dirs.T).reshape(N, -1, 3)  # (N, K, 3)
         # 4. Pose blend shapes: (R_j - I) for the 23 non-root joints, against posedirs
         if self.has_pose_blendshapes:
             feat = (R[:, 1:] - torch.eye(3, dtype=self.dtype, device=self.device)).reshape(N, -1)
@@ -498,8 +503,8 @@ class BodyModel(torch.nn.Module):
                 posedirs = smpl.posedirs[:, cols]
             v = v + (feat @ posedirs).reshape(N, -1, 3)
         # 5. Linear blend skinning: T_k = sum_j W[k, j] A_j ; v' = T_k[:3, :3] v + T_k[:3, 3]
-        T = torch.einsum("kj,njab->nkab", W, A[:, :, :3, :])  # (N, K, 3, 4)
-        verts = (T[..., :3] @ v.unsqueeze(-1)).squeeze(-1) + T[..., 3]
+        T = (W @ A.reshape(N, NUM_JOINTS, 16)).reshape(N, -1, 4, 4)  # (N, K, 4, 4)
+        verts = (T[..., :3, :3] @ v.unsqueeze(-1)).squeeze(-1) + T[..., :3, 3]
         if trans is not None:
             verts = verts + t
         return BodyOutput(joints=out_joints, vertices=verts.reshape(*lead, -1, 3))
