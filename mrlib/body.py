@@ -399,7 +399,8 @@ class BodyModel(torch.nn.Module):
             except RuntimeError:
                 raise BodyModelError(
                     f"betas with batch shape {tuple(b.shape[:-1])} do not broadcast to the "
-                    f"poses' batch shape {lead}"
+                    f"poses' batch shape {lead} (numpy rules, trailing dims first); for one "
+                    "shape per sequence of (B, T) poses pass betas[:, None, :]"
                 ) from None
         return b
 
@@ -436,7 +437,9 @@ class BodyModel(torch.nn.Module):
             rotmat: ``(..., 24, 3, 3)`` local joint rotations; ``rotmat[..., 0, :, :]`` is
                 the global orientation.
             trans: ``(..., 3)`` root translation (SMPL's ``transl``), or None.
-            betas: ``(NB,)`` shared, or ``(..., NB)`` per item; None = mean shape.
+            betas: ``(NB,)`` shared, or ``(..., NB)`` broadcastable to the poses' batch
+                shape (one shape per sequence of ``(B, T)`` poses: ``(B, 1, NB)``); fewer
+                than NB values are zero-padded; None = mean shape.
             vertex_ids: None (joints only), ``"all"``, or K vertex indices.
         Returns:
             :class:`BodyOutput` with ``joints (..., 24, 3)`` and ``vertices (..., K, 3)``.
