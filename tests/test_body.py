@@ -188,6 +188,9 @@ def test_forward_rejects_bad_shapes(body):
         body(torch.zeros(5, 23, 3, 3))
     with pytest.raises(BodyModelError, match="betas"):
         body(random_rotmats(2), betas=torch.zeros(11))
+    with pytest.raises(BodyModelError, match=r"betas\[:, None, :\]"):
+        body(random_rotmats(2, 3), betas=torch.zeros(2, 10))  # (B, NB) against (B, T)
+    assert body(random_rotmats(2, 3), betas=torch.zeros(2, 1, 10)).joints.shape == (2, 3, 24, 3)
     with pytest.raises(BodyModelError, match="vertex_ids"):
         body(random_rotmats(2), vertex_ids=[body.num_vertices])
     with pytest.raises(BodyModelError, match="vertex_ids"):
