@@ -156,10 +156,11 @@ def synthetic_wave(seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=
     poses = np.zeros((T, 24, 3))
     poses[:, J["left_shoulder"]] = _rotz(np.full(T, -d(75)))
     poses[:, J["left_elbow"]] = _roty(np.full(T, -d(10)))
-    # right upper arm raised to the side and forward, forearm up, waving about the elbow
+    # right upper arm out to the side and a little forward, forearm up (a negative
+    # rotation about +Z for the right arm), waving about the elbow
     raise_ = _rotz(np.full(T, d(10)) + d(5) * np.sin(2 * np.pi * 0.3 * t))
     poses[:, J["right_shoulder"]] = _compose(_roty(np.full(T, -d(20))), raise_)
-    poses[:, J["right_elbow"]] = _compose(_rotz(np.full(T, d(95))), _rotx(d(25) * np.sin(2 * np.pi * f * t)))
+    poses[:, J["right_elbow"]] = _compose(_rotz(np.full(T, -d(95))), _rotx(d(25) * np.sin(2 * np.pi * f * t)))
     poses[:, J["right_wrist"]] = _rotz(d(10) * np.sin(2 * np.pi * f * t + 0.5))
     shift = d(3) * np.sin(2 * np.pi * rng.uniform(0.15, 0.3) * t)
     poses[:, 0] = _rotz(shift)
