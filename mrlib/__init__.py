@@ -1,3 +1,90 @@
-"""mrlib: multi-resolution conditional generative modelling of SMPL motion."""
+"""mrlib: multi-resolution conditional generative modelling of SMPL human motion.
+
+The public API, in the order data flows through it::
+
+    motion = mrlib.load_motion("clip.bvh")            # BVH / AMASS npz / EasyMocap -> SMPL
+    body = mrlib.load_body_model()                      # real SMPL or the embedded default body
+    x = mrlib.motion_to_features(motion, body)          # (T, 153) model features
+    contacts = mrlib.foot_contacts(motion, body)        # (T, 6) foot contact labels
+
+Conventions (metres, Y up, 6D = first two matrix columns) are stated in ``mrlib.skeleton``.
+Rendering helpers import pyvista / matplotlib only when called.
+"""
+
+from mrlib.body import BodyModel, BodyOutput, load_body_model
+from mrlib.contacts import DEFAULT_CONTACT_THRESHOLD, foot_contacts, foot_vertex_velocity, plot_contacts
+from mrlib.errors import (
+    BodyModelError,
+    BVHFormatError,
+    ClipTooShortError,
+    JointMapError,
+    MotionFileError,
+    MotionValueError,
+    MrlibError,
+    UnsupportedFormatError,
+)
+from mrlib.features import (
+    NUM_FEATURES,
+    FeatureNormalizer,
+    feature_layout,
+    features_to_motion,
+    motion_to_features,
+)
+from mrlib.io import load_label, load_motion, save_motion
+from mrlib.metrics import (
+    condition_fidelity,
+    coverage,
+    coverage_profile,
+    global_diversity,
+    local_diversity,
+    metric_features,
+    reconstruction_error,
+)
+from mrlib.motion import Motion
+from mrlib.render import animate_skeleton, plot_skeleton_strip, render_meshes, save_gif
 
 __version__ = "0.1.0"
+
+__all__ = [
+    # data
+    "Motion",
+    "load_motion",
+    "save_motion",
+    "load_label",
+    # body and contacts
+    "BodyModel",
+    "BodyOutput",
+    "load_body_model",
+    "foot_contacts",
+    "foot_vertex_velocity",
+    "DEFAULT_CONTACT_THRESHOLD",
+    # features
+    "NUM_FEATURES",
+    "feature_layout",
+    "motion_to_features",
+    "features_to_motion",
+    "FeatureNormalizer",
+    # metrics
+    "metric_features",
+    "coverage",
+    "coverage_profile",
+    "global_diversity",
+    "local_diversity",
+    "reconstruction_error",
+    "condition_fidelity",
+    # plots and renders
+    "plot_contacts",
+    "render_meshes",
+    "plot_skeleton_strip",
+    "animate_skeleton",
+    "save_gif",
+    # errors
+    "MrlibError",
+    "MotionFileError",
+    "BVHFormatError",
+    "JointMapError",
+    "MotionValueError",
+    "UnsupportedFormatError",
+    "ClipTooShortError",
+    "BodyModelError",
+]

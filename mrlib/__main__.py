@@ -1,0 +1,5 @@
+import sys
+
+from mrlib.cli import main
+
+sys.exit(main())
