@@ -13,29 +13,35 @@ Method, in numbered steps (``retarget_bvh``):
    axis closest to the mean feet-to-head vector. Both can be overridden. A rotation ``A``
    then brings the source into mrlib's frame (metres, Y up): ``R'_s = A R_s``,
    ``P'_s = unit * A P_s``. The heading is left as captured.
-3. Body shape: SMPL's rest joints are linear in ``betas`` (``J(b) = J_0 + D b``), so the
-   betas are fitted, by a few Gauss-Newton steps of a ridge-regularised least squares
-   problem, to make the lengths of SMPL's mapped bones match the source's. What the
-   shape space cannot absorb is taken up by a uniform scale ``s`` applied to the source.
-4. Rest-pose alignment: one constant rotation ``C_j`` per mapped SMPL joint so that
+3. Rest-pose alignment: one constant rotation ``C_j`` per mapped SMPL joint so that
    ``G_j(t) = R'_{src(j)}(t) @ C_j`` is SMPL's global rotation. ``C_j`` maps SMPL's rest
    bone directions (to the next mapped joint down each branch) onto the source bone
    directions expressed in the source joint's local frame (Wahba's problem, solved by
-   SVD). When a joint has only one such direction, the free twist about that bone is
-   the one that keeps the joint's local rotation closest to identity on average over
-   the clip (closed form); when it has none (SMPL's head, feet, and wrists/hands when
-   the source ends there) the whole ``C_j`` is chosen that way. The source's own rest
-   pose is never used, so skeletons whose rest pose is not a T-pose (Bandai Namco: every
-   bone along +X) work the same.
-5. Unmapped SMPL joints (e.g. spine2 for Bandai Namco, the hands) get an identity local
+   SVD, each bone weighted by its lengths: a Procrustes fit of the child joints). When
+   a joint has only one such direction, the free twist about that bone is the one that
+   keeps the joint's local rotation closest to identity on average over the clip
+   (closed form); when it has none (SMPL's feet and head, and the wrists when the
+   source ends there) the whole ``C_j`` is chosen that way (the head relative to the
+   chest, see ``_ORIENTATION_REFERENCE``). The source's own rest pose is never used, so
+   skeletons whose rest pose is not a T-pose (Bandai Namco: every bone along +X) work.
+4. Unmapped SMPL joints (e.g. spine1 for Bandai Namco, the hands) get an identity local
    rotation: they move rigidly with their parent, and the parent's ``C`` already aims
    the rigid chain at the next mapped joint.
+5. Body shape: for fixed global rotations SMPL's joints are linear in the rest joints,
+   which are linear in ``betas`` (``J(b) = J_0 + D b``); the betas (and optionally a
+   uniform scale ``s`` of the source, and ``delta`` of step 6) minimising the mean
+   squared joint error plus a
+   ridge term are a bounded linear least-squares problem. Steps 3 and 5 alternate
+   (the alignment depends on SMPL's rest directions) until the betas settle.
 6. Local rotations ``L_j = G_parent^T G_j`` become the axis-angle poses; the translation
-   makes SMPL's pelvis follow the (scaled) source hips: ``trans = s P'_hips - J_pelvis(b)``.
-7. Error report: SMPL joint positions from the body model's forward pass versus the
-   source's mapped joints ``s P'_src``, mean and max over frames and mapped joints in cm.
-   The offsets between where two skeletons put "the same" joint (hip centres, spine
-   segments, shoulder blades) are what keeps it above zero.
+   makes SMPL's pelvis follow the (scaled) source hips, up to a constant offset ``delta``
+   in the pelvis frame fitted with the shape in step 5:
+   ``trans = s P'_hips + G_pelvis delta - J_pelvis(b)``.
+7. Error report: SMPL's joint positions (the joints of the body model's forward pass,
+   i.e. forward kinematics of ``J(b)``) versus the source's mapped joints ``s P'_src``:
+   mean and max over frames and mapped joints, in cm. What keeps it above zero is
+   where the two skeletons put "the same" joint (spine segments, neck, shoulders) -
+   differences the body's shape space can only partly absorb.
 """
 
 from __future__ import annotations
@@ -382,6 +388,8 @@ class RetargetResult:
         unit: metres per file unit.
         up_axis: the source's up axis.
         scale: uniform scale applied to the source (after units) to fit the body.
+        pelvis_offset: ``(3,)`` offset of SMPL's pelvis from the source hips, in the
+            pelvis frame, metres: ``trans = s P'_hips + G_pelvis delta - J_pelvis``.
         error_mean_cm, error_max_cm: joint position error over frames and mapped joints.
         joint_error_cm: ``(24,)`` mean error per SMPL joint, NaN where unmapped.
     """
@@ -394,6 +402,7 @@ class RetargetResult:
     unit: float
     up_axis: str
     scale: float
+    pelvis_offset: np.ndarray
     error_mean_cm: float
     error_max_cm: float
     joint_error_cm: np.ndarray = field(repr=False)
@@ -411,6 +420,7 @@ class RetargetResult:
             "unit_m": self.unit,
             "up_axis": self.up_axis,
             "scale": self.scale,
+            "pelvis_offset_m": [round(float(v), 5) for v in self.pelvis_offset],
             "retarget_error_mean_cm": self.error_mean_cm,
             "retarget_error_max_cm": self.error_max_cm,
             "retarget_joint_error_cm": per_joint,
@@ -484,6 +494,14 @@ def _smpl_fk(G: np.ndarray, J: np.ndarray, trans: np.ndarray) -> np.ndarray:
     return pos
 
 
+# A joint with no bone direction to match gets the rotation that keeps it closest, on
+# average, to its parent's orientation - except the head: SMPL's neck->head bone leans
+# ~20 deg forward of the face's vertical axis while most skeletons' is straight, so
+# aligning that bone tilts the neck back, and a head following the neck would look up.
+# The head is instead kept, on average, in the orientation of the chest (spine3).
+_ORIENTATION_REFERENCE = {JOINT_NAMES.index("head"): JOINT_NAMES.index("spine3")}
+
+
 def _source_directions(
     src: np.ndarray, Rw: np.ndarray, Pw: np.ndarray
 ) -> dict[int, list[tuple[int, np.ndarray, float]]]:
@@ -532,7 +550,9 @@ def _solve_offsets(
             d = J[k] - J[j]
             dn = np.linalg.norm(d)
             pairs.append((d / dn, a, dn * length))
-        M = (np.swapaxes(Gp, -1, -2) @ Rs).sum(0)  # sum_t Gp^T Rs
+        ref = _ORIENTATION_REFERENCE.get(j) if not pairs else None
+        Gref = G[:, ref] if ref is not None else Gp
+        M = (np.swapaxes(Gref, -1, -2) @ Rs).sum(0)  # sum_t Gref^T Rs
         C_all[j] = _solve_offset(pairs, M)
         G[:, j] = Rs @ C_all[j]
     return C_all
@@ -560,54 +580,72 @@ def _fit_shape_scale(
     mapped: np.ndarray,
     b: np.ndarray,
     fit_betas: bool,
+    scale: float | None,
+    delta: np.ndarray | None,
     ridge: float,
     bound: float,
-    scale: float | None,
-) -> tuple[np.ndarray, float]:
-    """Betas and scale ``s`` minimising ``mean |x_k(t) - s Q_k(t)|^2 + ridge |b|^2``.
+) -> tuple[np.ndarray, float, np.ndarray]:
+    """Betas ``b``, scale ``s`` and pelvis offset ``delta`` minimising
+    ``mean_{t,k} |x_k(t) + G_pelvis(t) delta - s Q_k(t)|^2 + ridge |b|^2``.
 
     For fixed global rotations ``G (T, 24, 3, 3)``, SMPL's pelvis-relative joints are
     linear in the rest joints and so in the betas:
     ``x_k(t) = sum_{c on the path to k} G_parent(c)(t) (J_c - J_parent(c))(b)``.
-    ``Q (T, Js, 3)`` are the source joints relative to the hips. Bounded linear least
-    squares (``|b_i| <= bound``); with ``fit_betas=False`` only ``s`` is fitted, with
-    ``scale`` given only the betas.
+    ``Q (T, Js, 3)`` are the source joints relative to the hips; ``delta`` (pelvis
+    frame) moves SMPL's pelvis off the source hips. Bounded linear least squares
+    (``|b_i| <= bound``, ``s > 0``). Quantities given (``fit_betas=False``, ``scale`` or
+    ``delta`` not None) are held fixed.
     """
     T = len(G)
-    B = D.shape[-1] if fit_betas else 0
+    B = D.shape[-1]
     par = np.array(PARENTS[1:])
     dJ0 = np.concatenate([np.zeros((1, 3)), J0[1:] - J0[par]])  # (24, 3) rest bone vectors
-    dD = np.concatenate([np.zeros((1, 3, D.shape[-1])), D[1:] - D[par]])[..., :B]  # (24, 3, B)
-    if not fit_betas:
-        dJ0 = dJ0 + np.concatenate([np.zeros((1, 3)), (D[1:] - D[par]) @ b])
+    dD = np.concatenate([np.zeros((1, 3, B)), D[1:] - D[par]])  # (24, 3, B)
     W = np.zeros((T, NUM_JOINTS, 3, B))  # d x_k / d b
     Y = np.zeros((T, NUM_JOINTS, 3))  # x_k at b = 0
     for k in range(1, NUM_JOINTS):
         p = PARENTS[k]
         W[:, k] = W[:, p] + G[:, p] @ dD[k]
         Y[:, k] = Y[:, p] + G[:, p] @ dJ0[k]
-    ks = mapped[mapped > 0]
-    if len(ks) == 0:
-        return b, 1.0
-    A = np.concatenate([W[:, ks], -Q[:, src[ks], :, None]], axis=-1).reshape(-1, B + 1)
-    y = -Y[:, ks].reshape(-1)
-    if scale is not None:  # fixed scale: move its column to the right-hand side
-        y = y - scale * A[:, B]
-        A = A[:, :B]
+    ks = mapped  # the pelvis included: its residual is G_pelvis delta
+    Qk = Q[:, src[ks]]  # (T, K, 3)
+    G0 = np.broadcast_to(G[:, None, 0], (T, len(ks), 3, 3))
+    # Columns [b | s | delta]; the fixed ones go to the right-hand side.
+    cols, rhs = [], -Y[:, ks]
+    if fit_betas:
+        cols.append(W[:, ks])
+    else:
+        rhs = rhs - W[:, ks] @ b
+    if scale is None:
+        cols.append(-Qk[..., None])
+    else:
+        rhs = rhs + scale * Qk
+    if delta is None:
+        cols.append(G0)
+    else:
+        rhs = rhs - G0 @ delta
+    nb = B if fit_betas else 0
+    if not cols:
+        return b, float(scale), np.asarray(delta, dtype=np.float64)
+    A = np.concatenate(cols, axis=-1).reshape(T * len(ks) * 3, -1)
+    y = rhs.reshape(-1)
     nx = A.shape[1]
-    if nx == 0:
-        return b, float(scale)
     # Reduce to the (nx, nx) triangular system first: the bounded solver is then cheap.
     n = T * len(ks)  # residual vectors; the ridge is per mean squared error
     L = np.linalg.cholesky(A.T @ A + 1e-12 * np.eye(nx))  # A^T A = L L^T
     z = np.linalg.solve(L, A.T @ y)  # min |A x - y| <=> min |L^T x - z|
-    A = np.concatenate([L.T, np.sqrt(ridge * n) * np.eye(B, nx)])
-    y = np.concatenate([z, np.zeros(B)])
-    lo = np.r_[np.full(B, -bound), [1e-6] * (nx - B)]
-    hi = np.r_[np.full(B, bound), [np.inf] * (nx - B)]
+    A = np.concatenate([L.T, np.sqrt(ridge * n) * np.eye(nb, nx)])
+    y = np.concatenate([z, np.zeros(nb)])
+    lo = np.full(nx, -np.inf)
+    hi = np.full(nx, np.inf)
+    lo[:nb], hi[:nb] = -bound, bound
+    if scale is None:
+        lo[nb] = 1e-6
     x = lsq_linear(A, y, bounds=(lo, hi)).x
-    s_out = float(scale) if scale is not None else float(x[B])
-    return (x[:B] if fit_betas else b), s_out
+    b_out = x[:nb] if fit_betas else b
+    s_out = float(x[nb]) if scale is None else float(scale)
+    d_out = x[-3:] if delta is None else np.asarray(delta, dtype=np.float64)
+    return b_out, s_out, d_out
 
 
 def retarget_bvh(
@@ -621,6 +659,7 @@ def retarget_bvh(
     betas: np.ndarray | None = None,
     offsets: np.ndarray | None = None,
     scale: float | str = "auto",
+    pelvis_offset: bool | np.ndarray = True,
     shape_ridge: float = 1e-5,
     shape_bound: float = 3.0,
 ) -> RetargetResult:
@@ -633,13 +672,17 @@ def retarget_bvh(
         body: a body model (``mrlib.body``); default: the one mrlib ships.
         up_axis: the source's up axis (``x y z -x -y -z``) or ``"auto"``.
         unit: metres per file unit, a name in ``UNITS``, or ``"auto"``.
-        fit_betas: fit SMPL's shape to the source's bone lengths.
+        fit_betas: fit SMPL's shape to the source skeleton's proportions.
         betas: use these betas instead of fitting.
         offsets: ``(24, 3, 3)`` rest alignment from an earlier call on the same skeleton.
         scale: uniform scale applied to the source after unit conversion. ``"auto"``:
             1 when betas are fitted (the capture keeps its metric size, so speeds and
             strides stay true and the body's shape takes up the difference), fitted by
             least squares otherwise; ``"fit"``: always fitted; or a number.
+        pelvis_offset: fit a constant offset ``delta`` (pelvis frame) between SMPL's
+            pelvis and the source hips (skeletons disagree on where the pelvis joint
+            is: CMU's root sits ~10 cm above its hip joints, SMPL's level with them);
+            False pins SMPL's pelvis to the hips; or a fixed ``(3,)`` offset in metres.
         shape_ridge: ridge weight of the betas fit, per mean squared joint error in m^2
             (at 1e-5 one unit of beta costs as much as 3 mm of RMS joint error).
         shape_bound: bound on each fitted beta (keeps the body plausible).
@@ -702,60 +745,70 @@ def retarget_bvh(
     Rw = A @ R  # (T, Js, 3, 3) source joint frame -> mrlib world
     Pw = unit_m * (P @ A.T)  # (T, Js, 3) metres, Y up
 
-    # 3.-4. shape, scale and rest alignment. The alignment depends on the shape (SMPL's
-    # rest bone directions), and for fixed rotations the joint positions are linear in
-    # (betas, scale); so alternate: align for the current shape, then refit both.
+    # 3.-5. rest alignment, shape, scale and pelvis offset. The alignment depends on the
+    # shape (SMPL's rest bone directions); for fixed rotations the joints are linear in
+    # (betas, scale, offset): alternate the two until the betas settle.
     B = D.shape[-1]
+    smpl_named = jmap.name == "smpl"
     if betas is not None:
         b, fit_b = _fit_betas_length(betas, B), False
-    elif jmap.name == "smpl" and fit_betas:
+    elif smpl_named and fit_betas:
         # SMPL-named skeleton (mrlib's export): its offsets are SMPL rest joints, solve exactly
         b, fit_b = _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A), False
     else:
         b, fit_b = np.zeros(B), fit_betas and bool(np.any(D))
-    Q = Pw - Pw[:, src[:1]]  # (T, Js, 3) source joints relative to the hips, metres
-    sub = np.unique(np.linspace(0, T - 1, min(T, 240)).round().astype(np.int64))
     fixed_C = None
     if offsets is not None:
         fixed_C = np.asarray(offsets, dtype=np.float64).reshape(NUM_JOINTS, 3, 3)
-    elif jmap.name == "smpl":
+    elif smpl_named:
         fixed_C = np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3))
     if scale == "auto":
-        fixed_s = 1.0 if fit_b else None
+        fixed_s = 1.0 if (fit_b or smpl_named) else None
     elif scale == "fit":
         fixed_s = None
     else:
         fixed_s = float(scale)
+    if isinstance(pelvis_offset, bool):
+        fixed_delta = None if (pelvis_offset and not smpl_named) else np.zeros(3)
+    else:
+        fixed_delta = np.asarray(pelvis_offset, dtype=np.float64).reshape(3)
+    Q = Pw - Pw[:, src[:1]]  # (T, Js, 3) source joints relative to the hips, metres
     # Offsets and shape are solved on at most 240 evenly spaced frames (sums over frames).
+    sub = np.unique(np.linspace(0, T - 1, min(T, 240)).round().astype(np.int64))
     dirs = _source_directions(src, Rw[sub], Pw[sub])
-    for it in range(4 if fit_b else 1):
+    s_fit, delta = (fixed_s or 1.0), (np.zeros(3) if fixed_delta is None else fixed_delta)
+    for _ in range(4 if fit_b else 1):
         J = J_tmpl + D @ b  # (24, 3) rest joints for these betas
         C_all = fixed_C if fixed_C is not None else _solve_offsets(J, src, Rw[sub], dirs)
-        if it == 3:
+        if not (fit_b or fixed_s is None or fixed_delta is None):
             break
         G = _smpl_globals(C_all, src, Rw[sub])
-        b_new, scale = _fit_shape_scale(
-            G, J_tmpl, D, Q[sub], src, mapped, b, fit_b, shape_ridge, shape_bound, fixed_s
-        )
-        converged = np.abs(b_new - b).max() < 1e-4
+        b_new, s_fit, delta = _fit_shape_scale(
+            G, J_tmpl, D, Q[sub], src, mapped, b, fit_b, fixed_s, fixed_delta,
+            shape_ridge, shape_bound,
+        )  # fmt: skip
+        change = np.abs(b_new - b).max(initial=0.0)
         b = b_new
-        if converged:
-            J = J_tmpl + D @ b
-            if fixed_C is None:
-                C_all = _solve_offsets(J, src, Rw[sub], dirs)
+        if change < 1e-4:
             break
-    Pw = scale * Pw
+    J = J_tmpl + D @ b
+    if fit_b and fixed_C is None:
+        C_all = _solve_offsets(J, src, Rw[sub], dirs)
+    scale_used = float(s_fit)
+    Pw = scale_used * Pw
     G = _smpl_globals(C_all, src, Rw)
 
-    # 6. local rotations, translation
+    # 6. local rotations; translation: SMPL's pelvis at the source hips (+ G_pelvis delta)
     L = G.copy()
     for j in range(1, NUM_JOINTS):
         L[:, j] = np.swapaxes(G[:, PARENTS[j]], -1, -2) @ G[:, j]
     poses = matrix_to_axis_angle(torch.from_numpy(L)).numpy()
-    trans = Pw[:, src[0]] - J[0]
+    trans = Pw[:, src[0]] + G[:, 0] @ delta - J[0]
 
-    # 7. error: SMPL joints from the body's forward pass vs the scaled source joints
-    joints = _body_joints(body, L, trans, b, G, J)
+    # 7. error: SMPL joints vs the scaled source joints. The joints of SMPL's forward pass
+    # are this forward kinematics of the rest joints J(b) (tested against body.forward);
+    # numpy avoids the skinning module's per-call overhead.
+    joints = _smpl_fk(G, J, trans)
     err = np.linalg.norm(joints[:, mapped] - Pw[:, src[mapped]], axis=-1) * 100.0  # (T, M) cm
     joint_err = np.full(NUM_JOINTS, np.nan)
     joint_err[mapped] = err.mean(0)
@@ -767,7 +820,8 @@ def retarget_bvh(
         joint_map=jmap,
         unit=unit_m,
         up_axis=up_axis,
-        scale=scale,
+        scale=scale_used,
+        pelvis_offset=delta,
         error_mean_cm=float(err.mean()),
         error_max_cm=float(err.max()),
         joint_error_cm=joint_err,
@@ -785,20 +839,6 @@ def _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A) -> np.ndarray:
     if Mx.size == 0 or not np.any(Mx):
         return np.zeros(D.shape[-1])
     return np.linalg.lstsq(Mx, y, rcond=None)[0]
-
-
-def _body_joints(body, L, trans, b, G, J) -> np.ndarray:
-    """Joint positions from the body model's forward pass (joints only)."""
-    fwd = getattr(body, "forward", None)
-    if fwd is None:
-        return _smpl_fk(G, J, trans)
-    with torch.no_grad():
-        out = fwd(
-            torch.from_numpy(L).float(),
-            torch.from_numpy(trans).float(),
-            torch.from_numpy(b).float(),
-        )
-    return out.joints.detach().cpu().numpy().astype(np.float64)
 
 
 # ----------------------------------------------------------------------------------------
