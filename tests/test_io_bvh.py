@@ -192,3 +192,23 @@ def test_malformed_raises_with_line(mutate, line, match):
 def test_missing_file_is_typed(tmp_path):
     with pytest.raises(BVHFormatError, match="cannot read"):
         read_bvh(tmp_path / "nope.bvh")
+
+
+def test_writer_reorders_joints_depth_first():
+    # joints stored breadth first (as SMPL orders them): the text must still pair each
+    # joint with its own frame values
+    from mrlib.io.bvh import BVH, BVHSkeleton
+
+    names = ("root", "a", "b", "a1", "b1")
+    parents = (-1, 0, 0, 1, 2)
+    offsets = np.array([[0, 0, 0], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], float)
+    ch = (("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),)
+    ch += (("Zrotation", "Xrotation", "Yrotation"),) * 4
+    rng = np.random.default_rng(0)
+    motion = rng.uniform(-90, 90, size=(3, 18))
+    b = BVH(BVHSkeleton(names, parents, offsets, ch), motion, 0.1)
+    b2 = parse_bvh(format_bvh(b))
+    assert b2.skeleton.names == ("root", "a", "a1", "b", "b1")
+    _, p = bvh_forward_kinematics(b)
+    _, p2 = bvh_forward_kinematics(b2)
+    np.testing.assert_allclose(p2[:, [0, 1, 3, 2, 4]], p, atol=1e-5)
