@@ -121,8 +121,9 @@ class TrainConfig:
             raise ConfigError(f"block_size must be >= 1, got {self.block_size}")
         if len(self.block_iterations) != self.num_blocks:
             raise ConfigError(
-                f"{self.model.num_levels} levels in blocks of {self.block_size} make {self.num_blocks} "
-                f"blocks, but block_iterations has {len(self.block_iterations)} entries"
+                f"{self.model.num_levels} levels in blocks of {self.block_size} make "
+                f"{self.num_blocks} blocks, but block_iterations has "
+                f"{len(self.block_iterations)} entries"
             )
         if any(n < 0 for n in self.block_iterations):
             raise ConfigError("block_iterations must be >= 0")

@@ -1,0 +1,431 @@
+"""Sampling from a trained model: random generation under one or several conditions,
+any length, per-level condition assignment and blending, reconstruction of the training
+clips, and an optional foot-contact clean-up by inverse kinematics.
+
+Levels are 1-based in this module's public API (level 1 is the coarsest), as in the
+paper; ``conditions=[("walk_normal", (1, 4)), ("walk_happy", (5, 8))]`` gives levels
+1-4 the first label and levels 5-8 the second.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mrlib.checkpoint import load_checkpoint
+from mrlib.config import TrainConfig, config_from_json
+from mrlib.errors import MotionValueError
+from mrlib.features import FeatureNormalizer, features_to_motion
+from mrlib.models import MultiResGenerator, build_generator
+from mrlib.motion import Motion
+from mrlib.pyramid import RaggedLevels, level_fps, pyramid_lengths
+
+__all__ = [
+    "GenerativeModel",
+    "load_model",
+    "model_from_trainer",
+    "label_weights",
+    "sample_features",
+    "generate",
+    "reconstruct",
+    "reconstruction_error",
+    "cleanup_foot_contacts",
+    "contact_skating",
+]
+
+
+@dataclass
+class GenerativeModel:
+    """A trained generator and what it needs to sample (see ``mrlib.checkpoint`` keys)."""
+
+    generator: MultiResGenerator
+    config: TrainConfig
+    labels: list[str]
+    clip_labels: list[int]
+    clip_names: list[str]
+    fps: float
+    betas: np.ndarray
+    normalizer: FeatureNormalizer
+    lengths: torch.Tensor  # (N, L) pyramid lengths of the training clips
+    sigma: torch.Tensor  # (K, L) noise amplitude per label and level
+    zstar: list[torch.Tensor]  # N x (C, T_1,k)
+    features: list[torch.Tensor]  # N x (T_k, C) training clips, unnormalised
+    trained_levels: int  # levels whose training finished (all of them for a done run)
+
+    @property
+    def num_levels(self) -> int:
+        return self.config.model.num_levels
+
+    @property
+    def device(self) -> torch.device:
+        return next(self.generator.parameters()).device
+
+    def label_index(self, label: str | int) -> int:
+        if isinstance(label, (int, np.integer)):
+            if not 0 <= int(label) < len(self.labels):
+                raise MotionValueError(f"label index {label} out of range [0, {len(self.labels)})")
+            return int(label)
+        if label not in self.labels:
+            raise MotionValueError(f"unknown label {label!r}; this model knows {self.labels}")
+        return self.labels.index(label)
+
+    def __repr__(self) -> str:
+        return (
+            f"GenerativeModel(labels={self.labels}, levels={self.num_levels}, fps={self.fps:g}, "
+            f"clips={self.clip_names})"
+        )
+
+
+def _model_from_state(state: dict, device: str | torch.device) -> GenerativeModel:
+    config = config_from_json(state["config"])
+    gen = build_generator(config.model, int(state["cond_dim"]))
+    gen.load_state_dict(state["generator"])
+    gen.to(device).eval().requires_grad_(False)
+    p = state["progress"]
+    done_levels = (
+        config.model.num_levels if p["done"] else sum(len(b) for b in config.blocks[: p["block"]])
+    )
+    return GenerativeModel(
+        generator=gen,
+        config=config,
+        labels=list(state["labels"]),
+        clip_labels=list(state["clip_labels"]),
+        clip_names=list(state["clip_names"]),
+        fps=float(state["fps"]),
+        betas=state["betas"].numpy(),
+        normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
+        lengths=state["lengths"],
+        sigma=state["sigma"],
+        zstar=list(state["zstar"]),
+        features=list(state["features"]),
+        trained_levels=int(done_levels),
+    )
+
+
+def load_model(path: str | Path, device: str | torch.device = "cpu") -> GenerativeModel:
+    """Load a checkpoint written by ``mrlib.train`` for sampling."""
+    return _model_from_state(load_checkpoint(path), device)
+
+
+def model_from_trainer(trainer) -> GenerativeModel:
+    """A sampling view of a ``mrlib.train.Trainer`` (shares nothing mutable with it)."""
+    return _model_from_state(trainer.state_dict(), trainer.device)
+
+
+# -- conditions ---------------------------------------------------------------------------
+def label_weights(
+    model: GenerativeModel,
+    condition: str | int | None = None,
+    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
+    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
+) -> torch.Tensor:
+    """Per-level label weights ``(L, K)``: row i is the condition vector of level i+1.
+
+    Exactly one of: ``condition`` (one label at every level); ``conditions`` (labels
+    assigned to 1-based inclusive level ranges that together cover 1..L once); ``blend``
+    ``(a, b, w)``: ``(1 - w) * a + w * b`` with ``w`` a float or one weight per level
+    (the FiLM embedding is linear in the condition, so this interpolates embeddings).
+    """
+    L, K = model.num_levels, len(model.labels)
+    given = sum(x is not None for x in (condition, conditions, blend))
+    if given != 1:
+        raise MotionValueError("give exactly one of condition, conditions or blend")
+    W = torch.zeros(L, K)
+    if condition is not None:
+        W[:, model.label_index(condition)] = 1
+    elif conditions is not None:
+        covered = np.zeros(L, int)
+        for lab, (lo, hi) in conditions:
+            if not 1 <= lo <= hi <= L:
+                raise MotionValueError(
+                    f"level range ({lo}, {hi}) must satisfy 1 <= lo <= hi <= {L}"
+                )
+            W[lo - 1 : hi, model.label_index(lab)] = 1
+            covered[lo - 1 : hi] += 1
+        if not (covered == 1).all():
+            raise MotionValueError(
+                f"level ranges must cover levels 1..{L} exactly once, coverage {covered.tolist()}"
+            )
+    else:
+        a, b, w = blend
+        w = torch.as_tensor(w, dtype=torch.float32).reshape(-1)
+        if w.numel() == 1:
+            w = w.expand(L)
+        if w.numel() != L:
+            raise MotionValueError(f"blend weights need 1 or {L} values, got {w.numel()}")
+        W[:, model.label_index(a)] += 1 - w
+        W[:, model.label_index(b)] += w
+    return W
+
+
+# -- sampling -----------------------------------------------------------------------------
+def sample_features(
+    model: GenerativeModel,
+    conds: list[torch.Tensor],
+    lengths: Sequence[int],
+    noise_amplitude: torch.Tensor,
+    seed: int | None = None,
+    num_samples: int = 1,
+    keep: bool = False,
+) -> torch.Tensor | list[torch.Tensor]:
+    """The generic sampler every other one builds on.
+
+    Args:
+        conds: per level a condition ``(B or 1, T_i, D)`` (any control signal, e.g.
+            one-hot labels constant over time or per-frame speech features).
+        lengths: ``[T_1, ..., T_L]`` frames per level.
+        noise_amplitude: ``(L,)`` or ``(B, L)`` sigma of the noise z_i ~ N(0, sigma_i),
+            shared across channels.
+        keep: return every level's output.
+    Returns:
+        normalised features ``(B, C, T_L)`` or the list of all levels ``[(B, C, T_i)]``.
+    """
+    L = model.num_levels
+    if len(lengths) != L or len(conds) != L:
+        raise MotionValueError(
+            f"need {L} lengths and {L} conditions, got {len(lengths)} and {len(conds)}"
+        )
+    dev = model.device
+    g = torch.Generator().manual_seed(int(seed) if seed is not None else int(torch.seed() % 2**63))
+    amp = torch.as_tensor(noise_amplitude, dtype=torch.float32)
+    amp = amp.expand(num_samples, L) if amp.ndim == 1 else amp
+    layout = RaggedLevels.from_table(torch.tensor(list(lengths)).expand(num_samples, L), dev)
+    noises = [
+        (torch.randn(num_samples, 1, lengths[i], generator=g) * amp[:, i, None, None]).to(dev)
+        for i in range(L)
+    ]
+    cs = []
+    for i, c in enumerate(conds):
+        c = torch.as_tensor(c, dtype=torch.float32, device=dev)
+        if c.ndim != 3 or c.shape[1] != lengths[i] or c.shape[2] != model.generator.cond_dim:
+            raise MotionValueError(
+                f"condition of level {i + 1} must be (B, {lengths[i]}, "
+                f"{model.generator.cond_dim}), got {tuple(c.shape)}"
+            )
+        cs.append(c.expand(num_samples, -1, -1))
+    with torch.no_grad():
+        return model.generator.run(layout, noises, cs, keep=keep)
+
+
+def _to_motion(
+    model: GenerativeModel, x: torch.Tensor, fps: float, label: str | None, name: str
+) -> Motion:
+    return features_to_motion(
+        x.T, fps, betas=model.betas, normalizer=model.normalizer, label=label, name=name
+    )
+
+
+def generate(
+    model: GenerativeModel,
+    condition: str | int | None = None,
+    length: int | None = None,
+    seed: int | None = None,
+    num_samples: int = 1,
+    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
+    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
+    return_levels: bool = False,
+    fix_contacts: bool = False,
+    body=None,
+):
+    """Random motion under label conditions.
+
+    Args:
+        condition: a label name (``"walk_happy"``) or index for every level; or use
+            ``conditions`` / ``blend`` (see :func:`label_weights`).
+        length: frames of the output (any length, also longer than the training clips);
+            default: the first training clip of the coarsest level's main label.
+        seed: for reproducible noise.
+        num_samples: batch size; returns a list when > 1.
+        return_levels: also return every level's output as Motions at the level's frame
+            rate (``fps * T_i / T_L``): ``(motion, [level 1, ..., level L])`` (lists per
+            sample when ``num_samples > 1``).
+        fix_contacts: post-process with :func:`cleanup_foot_contacts`.
+    Returns:
+        ``Motion`` or ``list[Motion]`` (SMPL parameters at the training fps).
+    """
+    if num_samples < 1:
+        raise MotionValueError(f"num_samples must be >= 1, got {num_samples}")
+    W = label_weights(model, condition, conditions, blend)  # (L, K)
+    L = model.num_levels
+    main = int(W[0].argmax())
+    if length is None:
+        length = (
+            int(model.lengths[model.clip_labels.index(main), -1])
+            if main in model.clip_labels
+            else int(model.lengths[0, -1])
+        )
+    pad = (model.config.model.kernel_size - 1) // 2
+    lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
+    amp = (W * model.sigma.float().T).sum(1)  # (L,): sigma of each level's condition mix
+    conds = [W[i].expand(1, lengths[i], -1) for i in range(L)]
+    outs = sample_features(
+        model, conds, lengths, amp, seed=seed, num_samples=num_samples, keep=True
+    )
+    names = [model.labels[int(k)] for k in W.argmax(1)]
+    label = (
+        names[0]
+        if len(set(names)) == 1 and float(W.max(1).values.min()) == 1.0
+        else "+".join(dict.fromkeys(names))
+    )
+    motions = [
+        _to_motion(model, outs[-1][b], model.fps, label, f"{label}_seed{seed}_{b}")
+        for b in range(num_samples)
+    ]
+    if fix_contacts:
+        motions = [cleanup_foot_contacts(m, body) for m in motions]
+    single = num_samples == 1
+    if not return_levels:
+        return motions[0] if single else motions
+    fps_i = level_fps(model.fps, lengths)
+    levels = [
+        [_to_motion(model, outs[i][b], fps_i[i], label, f"{label}_level{i + 1}") for i in range(L)]
+        for b in range(num_samples)
+    ]
+    return (motions[0], levels[0]) if single else (motions, levels)
+
+
+def reconstruct(model: GenerativeModel, clip_index: int, return_levels: bool = False):
+    """Training clip ``clip_index`` regenerated from its fixed noise z* and its label
+    (z*_1 at level 1, no noise above). Returns a Motion (and the per-level Motions)."""
+    N, L = len(model.clip_names), model.num_levels
+    if not 0 <= clip_index < N:
+        raise MotionValueError(f"clip_index {clip_index} out of range [0, {N})")
+    dev = model.device
+    lengths = model.lengths[clip_index].tolist()
+    layout = RaggedLevels.from_table(torch.tensor([lengths]), dev)
+    lab = model.clip_labels[clip_index]
+    cond = torch.zeros(len(model.labels), device=dev)
+    cond[lab] = 1
+    conds = [cond.expand(1, lengths[i], -1) for i in range(L)]
+    noises = [model.zstar[clip_index][None].to(dev)] + [
+        torch.zeros(1, 1, lengths[i], device=dev) for i in range(1, L)
+    ]
+    with torch.no_grad():
+        outs = model.generator.run(layout, noises, conds, keep=True)
+    name = f"{model.clip_names[clip_index]}_reconstruction"
+    motion = _to_motion(model, outs[-1][0], model.fps, model.labels[lab], name)
+    if not return_levels:
+        return motion
+    fps_i = level_fps(model.fps, lengths)
+    return motion, [
+        _to_motion(model, outs[i][0], fps_i[i], model.labels[lab], f"{name}_level{i + 1}")
+        for i in range(L)
+    ]
+
+
+def reconstruction_error(model: GenerativeModel, clip_index: int) -> float:
+    """Mean absolute error between the normalised features of the reconstruction and of
+    the training clip (the training's L_rec at the finest level)."""
+    dev = model.device
+    lengths = model.lengths[clip_index].tolist()
+    layout = RaggedLevels.from_table(torch.tensor([lengths]), dev)
+    lab = model.clip_labels[clip_index]
+    cond = torch.zeros(len(model.labels), device=dev)
+    cond[lab] = 1
+    L = model.num_levels
+    conds = [cond.expand(1, lengths[i], -1) for i in range(L)]
+    noises = [model.zstar[clip_index][None].to(dev)] + [
+        torch.zeros(1, 1, lengths[i], device=dev) for i in range(1, L)
+    ]
+    with torch.no_grad():
+        out = model.generator.run(layout, noises, conds)[0]
+    target = model.normalizer.normalize(model.features[clip_index].to(dev)).T
+    return float((out - target).abs().mean())
+
+
+# -- foot-contact clean-up ------------------------------------------------------------------
+LEG_JOINTS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
+
+
+def _contact_runs(c: np.ndarray) -> list[tuple[int, int]]:
+    """``c (T,)`` bool -> inclusive runs ``[(start, stop), ...]`` of True frames."""
+    runs, t, T = [], 0, len(c)
+    while t < T:
+        if c[t]:
+            s = t
+            while t + 1 < T and c[t + 1]:
+                t += 1
+            runs.append((s, t))
+        t += 1
+    return runs
+
+
+def contact_skating(motion: Motion, body=None) -> float:
+    """Mean speed (m/s) of the contact vertices on frames labelled in contact (both the
+    frame and its predecessor): 0 for perfectly planted feet."""
+    from mrlib.body import load_body_model
+
+    body = body or load_body_model()
+    if motion.contacts is None:
+        raise MotionValueError("motion has no contact labels")
+    with torch.no_grad():
+        R, t, b = body._motion_inputs(motion)
+        p = body.forward(R, t, b, vertex_ids=list(body.foot_vertex_ids)).vertices  # (T, 6, 3)
+    v = (p[1:] - p[:-1]).norm(dim=-1) * motion.fps  # (T-1, 6)
+    c = torch.as_tensor(motion.contacts > 0.5)
+    both = c[1:] & c[:-1]
+    return float(v[both].mean()) if both.any() else 0.0
+
+
+def cleanup_foot_contacts(
+    motion: Motion,
+    body=None,
+    iterations: int = 150,
+    lr: float = 0.02,
+    weight_reg: float = 1e-2,
+    weight_smooth: float = 1.0,
+) -> Motion:
+    """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
+
+    For every contact vertex and every run of frames labelled in contact, the target is
+    the vertex's mean position over the run (as GANimator does); axis-angle offsets of
+    the leg joints (hips, knees, ankles, feet) are then optimised with Adam to reach the
+    targets, with a small penalty on the offsets and on their frame-to-frame change. The
+    root trajectory is left untouched.
+    """
+    from mrlib.body import load_body_model
+    from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    if motion.contacts is None:
+        raise MotionValueError("motion has no contact labels to clean up")
+    body = body or load_body_model()
+    ids = list(body.foot_vertex_ids)
+    R, trans, betas = body._motion_inputs(motion)
+    with torch.no_grad():
+        p0 = body.forward(R, trans, betas, vertex_ids=ids).vertices  # (T, 6, 3)
+    c = np.asarray(motion.contacts) > 0.5
+    target = p0.clone()
+    active = torch.zeros(c.shape, dtype=torch.bool)
+    for v in range(c.shape[1]):
+        for s, e in _contact_runs(c[:, v]):
+            if e > s:
+                target[s : e + 1, v] = p0[s : e + 1, v].mean(0)
+                active[s : e + 1, v] = True
+    if not active.any():
+        return motion.replace()
+    legs = list(LEG_JOINTS)
+    delta = torch.zeros(len(p0), len(legs), 3, requires_grad=True)
+    opt = torch.optim.Adam([delta], lr=lr)
+    for _ in range(iterations):
+        opt.zero_grad()
+        Rn = R.clone()
+        Rn[:, legs] = R[:, legs] @ axis_angle_to_matrix(delta)
+        p = body.forward(Rn, trans, betas, vertex_ids=ids).vertices
+        err = ((p - target) ** 2).sum(-1)[active].mean()
+        loss = (
+            err
+            + weight_reg * delta.pow(2).mean()
+            + weight_smooth * (delta[1:] - delta[:-1]).pow(2).mean()
+        )
+        loss.backward()
+        opt.step()
+    with torch.no_grad():
+        Rn = R.clone()
+        Rn[:, legs] = R[:, legs] @ axis_angle_to_matrix(delta)
+        poses = matrix_to_axis_angle(Rn).cpu().numpy()
+    meta = dict(motion.meta, contact_cleanup={"iterations": iterations})
+    return motion.replace(poses=poses, meta=meta)
