@@ -32,6 +32,7 @@ __all__ = [
     "sample_features",
     "generate",
     "reconstruct",
+    "reconstruct_features",
     "reconstruction_error",
     "cleanup_foot_contacts",
     "contact_skating",
@@ -190,14 +191,19 @@ def sample_features(
             f"need {L} lengths and {L} conditions, got {len(lengths)} and {len(conds)}"
         )
     dev = model.device
-    g = torch.Generator().manual_seed(int(seed) if seed is not None else int(torch.seed() % 2**63))
+    base = int(seed) if seed is not None else int(torch.seed() % 2**63)
     amp = torch.as_tensor(noise_amplitude, dtype=torch.float32)
     amp = amp.expand(num_samples, L) if amp.ndim == 1 else amp
     layout = RaggedLevels.from_table(torch.tensor(list(lengths)).expand(num_samples, L), dev)
-    noises = [
-        (torch.randn(num_samples, 1, lengths[i], generator=g) * amp[:, i, None, None]).to(dev)
-        for i in range(L)
-    ]
+    # Sample b draws its noise from its own stream (seed, b): a sample does not depend on
+    # the batch size it was generated in.
+    z = [torch.empty(num_samples, 1, n) for n in lengths]
+    for b in range(num_samples):
+        state = np.random.SeedSequence([base, b]).generate_state(2, np.uint32)
+        g = torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
+        for i in range(L):
+            z[i][b, 0] = torch.randn(lengths[i], generator=g)
+    noises = [(z[i] * amp[:, i, None, None]).to(dev) for i in range(L)]
     cs = []
     for i, c in enumerate(conds):
         c = torch.as_tensor(c, dtype=torch.float32, device=dev)
@@ -288,52 +294,47 @@ def generate(
     return (motions[0], levels[0]) if single else (motions, levels)
 
 
-def reconstruct(model: GenerativeModel, clip_index: int, return_levels: bool = False):
-    """Training clip ``clip_index`` regenerated from its fixed noise z* and its label
-    (z*_1 at level 1, no noise above). Returns a Motion (and the per-level Motions)."""
-    N, L = len(model.clip_names), model.num_levels
+def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.Tensor]:
+    """Normalised features ``[(1, C, T_i)]`` of every level of training clip
+    ``clip_index`` regenerated from its fixed noise (z*_1 at level 1, zero above) and
+    its own label, as in the reconstruction loss."""
+    N = len(model.clip_names)
     if not 0 <= clip_index < N:
         raise MotionValueError(f"clip_index {clip_index} out of range [0, {N})")
     dev = model.device
     lengths = model.lengths[clip_index].tolist()
     layout = RaggedLevels.from_table(torch.tensor([lengths]), dev)
-    lab = model.clip_labels[clip_index]
     cond = torch.zeros(len(model.labels), device=dev)
-    cond[lab] = 1
-    conds = [cond.expand(1, lengths[i], -1) for i in range(L)]
-    noises = [model.zstar[clip_index][None].to(dev)] + [
-        torch.zeros(1, 1, lengths[i], device=dev) for i in range(1, L)
-    ]
+    cond[model.clip_labels[clip_index]] = 1
+    conds = [cond.expand(1, n, -1) for n in lengths]
+    noises = [model.zstar[clip_index][None].to(dev)]
+    noises += [torch.zeros(1, 1, n, device=dev) for n in lengths[1:]]
     with torch.no_grad():
-        outs = model.generator.run(layout, noises, conds, keep=True)
+        return model.generator.run(layout, noises, conds, keep=True)
+
+
+def reconstruct(model: GenerativeModel, clip_index: int, return_levels: bool = False):
+    """Training clip ``clip_index`` regenerated from z* and its label: a Motion, plus
+    the per-level Motions when ``return_levels``."""
+    outs = reconstruct_features(model, clip_index)
+    label = model.labels[model.clip_labels[clip_index]]
     name = f"{model.clip_names[clip_index]}_reconstruction"
-    motion = _to_motion(model, outs[-1][0], model.fps, model.labels[lab], name)
+    motion = _to_motion(model, outs[-1][0], model.fps, label, name)
     if not return_levels:
         return motion
-    fps_i = level_fps(model.fps, lengths)
-    return motion, [
-        _to_motion(model, outs[i][0], fps_i[i], model.labels[lab], f"{name}_level{i + 1}")
-        for i in range(L)
+    fps_i = level_fps(model.fps, [o.shape[-1] for o in outs])
+    levels = [
+        _to_motion(model, o[0], f, label, f"{name}_level{i + 1}")
+        for i, (o, f) in enumerate(zip(outs, fps_i, strict=True))
     ]
+    return motion, levels
 
 
 def reconstruction_error(model: GenerativeModel, clip_index: int) -> float:
     """Mean absolute error between the normalised features of the reconstruction and of
-    the training clip (the training's L_rec at the finest level)."""
-    dev = model.device
-    lengths = model.lengths[clip_index].tolist()
-    layout = RaggedLevels.from_table(torch.tensor([lengths]), dev)
-    lab = model.clip_labels[clip_index]
-    cond = torch.zeros(len(model.labels), device=dev)
-    cond[lab] = 1
-    L = model.num_levels
-    conds = [cond.expand(1, lengths[i], -1) for i in range(L)]
-    noises = [model.zstar[clip_index][None].to(dev)] + [
-        torch.zeros(1, 1, lengths[i], device=dev) for i in range(1, L)
-    ]
-    with torch.no_grad():
-        out = model.generator.run(layout, noises, conds)[0]
-    target = model.normalizer.normalize(model.features[clip_index].to(dev)).T
+    the training clip: the training's L_rec at the finest level."""
+    out = reconstruct_features(model, clip_index)[-1][0]
+    target = model.normalizer.normalize(model.features[clip_index].to(out.device)).T
     return float((out - target).abs().mean())
 
 

@@ -1,0 +1,139 @@
+import numpy as np
+import pytest
+import torch
+
+from mrlib.config import ModelConfig, TrainConfig
+from mrlib.data import TrainingSet
+from mrlib.errors import MotionValueError
+from mrlib.motion import Motion
+from mrlib.sample import (
+    cleanup_foot_contacts,
+    contact_skating,
+    generate,
+    label_weights,
+    load_model,
+    reconstruct,
+    reconstruction_error,
+)
+from mrlib.synthetic import synthetic_walk
+from mrlib.train import train
+
+CFG = TrainConfig(
+    model=ModelConfig(num_levels=4, gen_hidden=(24, 24), disc_hidden=(24, 24)),
+    block_iterations=(2, 2),
+    n_critic=1,
+    checkpoint_every=0,
+)
+
+
+@pytest.fixture(scope="module")
+def body():
+    from mrlib.body import load_body_model
+
+    return load_body_model()
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory, body):
+    clips = [
+        synthetic_walk(s, seconds=sec, fps=10.0)
+        for s, sec in [("walk_normal", 3.0), ("walk_sad", 3.6)]
+    ]
+    out = tmp_path_factory.mktemp("model")
+    res = train(TrainingSet.from_motions(clips), CFG, out, body=body, progress=False)
+    return load_model(res.checkpoint)
+
+
+def test_loaded_model_metadata(model):
+    assert model.labels == ["walk_normal", "walk_sad"]
+    assert model.num_levels == 4 and model.trained_levels == 4 and model.fps == 10.0
+    assert model.lengths[:, -1].tolist() == [30, 36]
+    assert not any(p.requires_grad for p in model.generator.parameters())
+
+
+def test_generate_by_label_name_and_index(model):
+    m = generate(model, "walk_sad", seed=0)
+    assert isinstance(m, Motion) and m.num_frames == 36 and m.label == "walk_sad" and m.fps == 10.0
+    assert m.contacts.shape == (36, 6) and np.isfinite(m.poses).all()
+    m1 = generate(model, 1, seed=0)
+    assert np.array_equal(m.poses, m1.poses)  # index 1 is walk_sad; same seed, same motion
+    m2 = generate(model, "walk_sad", seed=1)
+    assert not np.allclose(m.poses, m2.poses)  # the noise matters
+    with pytest.raises(MotionValueError, match="unknown label"):
+        generate(model, "walk_proud")
+
+
+def test_any_length_and_batches(model):
+    ms = generate(model, "walk_normal", length=95, num_samples=3, seed=2)
+    assert isinstance(ms, list) and len(ms) == 3
+    assert all(m.num_frames == 95 for m in ms)  # longer than any training clip
+    assert not np.allclose(ms[0].poses, ms[1].poses)
+    one = generate(model, "walk_normal", length=95, num_samples=1, seed=2)
+    assert np.allclose(one.poses, ms[0].poses, atol=1e-5)  # batching does not change a sample
+
+
+def test_condition_per_level_range_and_blend(model):
+    W = label_weights(model, conditions=[("walk_normal", (1, 2)), ("walk_sad", (3, 4))])
+    assert W.tolist() == [[1, 0], [1, 0], [0, 1], [0, 1]]
+    with pytest.raises(MotionValueError, match="exactly once"):
+        label_weights(model, conditions=[("walk_normal", (1, 2)), ("walk_sad", (2, 4))])
+    with pytest.raises(MotionValueError, match="exactly one"):
+        label_weights(model, "walk_sad", conditions=[("walk_normal", (1, 4))])
+    W = label_weights(model, blend=("walk_normal", "walk_sad", [0.0, 0.25, 0.5, 1.0]))
+    assert torch.allclose(W[:, 1], torch.tensor([0.0, 0.25, 0.5, 1.0])) and torch.allclose(
+        W.sum(1), torch.ones(4)
+    )
+    mixed = generate(model, conditions=[("walk_normal", (1, 2)), ("walk_sad", (3, 4))], seed=0)
+    assert mixed.label == "walk_normal+walk_sad" and mixed.num_frames == 30
+    pure = generate(model, "walk_normal", seed=0)
+    assert not np.allclose(mixed.poses, pure.poses)
+    # blend weight 0 at every level is the first label exactly
+    b0 = generate(model, blend=("walk_normal", "walk_sad", 0.0), seed=0)
+    assert np.allclose(b0.poses, pure.poses, atol=1e-6)
+
+
+def test_return_levels(model):
+    m, levels = generate(model, "walk_normal", length=40, seed=0, return_levels=True)
+    assert len(levels) == 4 and levels[-1].num_frames == 40
+    assert [lv.num_frames for lv in levels] == sorted(lv.num_frames for lv in levels)
+    assert levels[0].fps == pytest.approx(10.0 * levels[0].num_frames / 40)
+    assert np.allclose(levels[-1].poses, m.poses)
+    ms, lv2 = generate(model, "walk_normal", seed=0, num_samples=2, return_levels=True)
+    assert len(ms) == 2 and len(lv2) == 2 and len(lv2[0]) == 4
+
+
+def test_reconstruct_uses_the_fixed_noise(model):
+    r1, levels = reconstruct(model, 1, return_levels=True)
+    r2 = reconstruct(model, 1)
+    assert r1.num_frames == 36 and r1.label == "walk_sad" and len(levels) == 4
+    assert np.array_equal(r1.poses, r2.poses)  # deterministic
+    assert reconstruction_error(model, 0) > 0
+    with pytest.raises(MotionValueError):
+        reconstruct(model, 5)
+
+
+def _skating_walk():
+    """A synthetic walk whose contact frames slide: leg rotations get slow random offsets."""
+    m = synthetic_walk("walk_normal", seconds=2.0, fps=30.0)
+    rng = np.random.default_rng(0)
+    poses = m.poses.copy()
+    drift = np.cumsum(rng.normal(size=(m.num_frames, 4, 3)) * 0.02, 0)
+    poses[:, [1, 2, 4, 5]] += drift.astype(np.float32)
+    return m.replace(poses=poses)
+
+
+def test_foot_contact_cleanup_reduces_skating(body):
+    from mrlib.contacts import foot_contacts
+
+    m = synthetic_walk("walk_normal", seconds=2.0, fps=30.0)
+    contacts = foot_contacts(m, body)
+    bad = _skating_walk().replace(contacts=contacts)
+    before = contact_skating(bad, body)
+    fixed = cleanup_foot_contacts(bad, body, iterations=60)
+    after = contact_skating(fixed, body)
+    assert after < 0.5 * before, (before, after)
+    assert np.allclose(fixed.trans, bad.trans)  # the root path is kept
+    non_leg = [j for j in range(24) if j not in (1, 2, 4, 5, 7, 8, 10, 11)]
+    assert np.allclose(fixed.poses[:, non_leg], bad.poses[:, non_leg], atol=1e-5)
+    with pytest.raises(MotionValueError):
+        cleanup_foot_contacts(m.replace(contacts=None), body)
