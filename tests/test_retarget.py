@@ -71,7 +71,9 @@ def _smpl_walkish(T=60, seed=0):
     return Motion(poses, trans, 30.0, betas=rng.uniform(-1, 1, 10))
 
 
-def _custom_bvh(motion, body, *, frames_rot=None, unit=1.0, up="y", seed=1, order="YXZ"):
+def _custom_bvh(
+    motion, body, *, frames_rot=None, unit=1.0, up="y", seed=1, order="YXZ", smpl_names=False
+):
     """A BVH of ``motion`` on SMPL's rest geometry but with renamed joints, every
     joint's local frame rotated by a random constant rotation (so the rest pose is not
     a T-pose), in ``unit`` per metre-ish, with world up ``up``. Returns (BVH, map)."""
@@ -93,6 +95,8 @@ def _custom_bvh(motion, body, *, frames_rot=None, unit=1.0, up="y", seed=1, orde
         offsets[j] = Q[p].T @ (J[j] - J[p]) / unit
     root = (A @ (motion.trans.astype(np.float64) + J[0]).T).T / unit
     names = tuple(f"J{j}_{n.title().replace('_', '')}" for j, n in enumerate(JOINT_NAMES))
+    if smpl_names:
+        names = JOINT_NAMES
     rot_ch = tuple(f"{a}rotation" for a in order)
     channels = (("Xposition", "Yposition", "Zposition") + rot_ch,) + (rot_ch,) * 23
     euler = matrix_to_euler(loc, order)
@@ -238,6 +242,25 @@ def test_smpl_named_bvh_round_trip(tmp_path, body):
         assert g.max() < 1e-4
         np.testing.assert_allclose(back.trans, m.trans, atol=1e-4)
         np.testing.assert_allclose(back.betas, m.betas, atol=1e-3)
+
+
+def test_smpl_named_bvh_from_another_tool(body):
+    m = _smpl_walkish(T=30, seed=6)
+    # Z-up world, joint frames aligned with that world at rest (T-pose): read exactly
+    Q = np.broadcast_to(up_axis_rotation("z"), (24, 3, 3))
+    bvh, _ = _custom_bvh(m, body, frames_rot=Q, unit=0.01, up="z", smpl_names=True)
+    r = retarget_bvh(bvh, body=body)
+    assert r.joint_map.name == "smpl" and r.up_axis == "z" and r.unit == 0.01
+    g = geodesic_distance(
+        axis_angle_to_matrix(torch.from_numpy(m.poses).double()),
+        axis_angle_to_matrix(torch.from_numpy(r.poses).double()),
+    )
+    assert g.max() < 1e-4
+    _assert_same_pelvis(body, r, m, atol=1e-4)
+    # SMPL names but another rest pose: retargeted like any skeleton, joints still match
+    bvh, _ = _custom_bvh(m, body, smpl_names=True)
+    r = retarget_bvh(bvh, body=body)
+    assert r.joint_map.name == "smpl" and r.error_mean_cm < 0.3
 
 
 # -- a CMU-style skeleton --------------------------------------------------------------------

@@ -749,7 +749,9 @@ def retarget_bvh(
     # shape (SMPL's rest bone directions); for fixed rotations the joints are linear in
     # (betas, scale, offset): alternate the two until the betas settle.
     B = D.shape[-1]
-    smpl_named = jmap.name == "smpl"
+    # An SMPL-named skeleton whose rest pose is SMPL's T-pose (mrlib's own export) is
+    # read exactly: its local rotations are SMPL's, C_j = A^T (identity when Y up).
+    smpl_named = jmap is SMPL_JOINT_MAP and _is_smpl_rest(sk, src, A, J_tmpl)
     if betas is not None:
         b, fit_b = _fit_betas_length(betas, B), False
     elif smpl_named and fit_betas:
@@ -761,7 +763,7 @@ def retarget_bvh(
     if offsets is not None:
         fixed_C = np.asarray(offsets, dtype=np.float64).reshape(NUM_JOINTS, 3, 3)
     elif smpl_named:
-        fixed_C = np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3))
+        fixed_C = np.broadcast_to(A.T, (NUM_JOINTS, 3, 3))
     if scale == "auto":
         fixed_s = 1.0 if (fit_b or smpl_named) else None
     elif scale == "fit":
@@ -826,6 +828,20 @@ def retarget_bvh(
         error_max_cm=float(err.max()),
         joint_error_cm=joint_err,
     )
+
+
+def _is_smpl_rest(sk: BVHSkeleton, src: np.ndarray, A: np.ndarray, J: np.ndarray) -> bool:
+    """Whether the BVH's rest offsets point the way SMPL's T-pose bones do (within ~25
+    deg), i.e. its joint frames are SMPL's rest frames."""
+    for j in range(1, NUM_JOINTS):
+        u = A @ sk.offsets[src[j]]
+        v = J[j] - J[PARENTS[j]]
+        nu, nv = np.linalg.norm(u), np.linalg.norm(v)
+        if nu == 0 or nv == 0:
+            continue
+        if u @ v < 0.9 * nu * nv:
+            return False
+    return True
 
 
 def _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A) -> np.ndarray:
