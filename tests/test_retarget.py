@@ -10,12 +10,13 @@ import roma
 import torch
 
 from mrlib.errors import JointMapError, MotionFileError, UnsupportedFormatError
-from mrlib.io import load_label, load_motion, save_motion
-from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, matrix_to_euler, parse_bvh
+from mrlib.io import load_bvh, load_label, load_motion, save_motion
+from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, matrix_to_euler, parse_bvh, read_bvh
 from mrlib.io.retarget import (
     UNITS,
     _kabsch,
     _solve_offset,
+    calibrate_retarget,
     change_up_axis,
     default_body,
     detect_joint_map,
@@ -453,6 +454,20 @@ def test_bandai_bvh_export_round_trip(bandai, tmp_path, body):
     )
     assert g.max() < 1e-4
     np.testing.assert_allclose(back.trans, m.trans, atol=1e-4)
+
+
+@needs_data
+def test_shared_calibration(body):
+    paths = [
+        DATA_DIR / "data" / f"dataset-1_{c}_001.bvh"
+        for c in ("walk_normal", "bow_sad", "kick_normal")
+    ]
+    calib = calibrate_retarget([read_bvh(p) for p in paths], body=body)
+    assert calib["joint_map"].name == "bandai_namco" and calib["unit"] == 0.01
+    a, b = (load_bvh(p, body=body, **calib) for p in paths[:2])
+    np.testing.assert_array_equal(a.betas, b.betas)
+    for m in (a, b):
+        assert m.meta["retarget_error_mean_cm"] < 3.5
 
 
 @needs_data

@@ -27,6 +27,7 @@ from mrlib.io.npz import load_easymocap, load_npz, save_npz
 from mrlib.io.retarget import (
     JointMap,
     RetargetResult,
+    calibrate_retarget,
     detect_joint_map,
     load_joint_map,
     retarget_bvh,
@@ -44,6 +45,7 @@ __all__ = [
     "save_npz",
     "load_easymocap",
     "retarget_bvh",
+    "calibrate_retarget",
     "smpl_to_bvh",
     "RetargetResult",
     "JointMap",

@@ -47,7 +47,7 @@ Method, in numbered steps (``retarget_bvh``):
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -74,6 +74,7 @@ __all__ = [
     "detect_up_axis",
     "change_up_axis",
     "retarget_bvh",
+    "calibrate_retarget",
     "smpl_to_bvh",
 ]
 
@@ -828,6 +829,55 @@ def retarget_bvh(
         error_max_cm=float(err.max()),
         joint_error_cm=joint_err,
     )
+
+
+def calibrate_retarget(
+    bvhs: Sequence[BVH],
+    joint_map: str | Path | Mapping[str, str] | JointMap | None = None,
+    *,
+    max_frames_per_clip: int = 240,
+    **options: Any,
+) -> dict[str, Any]:
+    """One retargeting calibration for several clips of the same skeleton.
+
+    ``retarget_bvh`` fits the rest alignment, betas and pelvis offset per clip (they
+    only use sums over frames), so clips of one actor get slightly different ones. This
+    fits them once on frames pooled from all ``bvhs`` (up to ``max_frames_per_clip``
+    evenly spaced frames of each) and returns keyword arguments that make
+    ``retarget_bvh`` (or ``mrlib.io.load_bvh``) reuse them::
+
+        calib = calibrate_retarget([read_bvh(p) for p in paths])
+        motions = [load_bvh(p, **calib) for p in paths]
+
+    Returns:
+        ``{"joint_map", "offsets", "betas", "pelvis_offset", "unit", "up_axis", "scale"}``.
+
+    Raises:
+        MotionFileError: the clips do not share one skeleton (joint names and channels).
+    """
+    if not bvhs:
+        raise ValueError("calibrate_retarget needs at least one clip")
+    first = bvhs[0].skeleton
+    for b in bvhs[1:]:
+        if b.skeleton.names != first.names or b.skeleton.channels != first.channels:
+            raise MotionFileError(b.source, f"skeleton differs from {bvhs[0].source}'s")
+    parts = []
+    for b in bvhs:
+        n = min(b.num_frames, max_frames_per_clip)
+        parts.append(
+            b.motion[np.unique(np.linspace(0, b.num_frames - 1, n).round().astype(np.int64))]
+        )
+    pooled = BVH(first, np.concatenate(parts), bvhs[0].frame_time, source=f"{len(bvhs)} clips")
+    r = retarget_bvh(pooled, joint_map, **options)
+    return {
+        "joint_map": r.joint_map,
+        "offsets": r.offsets,
+        "betas": r.betas,
+        "pelvis_offset": r.pelvis_offset,
+        "unit": r.unit,
+        "up_axis": r.up_axis,
+        "scale": r.scale,
+    }
 
 
 def _is_smpl_rest(sk: BVHSkeleton, src: np.ndarray, A: np.ndarray, J: np.ndarray) -> bool:
