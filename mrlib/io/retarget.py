@@ -76,6 +76,8 @@ __all__ = [
     "retarget_bvh",
     "calibrate_retarget",
     "smpl_to_bvh",
+    "default_body",
+    "rest_pelvis",
 ]
 
 JOINT_MAP_DIR = Path(__file__).parent / "joint_maps"
@@ -724,8 +726,16 @@ def retarget_bvh(
         smpl_len = np.array([np.linalg.norm(J_tmpl[k] - J_tmpl[j]) for j, k in len_pairs])
         guess = smpl_len.sum() / max(src_len[keep].sum(), 1e-12)
         unit_m = min(UNITS.values(), key=lambda u: abs(np.log(u / guess)))
+    elif isinstance(unit, str):
+        if unit not in UNITS:
+            raise ValueError(
+                f"unit must be 'auto', one of {sorted(UNITS)} or a number, got {unit!r}"
+            )
+        unit_m = UNITS[unit]
     else:
-        unit_m = float(UNITS.get(unit, unit)) if isinstance(unit, str) else float(unit)
+        unit_m = float(unit)
+        if not (np.isfinite(unit_m) and unit_m > 0):
+            raise ValueError(f"unit must be a positive number of metres, got {unit!r}")
     if up_axis == "auto":
         top = next(
             (
