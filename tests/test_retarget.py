@@ -147,6 +147,23 @@ def test_error_joints_are_the_body_forward_joints(body):
     np.testing.assert_allclose(ours, body.motion_joints(m), atol=1e-5)
 
 
+def test_numpy_axis_angle_matches_rotations():
+    from mrlib.io.retarget import _matrix_to_axis_angle
+    from mrlib.rotations import matrix_to_axis_angle
+
+    rng = np.random.default_rng(7)
+    R = _rand_rot(rng, 2000)
+    R[:3] = np.eye(3)
+    R[3:6] = _rand_rot(rng, 3, scale=1e-7)  # tiny angles
+    ours = _matrix_to_axis_angle(R)
+    ref = matrix_to_axis_angle(torch.from_numpy(R)).numpy()
+    np.testing.assert_allclose(ours, ref, atol=1e-9)
+    # angle pi: the axis sign is arbitrary, the rotation is not
+    Rpi = roma.rotvec_to_rotmat(torch.tensor([[np.pi, 0, 0], [0, 0, -np.pi]])).numpy()
+    back = roma.rotvec_to_rotmat(torch.from_numpy(_matrix_to_axis_angle(Rpi))).numpy()
+    np.testing.assert_allclose(back, Rpi, atol=1e-9)
+
+
 def test_kabsch_and_single_direction_offsets():
     rng = np.random.default_rng(3)
     C = _rand_rot(rng)

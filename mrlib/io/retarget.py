@@ -59,7 +59,7 @@ from scipy.optimize import lsq_linear
 
 from mrlib.errors import JointMapError, MotionFileError
 from mrlib.io.bvh import BVH, BVHSkeleton, bvh_forward_kinematics, matrix_to_euler
-from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from mrlib.rotations import axis_angle_to_matrix
 from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = [
@@ -486,6 +486,48 @@ def _solve_offset(pairs: list[tuple[np.ndarray, np.ndarray, float]], M: np.ndarr
     return _kabsch(M)
 
 
+def _matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)`` rotations -> ``(..., 3)`` axis-angle, in numpy (float64).
+
+    Same result as ``mrlib.rotations.matrix_to_axis_angle`` (tested), without torch:
+    on small CPU machines torch's intra-op threads made this step dominate the load
+    time. Quaternion by Shepperd's method (the best-conditioned of four formulas),
+    then ``2 atan2(|v|, w) v / |v|``.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    r00, r11, r22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    d21, d02, d10 = (
+        R[..., 2, 1] - R[..., 1, 2],
+        R[..., 0, 2] - R[..., 2, 0],
+        R[..., 1, 0] - R[..., 0, 1],
+    )
+    s01, s02, s12 = (
+        R[..., 0, 1] + R[..., 1, 0],
+        R[..., 0, 2] + R[..., 2, 0],
+        R[..., 1, 2] + R[..., 2, 1],
+    )
+    diag = np.stack([r00 + r11 + r22, r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11], -1)
+    big = np.sqrt(np.maximum(1.0 + diag, 1e-30))  # 2 |q_i| for each candidate
+    # candidate quaternions (w, x, y, z), each scaled by 2 |q_i| (normalised below)
+    cands = np.stack(
+        [
+            np.stack([big[..., 0] ** 2, d21, d02, d10], -1),
+            np.stack([d21, big[..., 1] ** 2, s01, s02], -1),
+            np.stack([d02, s01, big[..., 2] ** 2, s12], -1),
+            np.stack([d10, s02, s12, big[..., 3] ** 2], -1),
+        ],
+        -2,
+    )  # (..., 4, 4)
+    best = np.argmax(diag, axis=-1)[..., None, None]
+    q = np.take_along_axis(cands, best, axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    q = np.where(q[..., :1] < 0, -q, q)  # w >= 0: angle in [0, pi]
+    v = q[..., 1:]
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(n, q[..., :1])
+    return v * np.where(n > 1e-12, angle / np.maximum(n, 1e-300), 2.0)
+
+
 def _smpl_fk(G: np.ndarray, J: np.ndarray, trans: np.ndarray) -> np.ndarray:
     """SMPL joint positions ``(T, 24, 3)`` from global rotations ``(T, 24, 3, 3)``, rest
     joints ``(24, 3)`` and translation ``(T, 3)`` (what SMPL's forward does to joints)."""
@@ -815,7 +857,7 @@ def retarget_bvh(
     L = G.copy()
     for j in range(1, NUM_JOINTS):
         L[:, j] = np.swapaxes(G[:, PARENTS[j]], -1, -2) @ G[:, j]
-    poses = matrix_to_axis_angle(torch.from_numpy(L)).numpy()
+    poses = _matrix_to_axis_angle(L)
     trans = Pw[:, src[0]] + G[:, 0] @ delta - J[0]
 
     # 7. error: SMPL joints vs the scaled source joints. The joints of SMPL's forward pass
