@@ -1,0 +1,345 @@
+"""Tests for mrlib.evaluate: calibration motions, Bandai name lookup, scoring, the protocol
+and its outputs. Real-data tests use the Bandai Namco clips in MRLIB_DATA_DIR."""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib import evaluate as ev
+from mrlib.body import load_body_model
+from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.motion import Motion
+from mrlib.rotations import axis_angle_to_matrix
+
+DATA_DIR = Path(
+    os.environ.get(
+        "MRLIB_DATA_DIR",
+        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
+    )
+)
+needs_data = pytest.mark.skipif(
+    not (DATA_DIR / "data").is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
+)
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body_model()
+
+
+def turning_walk(T: int = 60, fps: float = 30.0, yaw_rate: float = 0.8, speed: float = 1.2):
+    """A body gliding along a circular arc, facing along it; legs swing (for contacts)."""
+    t = np.arange(T) / fps
+    yaw = yaw_rate * t
+    poses = np.zeros((T, 24, 3), np.float32)
+    poses[:, 0, 1] = yaw
+    poses[:, 1, 0] = 0.4 * np.sin(2 * np.pi * t)
+    poses[:, 2, 0] = -0.4 * np.sin(2 * np.pi * t)
+    x = speed / yaw_rate * (1 - np.cos(yaw))  # integral of speed * sin(yaw)
+    z = speed / yaw_rate * np.sin(yaw)  # integral of speed * cos(yaw)
+    return Motion(poses=poses, trans=np.stack([x, np.full(T, 0.9), z], -1), fps=fps, name="arc")
+
+
+def noisy_crops(refs: dict[str, Motion], sigma: float = 0.01, log: list | None = None):
+    """A stand-in generator: a random window of the reference played three times, with
+    per-frame rotation noise."""
+
+    def sample_fn(label: str, length: int, seed: int) -> Motion:
+        if log is not None:
+            log.append((label, length, seed))
+        ref = refs[label]
+        rng = np.random.default_rng(seed)
+        loop = ev.play_twice(ev.play_twice(ref))  # 4 T frames
+        start = int(rng.integers(0, ref.num_frames))
+        m = loop.slice(start, start + length)
+        noise = rng.normal(scale=sigma, size=m.poses.shape).astype(np.float32)
+        return m.replace(poses=m.poses + noise, contacts=None, name=f"{label} seed {seed}")
+
+    return sample_fn
+
+
+# -- calibration motions ----------------------------------------------------------------------
+def test_play_twice_repeats_the_poses_and_continues_the_path():
+    m = turning_walk()
+    T = m.num_frames
+    tw = ev.play_twice(m)
+    assert tw.num_frames == 2 * T and tw.name == "arc x2"
+    np.testing.assert_array_equal(tw.poses[:T], m.poses)
+    np.testing.assert_array_equal(tw.poses[T:, 1:], m.poses[:, 1:])  # body poses unchanged
+    np.testing.assert_allclose(tw.trans[T:, 1], m.trans[:, 1])  # heights kept
+    # the path continues: the copy's first step and its heading follow on smoothly
+    step = np.linalg.norm(np.diff(tw.trans[:, [0, 2]], axis=0), axis=1)
+    np.testing.assert_allclose(step, 1.2 / 30, rtol=1e-3)
+    yaw = ev._heading(tw.poses[:, 0])
+    dyaw = np.diff(np.unwrap(yaw))
+    np.testing.assert_allclose(dyaw, 0.8 / 30, atol=1e-5)
+    # and lies on the same circle: it is the arc continued for another T frames
+    np.testing.assert_allclose(tw.trans, turning_walk(2 * T).trans, atol=1e-5)
+    # contact labels are repeated when present
+    c = (np.arange(T * 6).reshape(T, 6) % 3 == 0).astype(np.float32)
+    np.testing.assert_array_equal(ev.play_twice(m.replace(contacts=c)).contacts, np.r_[c, c])
+    with pytest.raises(ClipTooShortError):
+        ev.play_twice(m.slice(0, 1))
+
+
+def test_freeze_first_frame():
+    m = turning_walk(20)
+    f = ev.freeze_first_frame(m)
+    assert f.num_frames == 40 and f.contacts is None
+    np.testing.assert_array_equal(f.poses, np.repeat(m.poses[:1], 40, 0))
+    np.testing.assert_array_equal(f.trans, np.repeat(m.trans[:1], 40, 0))
+    assert ev.freeze_first_frame(m, 7).num_frames == 7
+    with pytest.raises(MotionValueError):
+        ev.freeze_first_frame(m, 0)
+
+
+def test_parse_bandai_name():
+    assert ev.parse_bandai_name("dataset-1_walk-back_not-confident_002") == {
+        "prefix": "dataset-1",
+        "content": "walk-back",
+        "style": "not-confident",
+        "take": "002",
+    }
+    assert ev.parse_bandai_name("walk_happy_001.bvh")["prefix"] == ""
+    assert ev.parse_bandai_name("walk_happy") is None
+    assert ev.parse_bandai_name("my clip") is None
+
+
+def test_find_bandai_counterparts_by_name(tmp_path):
+    names = [
+        "walk_happy_001", "walk_happy_003", "walk_happy_002", "walk_angry_001",
+        "walk_normal_002", "walk_normal_001", "bow_happy_001", "bow_normal_001",
+        "run_normal_001",
+    ]  # fmt: skip
+    (tmp_path / "data").mkdir()
+    for n in names:
+        (tmp_path / "data" / f"dataset-1_{n}.bvh").touch()
+    (tmp_path / "data" / "dataset-2_walk_happy_009.bvh").touch()  # another dataset: ignored
+    found = ev.find_bandai_counterparts("dataset-1_walk_happy_001", tmp_path)
+    stems = {k: p.stem for k, p in found.items()}
+    assert stems == {
+        "other take": "dataset-1_walk_happy_002",
+        "other style": "dataset-1_walk_normal_001",
+        "different content": "dataset-1_bow_normal_001",
+    }
+    # a bow is compared with a walk; no other take of bow_normal exists
+    stems = {
+        k: p.stem
+        for k, p in ev.find_bandai_counterparts("dataset-1_bow_normal_001", tmp_path).items()
+    }
+    assert stems == {
+        "other style": "dataset-1_bow_happy_001",
+        "different content": "dataset-1_walk_normal_001",
+    }
+    # the normal style falls back to another style, preferring the same take number
+    found = ev.find_bandai_counterparts("dataset-1_walk_normal_002", tmp_path / "data")
+    assert found["other take"].stem == "dataset-1_walk_normal_001"
+    assert found["other style"].stem == "dataset-1_walk_angry_001"  # alphabetical
+    assert (
+        ev.find_bandai_counterparts("dataset-1_run_normal_001", tmp_path, different_content="walk")[
+            "different content"
+        ].stem
+        == "dataset-1_walk_normal_001"
+    )
+    assert ev.find_bandai_counterparts("my clip", tmp_path) == {}
+    assert ev.find_bandai_counterparts("walk_happy_001", tmp_path / "missing") == {}
+
+
+def test_calibration_rows_keys_and_lengths():
+    m = turning_walk(40)
+    other = turning_walk(50, yaw_rate=0.2)
+    rows = ev.calibration_rows(m, {"other style": other}, length_factor=1.5)
+    assert list(rows) == ["played twice", "frozen first frame", "other style"]
+    assert rows["played twice"].num_frames == 80
+    assert rows["frozen first frame"].num_frames == 60
+    assert rows["other style"] is other
+    with pytest.raises(MotionValueError):
+        ev.calibration_rows(m, {"x": np.zeros(3)})
+    with pytest.raises(MotionValueError):
+        ev.calibration_rows(m, length_factor=0)
+
+
+def test_settings_validate_and_describe_the_protocol():
+    s = ev.EvaluationSettings(num_samples=5)
+    text = s.describe()
+    for piece in ("eps = 2", "T_c = 30", "T_min = 30", "T_d = 15", "5 samples", "0.15 m/s", "1 cm"):
+        assert piece in text
+    with pytest.raises(MotionValueError, match="num_samples"):
+        ev.EvaluationSettings(num_samples=0)
+    with pytest.raises(MotionValueError, match="eps"):
+        ev.EvaluationSettings(eps=-1.0)
+    with pytest.raises(MotionValueError, match="feature_kind"):
+        ev.EvaluationSettings(feature_kind="quat")
+
+
+# -- the protocol on constructed motion ---------------------------------------------------------
+def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_path):
+    ref = turning_walk(70)
+    refs = {"arc": ref}
+    log: list = []
+    kw = dict(
+        num_samples=3, seed=5, calibration=True, calibration_others=None, body=body, progress=False
+    )
+    res = ev.evaluate(
+        noisy_crops(refs, 0.01, log),
+        refs,
+        extra_models={"noisier": noisy_crops(refs, 0.1)},
+        name="dummy",
+        reconstructions={"arc": ref},
+        **kw,
+    )
+    assert log == [("arc", 140, 5), ("arc", 140, 6), ("arc", 140, 7)]
+    assert res.methods == ["dummy", "noisier", "calib: played twice", "calib: frozen first frame"]
+    by = {r["method"]: r for r in res.rows}
+    assert by["dummy"]["recon_error"] == 0.0
+    assert math.isnan(by["noisier"]["recon_error"]) and math.isnan(by["dummy"]["cond_fidelity_pct"])
+    assert by["dummy"]["samples"] == 3 and by["dummy"]["frames"] == 140
+    # more noise: more jitter, more local diversity
+    assert by["noisier"]["jerk_ratio"] > by["dummy"]["jerk_ratio"] > 1.0
+    assert by["noisier"]["local_div"] > by["dummy"]["local_div"]
+    assert by["calib: played twice"]["coverage_pct"] == 100.0
+    assert by["calib: frozen first frame"]["jerk"] == 0.0
+    # the same seeds give the same numbers
+    again = ev.evaluate(
+        noisy_crops(refs, 0.01), refs, name="dummy", reconstructions={"arc": ref}, **kw
+    )
+    assert again.rows[0] == res.rows[0]
+    md = res.to_markdown()
+    assert "Recon. err." in md and "Cond. fid." not in md  # no column without values
+    path = res.to_csv(tmp_path / "rows.csv")
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 4 and rows[1]["recon_error"] == "" and float(rows[0]["recon_error"]) == 0.0
+
+
+def test_evaluate_validates_its_inputs(body):
+    ref = turning_walk(70)
+    kw = dict(num_samples=1, calibration=False, body=body, progress=False)
+    with pytest.raises(MotionValueError, match="non-empty"):
+        ev.evaluate(noisy_crops({}), {}, **kw)
+    with pytest.raises(ClipTooShortError, match="at least 59"):
+        ev.evaluate(noisy_crops({"a": ref}), {"a": ref.slice(0, 40)}, **kw)
+    with pytest.raises(MotionValueError, match="expected a mrlib.Motion"):
+        ev.evaluate(lambda label, n, seed: np.zeros((n, 24, 3)), {"a": ref}, **kw)
+    with pytest.raises(MotionValueError, match="resample"):
+        ev.evaluate(lambda label, n, seed: ref.resample(15.0), {"a": ref}, **kw)
+    with pytest.raises(MotionValueError, match="second method"):
+        ev.evaluate(noisy_crops({"a": ref}), {"a": ref}, extra_models={"model": print}, **kw)
+    with pytest.raises(MotionValueError, match="not callable"):
+        ev.evaluate(None, {"a": ref}, extra_models={"m": 3}, **kw)
+
+
+# -- real data ----------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def bandai(body):
+    from mrlib.io import load_motion
+
+    return {
+        n: load_motion(DATA_DIR / "data" / f"dataset-1_{n}.bvh", body=body)
+        for n in ("walk_happy_001", "bow_normal_001")
+    }
+
+
+@needs_data
+def test_real_counterparts_of_walk_happy():
+    found = ev.find_bandai_counterparts("dataset-1_walk_happy_001", DATA_DIR)
+    assert {k: p.stem for k, p in found.items()} == {
+        "other take": "dataset-1_walk_happy_002",
+        "other style": "dataset-1_walk_normal_001",
+        "different content": "dataset-1_bow_normal_001",
+    }
+
+
+@needs_data
+def test_frozen_real_frame_has_zero_coverage_and_zero_jitter(bandai, body):
+    ref = bandai["walk_happy_001"]
+    row = ev.score_motions([ev.freeze_first_frame(ref)], ref, body=body)
+    assert row["coverage_pct"] == 0.0
+    assert row["jerk"] == 0.0 and row["jerk_ratio"] == 0.0
+    assert row["global_div"] > 1.5 and row["local_div"] > 1.5
+
+
+@needs_data
+def test_calibration_rows_order_sensibly_on_a_real_walk(bandai, body):
+    ref = bandai["walk_happy_001"]
+    res = ev.evaluate(None, {"walk_happy": ref}, body=body, progress=False, data_dir=DATA_DIR)
+    by = {r["method"].removeprefix("calib: "): r for r in res.rows}
+    assert list(by) == list(ev.CALIBRATION_METHODS)
+    twice, frozen = by["played twice"], by["frozen first frame"]
+    style, content = by["other style"], by["different content"]
+    # a copy: fully covered, no diversity (contact labels differ at the seam only)
+    assert twice["coverage_pct"] == 100.0
+    assert twice["global_div"] < 0.05 and twice["local_div"] < 0.1
+    assert twice["w_root_speed"] < 0.01 and twice["skate_pct"] < 12.0
+    # nothing moves
+    assert frozen["coverage_pct"] == 0.0 and frozen["jerk"] == 0.0
+    assert frozen["w_root_speed"] > 1.0
+    # another walk covers a walk; a bow covers nothing and is the most different
+    assert style["coverage_pct"] > 80.0 and 0.3 < style["global_div"] < 2.0
+    assert content["coverage_pct"] < 10.0
+    assert content["global_div"] > max(style["global_div"], frozen["global_div"], 2.5)
+    assert content["local_div"] > max(style["local_div"], frozen["local_div"])
+    assert twice["global_div"] < style["global_div"] < content["global_div"]
+    assert by["other take"]["source"] == "dataset-1_walk_happy_002"
+
+
+@needs_data
+def test_evaluate_dummy_model_on_two_real_labels_writes_table_and_files(bandai, body, tmp_path):
+    refs = {"walk_happy": bandai["walk_happy_001"], "bow_normal": bandai["bow_normal_001"]}
+    log: list = []
+    res = ev.evaluate(
+        noisy_crops(refs, 0.003, log),
+        refs,
+        num_samples=2,
+        name="dummy",
+        body=body,
+        progress=False,
+        data_dir=DATA_DIR,
+    )
+    T = {k: m.num_frames for k, m in refs.items()}
+    assert log == [(k, 2 * T[k], s) for k in refs for s in (0, 1)]
+    dummy = [r for r in res.rows if r["method"] == "dummy"]
+    assert [r["sequence"] for r in dummy] == ["walk_happy", "bow_normal"]
+    for r in dummy:
+        assert r["coverage_pct"] > 80.0 and r["global_div"] < 1.0
+        assert r["cond_fidelity_pct"] > 95.0  # multi-label: fidelity is filled
+        assert r["jerk_ratio"] > 1.0  # the noise
+    calib = {(r["method"], r["sequence"]) for r in res.rows if r["kind"] == "calibration"}
+    assert ("calib: different content", "bow_normal") in calib  # a walk, for the bow
+    summary = {d["method"]: d for d in res.summary()}
+    cov = [r["coverage_pct"] for r in dummy]
+    assert summary["dummy"]["coverage_pct_mean"] == pytest.approx(np.mean(cov))
+    assert summary["dummy"]["coverage_pct_std"] == pytest.approx(np.std(cov))
+
+    paths = res.save(tmp_path / "out")
+    assert set(paths) == {"csv", "summary_csv", "markdown", "png", "settings"}
+    with paths["csv"].open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(res.rows) and list(rows[0])[:4] == [
+        "method",
+        "kind",
+        "sequence",
+        "source",
+    ]
+    md = paths["markdown"].read_text()
+    assert "| dummy | walk_happy |" in md and "calib: played twice" in md
+    assert "eps = 2" in md and "T_c = 30" in md and "T_min = 30" in md and "T_d = 15" in md
+    assert "Cond. fid. %" in md
+    assert paths["png"].stat().st_size > 20_000
+    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_heading_of_a_yaw_rotation():
+    yaw = np.array([0.0, 0.5, -2.0])
+    aa = np.zeros((3, 3))
+    aa[:, 1] = yaw
+    np.testing.assert_allclose(ev._heading(aa), yaw, atol=1e-12)
+    R = axis_angle_to_matrix(torch.from_numpy(aa))
+    np.testing.assert_allclose(R[:, :, 2][:, 0].numpy(), np.sin(yaw), atol=1e-12)
