@@ -13,7 +13,8 @@ CSV, Markdown and a PNG plot.
 
 A generator is any callable ``sample_fn(label, length, seed) -> Motion``; wire a
 trained model in with a closure, e.g.
-``lambda label, length, seed: generate(model, label, length=length, seed=seed)[0]``.
+``lambda label, length, seed: generate(model, label, length=length, seed=seed)``
+(``mrlib.sample.generate`` returns one ``Motion`` for ``num_samples=1``).
 
 **Calibration rows.** The metrics alone are hard to read: a periodic clip (a walk) is
 covered by anything walk-like, and an under-trained generator scores more "diverse"
@@ -761,8 +762,9 @@ def evaluate(
         data_dir: the Bandai Namco folder for ``"auto"`` (default ``default_data_dir()``).
         body: ``BodyModel`` (default body when None).
         progress: show a tqdm progress bar.
-        settings: overrides every setting above (windows ``T_c, T_min, T_d`` and the
-            plausibility thresholds are only set here).
+        settings: all settings at once, instead of ``num_samples``, ``length_factor``,
+            ``seed`` and ``eps`` (the windows ``T_c, T_min, T_d`` and the plausibility
+            thresholds are only set here); passing both is an error.
 
     Returns:
         an :class:`EvaluationResult`; the condition fidelity column is filled when there
@@ -770,10 +772,17 @@ def evaluate(
     """
     from tqdm.auto import tqdm
 
+    given = dict(num_samples=num_samples, length_factor=length_factor, seed=seed, eps=eps)
     if settings is None:
-        settings = EvaluationSettings(
-            num_samples=num_samples, length_factor=length_factor, seed=seed, eps=eps
-        )
+        settings = EvaluationSettings(**given)
+    else:
+        default = EvaluationSettings()
+        clash = [k for k, v in given.items() if v != getattr(default, k)]
+        if clash:
+            raise MotionValueError(
+                f"pass {', '.join(clash)} inside settings, not next to it "
+                "(settings would silently override them)"
+            )
     if not isinstance(references, Mapping) or not references:
         raise MotionValueError("references must be a non-empty dict label -> Motion")
     for label, ref in references.items():

@@ -25,7 +25,7 @@ Quantities, for motions at ``fps`` frames per second:
   (0 when above), in cm; mean over frames and the share of frames deeper than
   ``PENETRATION_THRESHOLD``. Retargeted Bandai Namco clips do not stand on y = 0: the
   lowest foot vertices sit 0 to 3 cm above it, depending on the clip (the first
-  percentile of the foot-vertex heights of the walk clips ranges from 0.0 to 2.5 cm),
+  percentile of the foot-vertex heights of the walk clips ranges from 0.0 to 2.2 cm),
   and generated motion inherits the height of its training clip. The ground is
   therefore estimated from the *reference* as the ``GROUND_PERCENTILE``-th percentile
   of its foot-vertex heights, and the same plane is used for the motion scored against
@@ -371,6 +371,18 @@ def motion_contacts(
     return contacts_from_velocity(vel, threshold), False
 
 
+def _kinematics_of(motions: list[Motion], given: Any, body: Any, name: str) -> list:
+    if given is None:
+        return [motion_kinematics(m, body) for m in motions]
+    given = list(given)
+    if len(given) != len(motions):
+        raise MotionValueError(f"{name} has {len(given)} entries for {len(motions)} motions")
+    for m, (joints, feet) in zip(motions, given, strict=True):
+        if len(joints) != m.num_frames or len(feet) != m.num_frames:
+            raise MotionValueError(f"{name}: frame counts do not match {m!r}")
+    return given
+
+
 def plausibility_report(
     motions: Any,
     references: Any,
@@ -381,6 +393,7 @@ def plausibility_report(
     ground: float | None = None,
     ground_percentile: float = GROUND_PERCENTILE,
     kinematics: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
+    reference_kinematics: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> dict[str, float]:
     """Plausibility of ``motions`` next to the training clip(s) ``references``.
 
@@ -393,8 +406,8 @@ def plausibility_report(
         penetration_threshold: metres for ``penetration_share``.
         ground: ground height (metres); None estimates it from ``references``
             (``estimate_ground`` at ``ground_percentile``).
-        kinematics: ``motion_kinematics(m, body)`` of every motion, when already
-            computed (saves the body forward).
+        kinematics, reference_kinematics: ``motion_kinematics(m, body)`` of every
+            motion / reference, when already computed (saves the body forward).
 
     Returns:
         dict with
@@ -423,7 +436,7 @@ def plausibility_report(
 
         body = load_body_model()
 
-    ref_kin = [motion_kinematics(m, body) for m in refs]
+    ref_kin = _kinematics_of(refs, reference_kinematics, body, "reference_kinematics")
     if ground is None:
         ground = estimate_ground([f for _, f in ref_kin], ground_percentile)
     jerk_ref = float(
@@ -432,10 +445,7 @@ def plausibility_report(
         ).mean()
     )
 
-    if kinematics is None:
-        kinematics = [motion_kinematics(m, body) for m in gens]
-    elif len(kinematics) != len(gens):
-        raise MotionValueError(f"kinematics has {len(kinematics)} entries for {len(gens)} motions")
+    kinematics = _kinematics_of(gens, kinematics, body, "kinematics")
     speeds, jerks, depths, contact_frames, own = [], [], [], [], []
     for m, (joints, feet) in zip(gens, kinematics, strict=True):
         c, is_own = motion_contacts(m, feet)

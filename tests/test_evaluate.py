@@ -234,6 +234,8 @@ def test_evaluate_validates_its_inputs(body):
         ev.evaluate(noisy_crops({"a": ref}), {"a": ref}, extra_models={"model": print}, **kw)
     with pytest.raises(MotionValueError, match="not callable"):
         ev.evaluate(None, {"a": ref}, extra_models={"m": 3}, **kw)
+    with pytest.raises(MotionValueError, match="inside settings"):
+        ev.evaluate(None, {"a": ref}, settings=ev.EvaluationSettings(), **kw)
 
 
 # -- real data ----------------------------------------------------------------------------------
