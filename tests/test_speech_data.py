@@ -1,0 +1,225 @@
+"""The synthetic co-speech set (espeak-ng + rule-based gestures) and the paired loaders."""
+
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile
+
+import mrlib.speech_data as sd
+from mrlib.body import load_body_model
+from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.io import load_motion, save_motion
+from mrlib.skeleton import JOINT_NAMES
+from mrlib.speech import (
+    AudioFileError,
+    SpeechFeatureExtractor,
+    beat_alignment_score,
+    detect_onsets,
+    energy_envelope,
+    hand_speed,
+    speech_motion_correlation,
+)
+from mrlib.speech_data import (
+    SENTENCES,
+    VOICES,
+    SpeechSynthesisError,
+    corpus_text,
+    load_base_motions,
+    load_paired_folder,
+    load_unpaired_folder,
+    loop_motion,
+    make_synthetic_pair,
+    quiet_window,
+    standing_base,
+    synthesize_speech,
+    synthetic_corpus,
+)
+
+SR = 16_000
+DATA = Path(
+    os.environ.get(
+        "MRLIB_DATA_DIR", Path(__file__).resolve().parents[2] / "shared/data/bandai-namco-motion-1"
+    )
+)
+needs_espeak = pytest.mark.skipif(
+    shutil.which("espeak-ng") is None,
+    reason="espeak-ng is not installed (apt-get install espeak-ng)",
+)
+needs_data = pytest.mark.skipif(
+    not (DATA / "data").is_dir(), reason=f"Bandai Namco data not found at {DATA}"
+)
+LOGMEL = SpeechFeatureExtractor(kind="logmel", n_mels=20)
+
+
+@pytest.fixture(scope="module")
+def body():
+    return load_body_model()
+
+
+# -- espeak --------------------------------------------------------------------------------
+@needs_espeak
+def test_espeak_speech_has_a_plausible_duration():
+    text = "The museum opens at ten, but the best time to come is just before closing."
+    slow = synthesize_speech(text, "en-us", 140)
+    fast = synthesize_speech(text, "en-gb", 200)
+    # 16 words: 6.9 s at 140 wpm, 4.8 s at 200 wpm; espeak adds little silence
+    assert 4.5 < len(slow) / SR < 9.0 and 3.0 < len(fast) / SR < 6.5
+    assert len(fast) < 0.85 * len(slow)
+    assert np.abs(slow).max() > 0.05 and slow.dtype == np.float32
+    paused = synthesize_speech(
+        sd.with_pauses(text, np.random.default_rng(0)), "en-us", 140, ssml=True
+    )
+    assert len(paused) > len(slow) + 0.1 * SR  # one comma and one full stop pause
+    with pytest.raises(SpeechSynthesisError, match="voice"):
+        synthesize_speech("hello", "xx-none")
+
+
+def test_missing_espeak_is_a_clear_error(monkeypatch):
+    monkeypatch.setattr(sd.shutil, "which", lambda name: None)
+    assert not sd.espeak_available()
+    with pytest.raises(SpeechSynthesisError, match="apt-get install espeak-ng"):
+        synthesize_speech("hello")
+
+
+# -- base motion ---------------------------------------------------------------------------
+def test_loop_motion_goes_back_and_forth():
+    m = standing_base(seconds=1.0, fps=10)
+    looped = loop_motion(m, 35)
+    idx = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0, 1]
+    assert looped.num_frames == 35 and np.array_equal(looped.poses[:20], m.poses[idx])
+    assert loop_motion(m, 4).num_frames == 4
+    with pytest.raises(MotionValueError):
+        loop_motion(m, 0)
+
+
+@needs_data
+def test_bandai_bases_are_resting_stances(body):
+    bases = load_base_motions(DATA, fps=25.0, body=body)
+    assert len(bases) == len(sd.BASE_CLIPS)
+    for b in bases:
+        j = body.motion_joints(b)
+        assert b.fps == 25 and b.num_frames >= 36
+        assert (j[:, [20, 21], 1] < j[:, None, 0, 1]).all()  # wrists below the pelvis
+        assert hand_speed(b, body).mean() < 0.15
+    # a clip whose only calm moment is a held gesture is refused as a base
+    raw = load_motion(DATA / "data" / "dataset-1_guide_normal_001.bvh")
+    with pytest.raises(MotionValueError, match="resting stance"):
+        quiet_window(raw, 1.5, body)
+
+
+# -- synthetic pairs -----------------------------------------------------------------------
+@needs_espeak
+def test_pair_changes_only_arms_and_head(body):
+    base = standing_base(seconds=2.0, fps=25.0)
+    wav, sr, m = make_synthetic_pair(SENTENCES[3], VOICES[1], 7, base)
+    assert sr == SR and m.fps == 25 and m.num_frames == round(len(wav) / SR * 25)
+    assert m.meta["synthetic"] and m.meta["sentence"] == SENTENCES[3] and m.meta["beats_s"]
+    ref = loop_motion(base, m.num_frames)
+    changed = {JOINT_NAMES[j] for j in range(24) if not np.allclose(m.poses[:, j], ref.poses[:, j])}
+    arms = {f"{s}_{p}" for s in ("left", "right") for p in ("shoulder", "elbow", "wrist")}
+    assert changed == arms | {"head"}
+    # the gesture raises the hands in front of the body while speaking
+    jm, jb = body.motion_joints(m), body.motion_joints(ref)
+    talking = energy_envelope(wav, sr, m.fps, m.num_frames) > -20
+    assert (jm[talking, 21, 2] - jb[talking, 21, 2]).mean() > 0.03  # right wrist forward
+    assert (jm[talking, 21, 1] - jb[talking, 21, 1]).mean() > 0.03  # and up
+    wav2, _, m2 = make_synthetic_pair(SENTENCES[3], VOICES[1], 7, base)
+    assert np.array_equal(wav, wav2) and np.array_equal(m.poses, m2.poses)  # seeded
+
+
+@needs_espeak
+@needs_data
+def test_hand_speed_follows_speech_energy(body):
+    """Loudness/hand-speed correlation of synthetic pairs vs the shuffled-audio control
+    (each motion against the next pair's audio); printed with ``pytest -s``."""
+    bases = load_base_motions(DATA, fps=25.0, body=body)
+    pairs = []
+    for k in range(4):
+        wav, sr, m = make_synthetic_pair(corpus_text(k), VOICES[k], k, bases[k])
+        pairs.append((wav, m, hand_speed(m, body), detect_onsets(wav, sr)))
+    r, r_ctl, ba, ba_ctl = [], [], [], []
+    for k, (wav, m, speed, onsets) in enumerate(pairs):
+        other_wav, _, _, other_onsets = pairs[(k + 1) % len(pairs)]
+        env = energy_envelope(wav, SR, m.fps, m.num_frames)
+        env_ctl = np.resize(energy_envelope(other_wav, SR, m.fps), m.num_frames)
+        r.append(speech_motion_correlation(env, m, speed=speed).r)
+        r_ctl.append(speech_motion_correlation(env_ctl, m, speed=speed).r)
+        ba.append(beat_alignment_score(onsets, m, speed=speed))
+        ba_ctl.append(beat_alignment_score(other_onsets, m, speed=speed))
+    print(
+        f"\nr = {np.round(r, 2)} (mean {np.mean(r):.3f}); control {np.round(r_ctl, 2)} "
+        f"(mean {np.mean(r_ctl):.3f}); beat alignment {np.mean(ba):.3f} vs {np.mean(ba_ctl):.3f}"
+    )
+    assert np.mean(r) > 0.3 and min(r) > 0.2
+    assert np.mean(r_ctl) < np.mean(r) - 0.1
+    assert np.mean(ba) > np.mean(ba_ctl) + 0.05
+
+
+# -- corpus and loaders --------------------------------------------------------------------
+@needs_espeak
+def test_corpus_round_trip(tmp_path):
+    bases = [standing_base(seconds=1.5, fps=25.0, seed=s) for s in range(2)]
+    corpus = synthetic_corpus(2, 1, tmp_path, base_motions=bases)
+    assert len(corpus.paired) == 2 and len(corpus.unpaired) == 1 and corpus.manifest.is_file()
+    pairs = load_paired_folder(tmp_path / "paired", LOGMEL)
+    assert [p.name for p in pairs] == ["synthetic_0000", "synthetic_0001"]
+    for p in pairs:
+        assert p.features.shape[1] == 23 and p.fps == 50 and p.motion.fps == 25
+        assert abs(p.duration - p.motion.duration) < 0.05
+        assert abs(p.features.shape[0] / 50 - p.duration) < 0.05
+    clips = load_unpaired_folder(tmp_path / "unpaired", LOGMEL)
+    assert len(clips) == 1 and clips[0].duration > 2.0
+
+
+def _write_pair(folder, stem, seconds=2.0, motion_seconds=None, ext=".npz", sr=SR):
+    folder.mkdir(parents=True, exist_ok=True)
+    t = np.arange(int(seconds * sr)) / sr
+    soundfile.write(str(folder / f"{stem}.wav"), 0.2 * np.sin(2 * np.pi * 150 * t), sr)
+    if motion_seconds is not False:
+        m = standing_base(seconds if motion_seconds is None else motion_seconds, fps=25)
+        save_motion(m, folder / f"{stem}{ext}")
+
+
+def test_paired_loader_errors(tmp_path):
+    d = tmp_path / "set"
+    _write_pair(d, "a")
+    _write_pair(d, "b", motion_seconds=False)  # audio without motion
+    with pytest.raises(MotionFileError, match="missing partner: no motion file b.npz") as e:
+        load_paired_folder(d, LOGMEL)
+    assert e.value.path == d / "b.wav"
+    with pytest.warns(UserWarning, match="skipped"):
+        assert [p.name for p in load_paired_folder(d, LOGMEL, strict=False)] == ["a"]
+    (d / "b.wav").unlink()
+    save_motion(standing_base(2.0), d / "c.npz")  # motion without audio
+    with pytest.raises(MotionFileError, match="no audio file c.wav"):
+        load_paired_folder(d, LOGMEL)
+    (d / "c.npz").unlink()
+    _write_pair(d, "a", ext=".bvh")  # a.npz and a.bvh
+    with pytest.raises(MotionFileError, match="ambiguous"):
+        load_paired_folder(d, LOGMEL)
+    (d / "a.bvh").unlink()
+    _write_pair(d, "long", seconds=2.0, motion_seconds=4.0)
+    with pytest.raises(MotionFileError, match="lasts 4.00 s but long.wav lasts 2.00 s"):
+        load_paired_folder(d, LOGMEL)
+    (d / "long.npz").unlink()
+    _write_pair(d, "long", seconds=0.5)
+    with pytest.raises(AudioFileError, match="at least 1 s"):
+        load_paired_folder(d, LOGMEL)
+    (d / "long.npz").unlink()
+    (d / "long.wav").unlink()
+    _write_pair(d, "low", sr=4000)
+    with pytest.raises(AudioFileError, match="below 8000 Hz"):
+        load_paired_folder(d, LOGMEL)
+    (d / "low.npz").unlink()
+    (d / "low.wav").unlink()
+    # motion in its own folder, resampled on load
+    m_dir = tmp_path / "motion"
+    m_dir.mkdir()
+    (d / "a.npz").rename(m_dir / "a.npz")
+    (pair,) = load_paired_folder(d, LOGMEL, motion_dir=m_dir, motion_fps=20)
+    assert pair.motion.fps == 20 and pair.motion_path == m_dir / "a.npz"
+    with pytest.raises(AudioFileError, match="no audio files"):
+        load_unpaired_folder(m_dir, LOGMEL)
