@@ -14,16 +14,18 @@ from mrlib.errors import MrlibError
 EPILOG = """examples:
   mrlib info data_samples/walk_happy.npz
   mrlib train data_samples/*.npz --preset tutorial --out runs/samples
-  mrlib sample runs/samples/model.pt --label walk_happy --seconds 10 --out outputs/happy
-  mrlib sample runs/samples/model.pt --crossover walk_sad:1-4 walk_happy:5-8 --out outputs/mix
-  mrlib evaluate runs/samples/model.pt --samples 50 --out outputs/eval
+  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10 --out outputs/happy
+  mrlib sample runs/samples/checkpoint.pt --crossover walk_sad:1-3 walk_happy:4-6 --out outputs/mix
   mrlib export clip.bvh clip.npz
 """
 
 
 def _add_info(sub):
-    p = sub.add_parser("info", help="print a summary of a motion file",
-                       description="Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it.")
+    p = sub.add_parser(
+        "info",
+        help="print a summary of a motion file",
+        description="Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it.",
+    )
     p.add_argument("path", type=Path)
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first")
     p.set_defaults(func=_cmd_info)
@@ -45,9 +47,12 @@ def _cmd_info(args) -> int:
 
 
 def _add_export(sub):
-    p = sub.add_parser("export", help="convert a motion file (BVH <-> SMPL .npz)",
-                       description="Convert between formats: any readable motion file to AMASS-style .npz "
-                       "or to BVH on the SMPL skeleton (opens in Blender).")
+    p = sub.add_parser(
+        "export",
+        help="convert a motion file (BVH <-> SMPL .npz)",
+        description="Convert between formats: any readable motion file to AMASS-style .npz "
+        "or to BVH on the SMPL skeleton (opens in Blender).",
+    )
     p.add_argument("src", type=Path, help="input: .bvh, .npz or an EasyMocap folder")
     p.add_argument("dst", type=Path, help="output: .npz or .bvh")
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate")
@@ -63,6 +68,304 @@ def _cmd_export(args) -> int:
     return 0
 
 
+# -- train ---------------------------------------------------------------------------------
+def _parse_iterations(text: str | None) -> tuple[int, ...] | None:
+    if text is None:
+        return None
+    try:
+        its = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--iterations wants integers, got {text!r}") from None
+    if any(i <= 0 for i in its):
+        raise argparse.ArgumentTypeError("--iterations must be positive")
+    return its
+
+
+def _add_train(sub):
+    p = sub.add_parser(
+        "train",
+        help="train a model on a few labelled clips",
+        description="Train the multi-resolution GAN on one or more clips. Each clip is one condition "
+        "(its label comes from the file: the npz 'label' key, the Bandai JSON next to a BVH, or else "
+        "the file name). Writes checkpoint.pt, checkpoint.pt.json (the config) and losses.csv to --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib train data_samples/*.npz --out runs/samples\n"
+        "  mrlib train a.bvh b.bvh --labels calm angry --preset paper --device cuda --out runs/ab\n"
+        "  mrlib train --resume runs/ab/checkpoint.pt --out runs/ab",
+    )
+    p.add_argument(
+        "clips", nargs="*", type=Path, help="motion files (.bvh, .npz, EasyMocap folders)"
+    )
+    p.add_argument(
+        "--labels", nargs="+", default=None, help="one label per clip (default: from the files)"
+    )
+    p.add_argument(
+        "--preset",
+        default="tutorial",
+        choices=["tutorial", "paper"],
+        help="training schedule: 'tutorial' (CPU minutes) or 'paper' (the paper's 15k/25k "
+        "iterations per block; use a GPU) [default: tutorial]",
+    )
+    p.add_argument(
+        "--iterations",
+        type=_parse_iterations,
+        default=None,
+        metavar="N[,N...]",
+        help="iterations per block, overriding the preset (one value for all blocks, or one per block)",
+    )
+    p.add_argument(
+        "--levels", type=int, default=None, help="number of pyramid levels (overrides the preset)"
+    )
+    p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
+    p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda [default: cpu]")
+    p.add_argument(
+        "--out", type=Path, default=Path("runs/model"), help="output folder [default: runs/model]"
+    )
+    p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
+    p.add_argument(
+        "--per-clip",
+        action="store_true",
+        help="GANimator-mode baseline: train one model per clip (in OUT/<clip name>/), "
+        "so no model sees another condition and no crossover is learned",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=_cmd_train)
+
+
+def training_config(preset: str, iterations=None, levels=None, seed=None, device=None):
+    """A preset with the CLI's overrides applied. Changing ``levels`` keeps the preset's
+    first-block budget for block 1 and its last block's budget for every other block."""
+    import dataclasses
+    import math
+
+    from mrlib.config import get_preset
+
+    cfg = get_preset(preset)
+    model = cfg.model if levels is None else dataclasses.replace(cfg.model, num_levels=levels)
+    n = math.ceil(model.num_levels / cfg.block_size)
+    if iterations is not None:
+        its = tuple(iterations) * n if len(iterations) == 1 else tuple(iterations)
+        if len(its) != n:
+            raise MrlibError(f"--iterations has {len(its)} values but the model has {n} blocks")
+    else:
+        base = cfg.block_iterations
+        its = tuple(base[0] if b == 0 else base[min(b, len(base) - 1)] for b in range(n))
+    changes = {"model": model, "block_iterations": its}
+    if seed is not None:
+        changes["seed"] = seed
+    if device is not None:
+        changes["device"] = device
+    return cfg.replace(**changes)
+
+
+def _single_clip(data, k: int):
+    """Clip ``k`` of a TrainingSet as a set of its own (normaliser refitted)."""
+    from mrlib.data import TrainingSet
+    from mrlib.features import FeatureNormalizer
+
+    x = data.features[k]
+    label = data.labels[data.clip_labels[k]]
+    return TrainingSet(
+        [x], [0], [label], data.fps, [data.names[k]], FeatureNormalizer.fit([x]), data.betas
+    )
+
+
+def _cmd_train(args) -> int:
+    from mrlib.data import TrainingSet
+    from mrlib.train import train
+
+    if args.resume is None and not args.clips:
+        raise MrlibError("give clips to train on, or --resume a checkpoint")
+    data = None
+    if args.resume is None:
+        data = TrainingSet.from_files(args.clips, labels=args.labels, fps=args.fps)
+        print(
+            f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
+            f"lengths {data.lengths}"
+        )
+    cfg = training_config(args.preset, args.iterations, args.levels, args.seed, args.device)
+    if args.per_clip:
+        if data is None:
+            raise MrlibError("--per-clip trains from clips; resume each clip's folder separately")
+        for k in range(data.num_clips):
+            one = _single_clip(data, k)
+            out = args.out / data.names[k]
+            print(f"[{k + 1}/{data.num_clips}] {data.names[k]} -> {out}")
+            res = train(one, cfg.replace(mix_prob=0.0), out, progress=not args.no_progress)
+            if res.interrupted:
+                return 130
+        return 0
+    res = train(data, cfg, args.out, resume=args.resume, progress=not args.no_progress)
+    state = "interrupted; resume with --resume" if res.interrupted else "done"
+    print(f"{state} in {res.wall_time_s:.0f} s -> {res.checkpoint}")
+    return 130 if res.interrupted else 0
+
+
+# -- sample --------------------------------------------------------------------------------
+def _parse_range(spec: str) -> tuple[str, tuple[int, int]]:
+    try:
+        label, levels = spec.rsplit(":", 1)
+        a, b = (int(v) for v in levels.split("-"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LABEL:FIRST-LAST, got {spec!r}") from None
+    return label, (a, b)
+
+
+def _add_sample(sub):
+    p = sub.add_parser(
+        "sample",
+        help="generate motion from a trained model",
+        description="Generate new motion. Choose the condition with --label, assign conditions to "
+        "level ranges with --crossover (coarse levels first), or blend two labels with --blend. "
+        "Writes one .npz (SMPL parameters) and one .bvh per sample, and a mesh render with --render.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10\n"
+        "  mrlib sample ckpt.pt --crossover walk_sad:1-3 walk_happy:4-6 --num 4 --render\n"
+        "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5",
+    )
+    p.add_argument("checkpoint", type=Path)
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--label", default=None, help="condition for every level (default: the first label)"
+    )
+    g.add_argument(
+        "--crossover",
+        nargs="+",
+        type=_parse_range,
+        metavar="LABEL:A-B",
+        help="conditions per level range, e.g. walk_sad:1-4 walk_happy:5-8",
+    )
+    g.add_argument(
+        "--blend",
+        nargs=3,
+        metavar=("LABEL_A", "LABEL_B", "W"),
+        help="interpolate the two label embeddings with weight W of B (0..1) at every level",
+    )
+    p.add_argument(
+        "--seconds", type=float, default=None, help="length in seconds (default: a training clip's)"
+    )
+    p.add_argument("--num", type=int, default=1, help="number of samples [default: 1]")
+    p.add_argument("--seed", type=int, default=0, help="random seed [default: 0]")
+    p.add_argument(
+        "--fix-contacts", action="store_true", help="foot-contact clean-up by inverse kinematics"
+    )
+    p.add_argument(
+        "--render", action="store_true", help="also write a mesh render (PNG) per sample"
+    )
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--out", type=Path, default=Path("outputs/samples"))
+    p.set_defaults(func=_cmd_sample)
+
+
+def _cmd_sample(args) -> int:
+    from mrlib.io import save_motion
+    from mrlib.sample import generate, load_model
+
+    model = load_model(args.checkpoint, device=args.device)
+    length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
+    kw = {}
+    if args.crossover:
+        kw["conditions"] = args.crossover
+        tag = "+".join(f"{lab}{a}-{b}" for lab, (a, b) in args.crossover)
+    elif args.blend:
+        a, b, w = args.blend
+        kw["blend"] = (a, b, float(w))
+        tag = f"{a}-{b}-{float(w):g}"
+    else:
+        kw["condition"] = args.label if args.label is not None else model.labels[0]
+        tag = str(kw["condition"])
+    motions = generate(
+        model,
+        length=length,
+        seed=args.seed,
+        num_samples=args.num,
+        fix_contacts=args.fix_contacts,
+        **kw,
+    )
+    motions = motions if isinstance(motions, list) else [motions]
+    args.out.mkdir(parents=True, exist_ok=True)
+    for i, m in enumerate(motions):
+        stem = args.out / f"{tag}_seed{args.seed}_{i}"
+        save_motion(m, stem.with_suffix(".npz"))
+        save_motion(m, stem.with_suffix(".bvh"))
+        if args.render:
+            import imageio.v3 as iio
+
+            from mrlib.render import evenly_spaced_frames, render_meshes
+
+            iio.imwrite(
+                stem.with_suffix(".png"), render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
+            )
+        print(f"wrote {stem}.npz/.bvh: {m}")
+    return 0
+
+
+# -- evaluate ------------------------------------------------------------------------------
+def _add_evaluate(sub):
+    p = sub.add_parser(
+        "evaluate",
+        help="score a trained model like the paper's Table 1",
+        description="Draw samples of 2x the training length with fixed seeds and score them against "
+        "each training clip: coverage, global (PNN) and local diversity, reconstruction error, "
+        "condition fidelity, foot skating, jitter, penetration and speed distributions, next to "
+        "calibration rows (the clip played twice, a frozen frame, other real takes when the clips "
+        "are Bandai Namco ones). Writes CSV, Markdown and a plot to --out and prints the table.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib evaluate runs/samples/checkpoint.pt --samples 20\n"
+        "  mrlib evaluate runs/walks/checkpoint.pt --baseline runs/ganimator_mode --out outputs/table1",
+    )
+    p.add_argument("checkpoint", type=Path)
+    p.add_argument("--samples", type=int, default=200, help="samples per sequence [default: 200]")
+    p.add_argument("--eps", type=float, default=2.0, help="coverage threshold [default: 2.0]")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        help="a folder of single-clip checkpoints (*/checkpoint.pt) to compare against, "
+        "e.g. from `mrlib train --per-clip`",
+    )
+    p.add_argument("--baseline-name", default="GANimator-mode")
+    p.add_argument("--no-calibration", action="store_true", help="leave out the calibration rows")
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
+    p.set_defaults(func=_cmd_evaluate)
+
+
+def _cmd_evaluate(args) -> int:
+    from mrlib.evaluate import evaluate_model, model_references
+    from mrlib.sample import load_model
+
+    model = load_model(args.checkpoint, device=args.device)
+    baselines = None
+    if args.baseline is not None:
+        per_key = {}
+        refs = model_references(model)
+        for path in sorted(args.baseline.glob("*/checkpoint.pt")):
+            m = load_model(path, device=args.device)
+            for key in refs:
+                if key in m.clip_names or key in m.labels:
+                    per_key[key] = m
+        if not per_key:
+            raise MrlibError(
+                f"no baseline checkpoint in {args.baseline} matches this model's clips"
+            )
+        baselines = {args.baseline_name: per_key}
+    result = evaluate_model(
+        model,
+        baselines,
+        num_samples=args.samples,
+        eps=args.eps,
+        seed=args.seed,
+        calibration=not args.no_calibration,
+    )
+    result.save(args.out)
+    print(result.to_markdown())
+    print(f"\nwrote {args.out}/")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mrlib",
@@ -71,8 +374,11 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    _add_info(sub)
+    _add_train(sub)
+    _add_sample(sub)
+    _add_evaluate(sub)
     _add_export(sub)
+    _add_info(sub)
     return parser
 
 

@@ -862,3 +862,89 @@ def evaluate(
         for key in order:
             rows.extend(calib_rows[key])
     return EvaluationResult(rows=rows, settings=settings, notes=notes)
+
+
+# ----------------------------------------------------------------------------------------
+# Trained checkpoints
+# ----------------------------------------------------------------------------------------
+def model_references(model: Any) -> dict[str, Motion]:
+    """Training clips of a ``mrlib.sample.GenerativeModel`` as Motions, keyed by label
+    (by clip name when several clips share a label)."""
+    from mrlib.features import features_to_motion
+
+    labels = [model.labels[k] for k in model.clip_labels]
+    unique = len(set(labels)) == len(labels)
+    refs = {}
+    for k, x in enumerate(model.features):
+        key = labels[k] if unique else model.clip_names[k]
+        refs[key] = features_to_motion(
+            x, model.fps, betas=model.betas, label=labels[k], name=model.clip_names[k]
+        )
+    return refs
+
+
+def model_sample_fn(model: Any, fix_contacts: bool = False) -> SampleFn:
+    """``sample_fn(key, length, seed)`` for :func:`evaluate` from a trained model; keys
+    are those of :func:`model_references`."""
+    from mrlib.sample import generate
+
+    key_to_label = {}
+    for k, lab in enumerate(model.clip_labels):
+        key_to_label[model.labels[lab]] = model.labels[lab]
+        key_to_label[model.clip_names[k]] = model.labels[lab]
+
+    def sample_fn(key: str, length: int, seed: int) -> Motion:
+        return generate(
+            model, key_to_label[key], length=length, seed=seed, fix_contacts=fix_contacts
+        )
+
+    return sample_fn
+
+
+def _clip_index(model: Any, key: str) -> int:
+    """The training clip of ``model`` that ``key`` (a clip name or label) refers to; a
+    single-clip model answers 0 for any key."""
+    for k, name in enumerate(model.clip_names):
+        if key in (name, model.labels[model.clip_labels[k]]):
+            return k
+    if len(model.clip_names) == 1:
+        return 0
+    raise KeyError(f"{key!r} is neither a clip nor a label of this model ({model.clip_names})")
+
+
+def evaluate_model(
+    model: Any, baselines: Mapping[str, Any] | None = None, *, name: str = "ours", **kwargs: Any
+) -> EvaluationResult:
+    """:func:`evaluate` a trained model on its own training clips, with reconstruction
+    errors and calibration rows.
+
+    ``baselines`` maps a method name to either one model or a dict key -> model trained on
+    that sequence alone (GANimator-mode: one model per sequence); keys are those of
+    :func:`model_references`. Extra keyword arguments go to :func:`evaluate`.
+    """
+    from mrlib.sample import generate, reconstruct
+
+    refs = model_references(model)
+    recon = {key: reconstruct(model, _clip_index(model, key)) for key in refs}
+    extra, extra_recon = {}, {}
+    for bname, b in (baselines or {}).items():
+        per_key = dict(b) if isinstance(b, Mapping) else {key: b for key in refs}
+
+        def fn(key: str, length: int, seed: int, _models=per_key) -> Motion:
+            m = _models[key]
+            label = m.labels[m.clip_labels[_clip_index(m, key)]]
+            return generate(m, label, length=length, seed=seed)
+
+        extra[bname] = fn
+        extra_recon[bname] = {
+            key: reconstruct(m, _clip_index(m, key)) for key, m in per_key.items()
+        }
+    return evaluate(
+        model_sample_fn(model),
+        refs,
+        extra_models=extra or None,
+        name=name,
+        reconstructions=recon,
+        extra_reconstructions=extra_recon or None,
+        **kwargs,
+    )
