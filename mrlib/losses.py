@@ -1,8 +1,10 @@
 """Training losses (paper Eq. 6-11) as pure functions on padded batches.
 
-Shapes: B batch, C channels, T frames (padded), ``mask (B, T)`` bool marks valid frames.
-Every mean is taken per sample over its valid frames, then over the batch, so a short
-clip counts as much as a long one (the paper's ``1/N sum_k`` in Eq. 10).
+Shapes: B batch, C channels, T frames. A batch may be padded ``(B, C, T_max)`` or packed
+``(1, C, S)`` (``mrlib.pyramid.PackedLevels``); either way, ``weights (B, T)`` gives every
+frame its weight in the mean: zero on padding, and ``1 / (frames of its sample * B)``
+on valid frames, so a short clip counts as much as a long one (the paper's
+``1/N sum_k`` in Eq. 10). ``mask_weights`` builds them from a padded batch's mask.
 
 Units: joint and vertex positions in metres, velocities in metres per second at the
 level's own frame rate ``fps_i = fps * T_i / T_L``. With these units the paper's weights
@@ -21,7 +23,8 @@ from mrlib.features import FeatureNormalizer, root_velocity_to_trans, split_feat
 from mrlib.rotations import sixd_to_matrix
 
 __all__ = [
-    "masked_mean",
+    "weighted_mean",
+    "mask_weights",
     "contact_sigmoid",
     "critic_loss",
     "generator_adversarial_loss",
@@ -30,17 +33,23 @@ __all__ = [
     "contact_consistency_loss",
     "smoothness_loss",
     "backward_velocity",
+    "interior_mask",
     "body_kinematics",
 ]
 
 
-def masked_mean(x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """``x (B, T, ...)`` averaged over valid frames and trailing dims per sample, then over
-    the batch. ``mask (B, T)`` bool. Returns a scalar."""
-    w = mask.to(x.dtype)
+def weighted_mean(x: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
+    """``sum_{b,t} weights[b, t] * mean(x[b, t, ...])``: ``x (B, T, ...)``, ``weights (B, T)``
+    (summing to 1). Returns a scalar."""
     per_frame = x.reshape(x.shape[0], x.shape[1], -1).mean(-1)  # (B, T)
-    per_sample = (per_frame * w).sum(1) / w.sum(1).clamp_min(1)
-    return per_sample.mean()
+    return (per_frame * weights).sum()
+
+
+def mask_weights(mask: torch.Tensor) -> torch.Tensor:
+    """Weights ``(B, T)`` of a per-sample mean over the True frames of ``mask (B, T)``,
+    averaged over samples."""
+    m = mask.float()
+    return m / (m.sum(1, keepdim=True).clamp_min(1) * m.shape[0])
 
 
 def contact_sigmoid(c: torch.Tensor) -> torch.Tensor:
@@ -49,28 +58,34 @@ def contact_sigmoid(c: torch.Tensor) -> torch.Tensor:
     return torch.sigmoid(10 * c - 5)
 
 
+def _frame_rate(fps: torch.Tensor | float, like: torch.Tensor, extra_dims: int) -> torch.Tensor:
+    """``fps`` (a float, ``(B,)`` per sample or ``(B, T)`` per frame) shaped to broadcast
+    against ``(B, T, *[1] * extra_dims)``."""
+    f = torch.as_tensor(fps, dtype=like.dtype, device=like.device)
+    if f.ndim == 1:
+        f = f[:, None]
+    return f.reshape(*f.shape, *([1] * extra_dims))
+
+
 # -- adversarial (WGAN-GP, Arjovsky 2017 / Gulrajani 2017) ---------------------------------
 def critic_loss(
-    score_real: torch.Tensor,
-    score_fake: torch.Tensor,
-    mask_real: torch.Tensor,
-    mask_fake: torch.Tensor,
+    score_real: torch.Tensor, score_fake: torch.Tensor, w_real: torch.Tensor, w_fake: torch.Tensor
 ) -> torch.Tensor:
     """``E[D(fake)] - E[D(real)]`` (paper Eq. 7 without the penalty). Scores are per-patch
     ``(B, T)``; a sequence's score is the mean of its patch scores (PatchGAN)."""
-    return masked_mean(score_fake, mask_fake) - masked_mean(score_real, mask_real)
+    return weighted_mean(score_fake, w_fake) - weighted_mean(score_real, w_real)
 
 
-def generator_adversarial_loss(score_fake: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+def generator_adversarial_loss(score_fake: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
     """``-E[D(fake)]``; ``score_fake (B, T)``."""
-    return -masked_mean(score_fake, mask)
+    return -weighted_mean(score_fake, weights)
 
 
 def gradient_penalty(
     critic: Callable[[torch.Tensor], torch.Tensor],
     real: torch.Tensor,
     fake: torch.Tensor,
-    mask: torch.Tensor,
+    weights: torch.Tensor,
     alpha: torch.Tensor,
 ) -> torch.Tensor:
     """``E[(||grad D(x~)|| - 1)^2]`` at ``x~ = alpha * real + (1 - alpha) * fake``.
@@ -80,63 +95,74 @@ def gradient_penalty(
 
     Args:
         critic: ``(B, C, T) -> (B, T)`` patch scores.
-        real, fake: ``(B, C, T)``; ``mask (B, T)``; ``alpha (B, 1, 1)`` in [0, 1].
+        real, fake: ``(B, C, T)``; ``weights (B, T)``; ``alpha`` in [0, 1], ``(B, 1, 1)``
+            per sample (or ``(B, 1, T)`` per frame for packed batches).
     """
     x = (alpha * real + (1 - alpha) * fake.detach()).requires_grad_(True)
     score = critic(x)
-    (grad,) = torch.autograd.grad((score * mask).sum(), x, create_graph=True)
+    (grad,) = torch.autograd.grad((score * (weights > 0)).sum(), x, create_graph=True)
     norm = grad.norm(dim=1)  # (B, T)
-    return masked_mean((norm - 1) ** 2, mask)
+    return weighted_mean((norm - 1) ** 2, weights)
 
 
 # -- reconstruction ------------------------------------------------------------------------
 def reconstruction_loss(
-    pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor
+    pred: torch.Tensor, target: torch.Tensor, weights: torch.Tensor
 ) -> torch.Tensor:
     """L1 between ``pred`` and ``target (B, C, T)`` (paper Eq. 10): mean absolute error
-    over valid frames and channels of each clip, averaged over clips."""
-    return masked_mean((pred - target).abs().transpose(1, 2), mask)
+    over the frames and channels of each clip, averaged over clips."""
+    return weighted_mean((pred - target).abs().transpose(1, 2), weights)
 
 
 # -- body-model terms ----------------------------------------------------------------------
 def backward_velocity(pos: torch.Tensor, fps: torch.Tensor | float) -> torch.Tensor:
-    """Backward-difference velocity ``v[t] = (p[t] - p[t-1]) * fps`` of ``pos (B, T, ..., 3)``;
-    ``v[0] = 0`` (callers mask frame 0). ``fps`` a float or ``(B,)``."""
-    fps = torch.as_tensor(fps, dtype=pos.dtype, device=pos.device)
-    if fps.ndim:
-        fps = fps.reshape(-1, *([1] * (pos.ndim - 1)))
+    """Backward-difference velocity ``v[t] = (p[t] - p[t-1]) * fps`` of ``pos (B, T, K, 3)``;
+    ``v[0] = 0`` (give frame 0 of every sequence zero weight). ``fps`` a float, ``(B,)`` or
+    ``(B, T)`` (per frame, for packed batches whose samples have different rates)."""
+    f = _frame_rate(fps, pos, pos.ndim - 2)
     v = torch.zeros_like(pos)
-    v[:, 1:] = (pos[:, 1:] - pos[:, :-1]) * fps
+    v[:, 1:] = (pos[:, 1:] - pos[:, :-1]) * (f[:, 1:] if f.shape[1] > 1 else f)
     return v
 
 
 def contact_consistency_loss(
-    foot_velocity: torch.Tensor, contacts: torch.Tensor, mask: torch.Tensor
+    foot_velocity: torch.Tensor, contacts: torch.Tensor, weights: torch.Tensor
 ) -> torch.Tensor:
     """Paper Eq. 9: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``.
 
     Args:
         foot_velocity: ``(B, T, 6, 3)`` m/s of the contact vertices.
         contacts: ``(B, T, 6)`` predicted contact labels (unnormalised, ~[0, 1]).
-        mask: ``(B, T)`` frames where the velocity is defined (frame 0 excluded).
+        weights: ``(B, T)``, zero where the velocity is undefined (each sequence's first
+            frame) and on padding.
     """
     cost = foot_velocity.pow(2).sum(-1) * contact_sigmoid(contacts)  # (B, T, 6)
-    return masked_mean(cost, mask)
+    return weighted_mean(cost, weights)
 
 
-def smoothness_loss(joints: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+def smoothness_loss(joints: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
     """Paper Eq. 11: ``mean_t ||p_t - (p_{t-1} + p_t + p_{t+1}) / 3||_2`` with ``p_t`` all
-    joint positions of frame t as one vector; ``joints (B, T, J, 3)`` metres. Only
-    interior frames (both neighbours valid) count."""
+    joint positions of frame t as one vector; ``joints (B, T, J, 3)`` metres.
+
+    ``weights (B, T)`` must be zero on each sequence's first and last frame (their
+    neighbours are missing) and on padding; see ``interior_mask``."""
     p = joints.flatten(2)  # (B, T, 3J)
     d = torch.zeros_like(p[..., 0])
     d[:, 1:-1] = (p[:, 1:-1] - (p[:, :-2] + p[:, 1:-1] + p[:, 2:]) / 3).norm(dim=-1)
-    interior = mask.clone()
-    interior[:, 0] = False
-    interior[:, 1:] &= mask[:, :-1]  # previous frame valid
-    interior[:, :-1] &= mask[:, 1:]  # next frame valid
-    interior[:, -1] = False
-    return masked_mean(d, interior)
+    return weighted_mean(d, weights)
+
+
+def interior_mask(mask: torch.Tensor, before: int = 1, after: int = 1) -> torch.Tensor:
+    """Frames of ``mask (B, T)`` whose ``before`` predecessors and ``after`` successors are
+    also in the mask."""
+    out = mask.clone()
+    for k in range(1, before + 1):
+        out[:, :k] = False
+        out[:, k:] &= mask[:, :-k]
+    for k in range(1, after + 1):
+        out[:, -k:] = False
+        out[:, :-k] &= mask[:, k:]
+    return out
 
 
 def body_kinematics(
@@ -150,18 +176,17 @@ def body_kinematics(
 
     Args:
         x: ``(B, C, T)`` normalised features.
-        fps: frame rate of the level, a float or ``(B,)`` (per-sample when clips differ).
+        fps: frame rate of the level: a float, ``(B,)`` per sample or ``(B, T)`` per frame.
         body: a ``mrlib.body.BodyModel`` (``forward(rotmat, trans, betas, vertex_ids)``).
     Returns:
         joints ``(B, T, 24, 3)``, foot vertices ``(B, T, 6, 3)`` (metres, world frame,
-        ground-plane path integrated from the root velocity), contacts ``(B, T, 6)``.
+        ground-plane path integrated from the root velocity; in a packed batch each
+        sample's path is offset by a constant, which velocities and the smoothness term
+        do not see), contacts ``(B, T, 6)``.
     """
     feats = normalizer.denormalize(x.transpose(1, 2))  # (B, T, C)
     rot6d, root, contacts = split_features(feats)
-    fps_t = torch.as_tensor(fps, dtype=x.dtype, device=x.device)
-    if fps_t.ndim:
-        fps_t = fps_t.reshape(-1, 1, 1)
-    trans = root_velocity_to_trans(root, fps_t)  # (B, T, 3)
+    trans = root_velocity_to_trans(root, _frame_rate(fps, x, 1))  # (B, T, 3)
     out = body.forward(
         sixd_to_matrix(rot6d), trans, betas=betas, vertex_ids=list(body.foot_vertex_ids)
     )

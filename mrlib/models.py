@@ -7,8 +7,9 @@ one critic, the whole generator.
 Shapes: B batch, C = 153 feature channels (``mrlib.features``), T frames, D the
 dimension of a condition (number of labels for one-hot labels, feature size for
 speech), E the FiLM embedding size. Sequences are ``(B, C, T)``; conditions are
-``(B, T, D)``. Every forward takes a :class:`mrlib.pyramid.RaggedLevels` layout so one
-batch can mix clips of different lengths.
+``(B, T, D)``. A batch of clips of different lengths is packed end to end into one
+sequence (B = 1, see :class:`mrlib.pyramid.PackedLevels`); the layout's reflect-pad
+indices keep every convolution inside its own clip.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import torch.nn.functional as F
 
 from mrlib.config import ModelConfig
 from mrlib.features import NUM_FEATURES, channel_joint
-from mrlib.pyramid import RaggedLevels
+from mrlib.pyramid import PackedLevels
 from mrlib.skeleton import NUM_JOINTS, PARENTS, graph_distances
 
 __all__ = [
@@ -64,7 +65,7 @@ class SkeletonConv1d(nn.Module):
     ``weight (C_out, C_in, K)`` is multiplied by the fixed ``mask (C_out, C_in, 1)`` (a
     buffer, never trained) at every call, so an output joint only mixes channels of its
     neighbourhood. ``mask=None`` gives an ordinary dense convolution. Padding is reflect,
-    per sample (``RaggedLevels.pad_index``).
+    per sample (``PackedLevels.pad_index``).
     """
 
     def __init__(
@@ -239,7 +240,7 @@ class MultiResGenerator(nn.Module):
 
     def run(
         self,
-        layout: RaggedLevels,
+        layout: PackedLevels,
         noises: list[torch.Tensor],
         conds: list[torch.Tensor],
         start: int = 0,
@@ -272,7 +273,7 @@ class MultiResGenerator(nn.Module):
 
     def forward(
         self,
-        layout: RaggedLevels,
+        layout: PackedLevels,
         noises: list[torch.Tensor],
         conds: list[torch.Tensor],
         keep: bool = False,

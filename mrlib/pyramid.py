@@ -5,10 +5,12 @@ Level ``i`` (1-based, ``1 <= i <= L``) of a clip of ``T`` frames has about
 clip linearly resampled by a further factor ``F`` (``F = 4/3`` in the paper and in
 GANimator). A level is a clip at a lower frame rate, ``fps_i = fps * T_i / T_L``.
 
-Batches mix clips of different lengths, so every function here also has a *ragged*
-form: a padded tensor ``(B, C, T_max)`` plus the valid length of each sample
-``lengths (B,)``. Frames past a sample's length are padding; the ragged functions
-never read them, so each sample is processed exactly as if it were alone.
+Batches mix clips of different lengths. Rather than padding every sample to the longest
+one, a batch is *packed*: the B samples of a level lie end to end along time in one
+``(1, C, S)`` tensor, each followed by ``gap`` junk frames (:class:`PackedLevels`). The
+networks read a sample's frames only (reflect padding is a gather that stays inside the
+sample, and the gap keeps convolution windows of neighbouring samples apart), so every
+sample is processed exactly as if it were alone, and no work is spent on padding.
 """
 
 from __future__ import annotations
@@ -25,13 +27,9 @@ __all__ = [
     "pyramid_lengths",
     "level_fps",
     "resample_linear",
-    "resample_linear_ragged",
     "build_pyramid",
     "noise_amplitudes",
-    "pad_stack",
-    "length_mask",
-    "reflect_pad_index",
-    "RaggedLevels",
+    "PackedLevels",
 ]
 
 
@@ -79,48 +77,6 @@ def resample_linear(x: torch.Tensor, size: int) -> torch.Tensor:
     return F.interpolate(x, size=size, mode="linear", align_corners=False)
 
 
-def _resample_table(lengths_in: torch.Tensor, lengths_out: torch.Tensor, size_out: int):
-    """Indices ``i0, i1 (B, 1, size_out)`` and weight ``w (B, 1, size_out)`` of linear
-    resampling with ``align_corners=False``: output frame t reads input position
-    ``(t + 0.5) * T_in / T_out - 0.5`` (clamped at 0), the convention of ``F.interpolate``."""
-    t = torch.arange(size_out, dtype=torch.float64, device=lengths_in.device)
-    scale = lengths_in.double() / lengths_out.double()  # (B,)
-    src = ((t[None] + 0.5) * scale[:, None] - 0.5).clamp_min(0)  # (B, size_out)
-    i0 = src.floor().long()
-    last = (lengths_in - 1)[:, None]
-    i0 = torch.minimum(i0, last)
-    i1 = torch.minimum(i0 + 1, last)
-    w = (src - i0).clamp(0, 1)
-    return i0[:, None], i1[:, None], w[:, None]
-
-
-def resample_linear_ragged(
-    x: torch.Tensor,
-    lengths_in: torch.Tensor,
-    lengths_out: torch.Tensor,
-    size_out: int | None = None,
-    table=None,
-) -> torch.Tensor:
-    """Per-sample linear resampling of a padded batch.
-
-    Args:
-        x: ``(B, C, T_in_max)``; sample b is valid on ``[0, lengths_in[b])``.
-        lengths_in, lengths_out: ``(B,)`` int.
-        size_out: padded output length (default ``max(lengths_out)``).
-        table: precomputed ``_resample_table`` (an optimisation for fixed layouts).
-    Returns:
-        ``(B, C, size_out)``; sample b equals ``resample_linear(x[b:b+1, :, :T_in_b], T_out_b)``
-        on its valid frames. Frames past ``lengths_out[b]`` are finite filler.
-    """
-    if size_out is None:
-        size_out = int(lengths_out.max())
-    i0, i1, w = table if table is not None else _resample_table(lengths_in, lengths_out, size_out)
-    B, C, _ = x.shape
-    a = x.gather(2, i0.expand(B, C, size_out))
-    b = x.gather(2, i1.expand(B, C, size_out))
-    return torch.lerp(a, b, w.to(x.dtype))
-
-
 def build_pyramid(x: torch.Tensor, lengths: list[int]) -> list[torch.Tensor]:
     """Data pyramid of one clip: ``x (C, T)`` -> ``[(C, T_1), ..., (C, T_L)]`` by linear
     resampling of the finest level (each level is resampled from the original, not from
@@ -147,99 +103,170 @@ def noise_amplitudes(pyramid: list[torch.Tensor]) -> torch.Tensor:
     return torch.stack(amps)
 
 
-def pad_stack(
-    clips: list[torch.Tensor], size: int | None = None
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """``[(C, T_b), ...]`` -> padded ``(B, C, T_max)`` (edge-replicated) and ``lengths (B,)``."""
-    lengths = torch.tensor([c.shape[-1] for c in clips], dtype=torch.long)
-    size = int(lengths.max()) if size is None else size
-    out = torch.stack(
-        [
-            F.pad(c[None], (0, size - c.shape[-1]), mode="replicate")[0]
-            if c.shape[-1] < size
-            else c
-            for c in clips
-        ]
-    )
-    return out, lengths
-
-
-def length_mask(lengths: torch.Tensor, size: int) -> torch.Tensor:
-    """``(B, size)`` bool, True on valid frames."""
-    return torch.arange(size, device=lengths.device)[None] < lengths[:, None]
-
-
-def reflect_pad_index(lengths: torch.Tensor, size: int, pad: int) -> torch.Tensor:
-    """Gather indices ``(B, 1, size + 2*pad)`` that reflect-pad every sample at its own
-    boundaries (``F.pad(mode="reflect")`` per sample). Positions past a sample's length
-    read valid frames only, so padding never leaks into valid outputs."""
-    if int(lengths.min()) <= pad:
-        raise ClipTooShortError(
-            f"reflect padding of {pad} needs more than {pad} frames, "
-            f"got a sample of {int(lengths.min())}"
-        )
-    t = torch.arange(-pad, size + pad, device=lengths.device)[None]  # (1, size + 2p)
-    n = lengths[:, None]
-    idx = t.abs()  # reflect at the start
-    idx = torch.where(idx >= n, 2 * (n - 1) - idx, idx)  # reflect at the end
-    idx = idx.clamp(0, None)
-    idx = torch.minimum(idx, n - 1)
-    return idx[:, None]
-
-
 @dataclass
-class RaggedLevels:
-    """Layout of a batch across all pyramid levels, computed once and reused.
+class PackedLevels:
+    """Layout of a batch of B samples at every level of their pyramids, packed along time.
 
-    ``lengths[i] (B,)`` valid frames of every sample at level i, ``sizes[i]`` the padded
-    length, ``masks[i] (B, T_i)``; resampling tables and reflect-pad indices are cached.
+    At level i, sample b occupies frames ``[offsets[i][b], offsets[i][b] + T_ib)`` of a
+    ``(1, C, sizes[i])`` tensor and is followed by ``gap`` junk frames (``gap >= 2p`` for
+    convolutions with padding p). All index tables are built once (the layout of a
+    training batch never changes) and live on ``device``.
+
+    Attributes:
+        table: ``(B, L)`` int, the pyramid lengths of every sample (CPU).
+        gap: junk frames after every sample.
+        offsets: per level ``(B,)`` first frame of every sample.
+        sizes: per level, total packed length ``S_i = sum_b (T_ib + gap)``.
+        owner: per level ``(S_i,)`` the sample each frame belongs to (gap frames belong to
+            the sample they follow).
+        valid: per level ``(1, S_i)`` bool, False on gap frames.
     """
 
-    lengths: list[torch.Tensor]
+    table: torch.Tensor
+    gap: int
+    device: torch.device
+    offsets: list[torch.Tensor]
     sizes: list[int]
-    masks: list[torch.Tensor]
-    uniform: bool
-    _up: dict = field(default_factory=dict, repr=False)
-    _pad: dict = field(default_factory=dict, repr=False)
+    owner: list[torch.Tensor]
+    local: list[torch.Tensor]
+    valid: list[torch.Tensor]
+    _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
-    def from_table(cls, table: torch.Tensor, device: str | torch.device = "cpu") -> RaggedLevels:
-        """``table (B, L)`` int: the pyramid lengths of every sample."""
-        table = torch.as_tensor(table, dtype=torch.long, device=device)
-        lengths = [table[:, i].contiguous() for i in range(table.shape[1])]
-        sizes = [int(n.max()) for n in lengths]
-        masks = [length_mask(n, s) for n, s in zip(lengths, sizes, strict=False)]
-        return cls(lengths, sizes, masks, bool((table == table[:1]).all()))
+    def from_table(cls, table, gap: int = 4, device: str | torch.device = "cpu") -> PackedLevels:
+        """``table (B, L)``: the pyramid lengths of every sample (``(L,)`` for one)."""
+        table = torch.as_tensor(table, dtype=torch.long).cpu()
+        if table.ndim == 1:
+            table = table[None]
+        if table.ndim != 2 or table.numel() == 0:
+            raise MotionValueError(f"table must be (B, L) lengths, got shape {tuple(table.shape)}")
+        if int(table.min()) < 1:
+            raise ClipTooShortError(f"every level needs at least one frame, got {table.tolist()}")
+        dev = torch.device(device)
+        offsets, sizes, owner, local, valid = [], [], [], [], []
+        for i in range(table.shape[1]):
+            n = table[:, i]
+            span = n + gap
+            off = torch.cumsum(span, 0) - span  # (B,)
+            own = torch.repeat_interleave(torch.arange(len(n)), span)  # (S,)
+            loc = torch.arange(int(span.sum())) - off[own]
+            offsets.append(off.to(dev))
+            sizes.append(int(span.sum()))
+            owner.append(own.to(dev))
+            local.append(loc.to(dev))
+            valid.append((loc < n[own])[None].to(dev))
+        return cls(table, gap, dev, offsets, sizes, owner, local, valid)
 
     @property
     def batch_size(self) -> int:
-        return len(self.lengths[0])
+        return self.table.shape[0]
 
     @property
     def num_levels(self) -> int:
-        return len(self.lengths)
+        return self.table.shape[1]
+
+    def lengths(self, level: int) -> torch.Tensor:
+        """``(B,)`` frames of every sample at ``level`` (0-based)."""
+        return self.table[:, level]
+
+    # -- moving data in and out -----------------------------------------------------------
+    def pack(self, clips: list[torch.Tensor], level: int) -> torch.Tensor:
+        """``[(C, T_ib)] -> (1, C, S_i)`` (gap frames are zeros)."""
+        if len(clips) != self.batch_size:
+            raise MotionValueError(f"expected {self.batch_size} clips, got {len(clips)}")
+        parts = []
+        for b, c in enumerate(clips):
+            if c.shape[-1] != int(self.table[b, level]):
+                raise MotionValueError(
+                    f"clip {b} has {c.shape[-1]} frames at level {level + 1}, "
+                    f"the layout says {int(self.table[b, level])}"
+                )
+            parts += [c, c.new_zeros(c.shape[0], self.gap)]
+        return torch.cat(parts, -1)[None].to(self.device)
+
+    def unpack(self, x: torch.Tensor, level: int) -> list[torch.Tensor]:
+        """``(1, C, S_i) -> [(C, T_ib)]`` (views)."""
+        off = self.offsets[level].tolist()
+        return [
+            x[0, :, o : o + int(n)] for o, n in zip(off, self.table[:, level].tolist(), strict=True)
+        ]
+
+    def per_sample(self, values: torch.Tensor, level: int) -> torch.Tensor:
+        """Spread per-sample values ``(B, ...)`` over frames: ``(S_i, ...)``."""
+        return values.to(self.device)[self.owner[level]]
+
+    def split(self, level: int, n: int) -> int:
+        """Packed size of the first ``n`` samples at ``level`` (where sample n starts)."""
+        return self.sizes[level] if n >= self.batch_size else int(self.offsets[level][n])
+
+    # -- weights for per-sample means ---------------------------------------------------------
+    def trimmed(self, level: int, start: int = 0, end: int = 0) -> torch.Tensor:
+        """``(1, S_i)`` bool: frames ``[start, T_b - end)`` of every sample."""
+        n = self.table[:, level].to(self.device)[self.owner[level]]
+        loc = self.local[level]
+        return ((loc >= start) & (loc < n - end))[None]
+
+    def weights(self, level: int, mask: torch.Tensor | None = None) -> torch.Tensor:
+        """``(1, S_i)`` frame weights of a per-sample mean averaged over samples: frame t of
+        sample b weighs ``1 / (count_b * B)`` where ``count_b`` is its number of frames in
+        ``mask`` (default: all valid frames); weights sum to 1."""
+        m = self.valid[level] if mask is None else mask
+        own = self.owner[level]
+        count = torch.zeros(self.batch_size, device=self.device).index_add_(0, own, m[0].float())
+        return (m[0].float() / (count.clamp_min(1)[own] * self.batch_size))[None]
+
+    # -- what the networks need ----------------------------------------------------------------
+    def pad_index(self, level: int, pad: int) -> torch.Tensor:
+        """Gather indices ``(1, 1, S_i + 2 * pad)`` that reflect-pad every sample at its own
+        boundaries, as ``F.pad(mode="reflect")`` would for the sample alone."""
+        key = ("pad", level, pad)
+        if key in self._cache:
+            return self._cache[key]
+        if 2 * pad > self.gap and self.batch_size > 1:
+            raise MotionValueError(
+                f"padding {pad} needs a gap of at least {2 * pad} frames, got {self.gap}"
+            )
+        n = self.table[:, level]
+        if int(n.min()) <= pad:
+            raise ClipTooShortError(
+                f"reflect padding of {pad} needs more than {pad} frames, "
+                f"got a sample of {int(n.min())} at level {level + 1}"
+            )
+        off = self.offsets[level].cpu()
+        t = torch.arange(-pad, self.sizes[level] + pad)  # centre of each padded position
+        # the sample whose reflect-padded span [o - p, o + T + p) holds t
+        b = (torch.searchsorted(off, t + pad, right=True) - 1).clamp(0, self.batch_size - 1)
+        u = t - off[b]
+        T = n[b]
+        u = u.abs()  # reflect at the start
+        u = torch.where(u >= T, 2 * (T - 1) - u, u)  # reflect at the end
+        u = torch.minimum(u.clamp_min(0), T - 1)  # junk positions read any frame of b
+        idx = (off[b] + u)[None, None].to(self.device)
+        self._cache[key] = idx
+        return idx
 
     def upsample(self, x: torch.Tensor, level: int) -> torch.Tensor:
-        """Resample the output of level ``level - 1`` (0-based ``level``) to level ``level``."""
-        if level not in self._up:
-            self._up[level] = _resample_table(
-                self.lengths[level - 1], self.lengths[level], self.sizes[level]
+        """Linear resampling of every sample from level ``level - 1`` to ``level``
+        (``F.interpolate(mode="linear", align_corners=False)`` per sample):
+        ``(1, C, S_{i-1}) -> (1, C, S_i)``."""
+        key = ("up", level)
+        if key not in self._cache:
+            n_in, n_out = self.table[:, level - 1], self.table[:, level]
+            own = self.owner[level].cpu()
+            loc = self.local[level].cpu().clamp_max(n_out[own] - 1)  # gap frames copy the last
+            scale = n_in.double()[own] / n_out.double()[own]
+            src = ((loc.double() + 0.5) * scale - 0.5).clamp_min(0)
+            i0 = torch.minimum(src.floor().long(), n_in[own] - 1)
+            i1 = torch.minimum(i0 + 1, n_in[own] - 1)
+            w = (src - i0).clamp(0, 1).float()
+            base = self.offsets[level - 1].cpu()[own]
+            self._cache[key] = (
+                (base + i0)[None, None].to(self.device),
+                (base + i1)[None, None].to(self.device),
+                w[None, None].to(self.device),
             )
-        return resample_linear_ragged(
-            x,
-            self.lengths[level - 1],
-            self.lengths[level],
-            self.sizes[level],
-            table=self._up[level],
-        )
-
-    def pad_index(self, level: int, pad: int) -> torch.Tensor:
-        key = (level, pad)
-        if key not in self._pad:
-            self._pad[key] = reflect_pad_index(self.lengths[level], self.sizes[level], pad)
-        return self._pad[key]
-
-    def select(self, index: torch.Tensor | slice) -> RaggedLevels:
-        """The layout of a sub-batch."""
-        table = torch.stack(self.lengths, 1)[index]
-        return RaggedLevels.from_table(table, table.device)
+        i0, i1, w = self._cache[key]
+        C = x.shape[1]
+        a = x.gather(2, i0.expand(1, C, -1))
+        b = x.gather(2, i1.expand(1, C, -1))
+        return torch.lerp(a, b, w.to(x.dtype))

@@ -22,7 +22,7 @@ from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
 from mrlib.models import MultiResGenerator, build_generator
 from mrlib.motion import Motion
-from mrlib.pyramid import RaggedLevels, level_fps, pyramid_lengths
+from mrlib.pyramid import PackedLevels, level_fps, pyramid_lengths
 
 __all__ = [
     "GenerativeModel",
@@ -190,11 +190,10 @@ def sample_features(
         raise MotionValueError(
             f"need {L} lengths and {L} conditions, got {len(lengths)} and {len(conds)}"
         )
-    dev = model.device
     base = int(seed) if seed is not None else int(torch.seed() % 2**63)
     amp = torch.as_tensor(noise_amplitude, dtype=torch.float32)
     amp = amp.expand(num_samples, L) if amp.ndim == 1 else amp
-    layout = RaggedLevels.from_table(torch.tensor(list(lengths)).expand(num_samples, L), dev)
+    layout = _layout(model, torch.tensor(list(lengths)).expand(num_samples, L))
     # Sample b draws its noise from its own stream (seed, b): a sample does not depend on
     # the batch size it was generated in.
     z = [torch.empty(num_samples, 1, n) for n in lengths]
@@ -203,18 +202,25 @@ def sample_features(
         g = torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
         for i in range(L):
             z[i][b, 0] = torch.randn(lengths[i], generator=g)
-    noises = [(z[i] * amp[:, i, None, None]).to(dev) for i in range(L)]
+    noises = [layout.pack(list(z[i] * amp[:, i, None, None]), i) for i in range(L)]
     cs = []
     for i, c in enumerate(conds):
-        c = torch.as_tensor(c, dtype=torch.float32, device=dev)
+        c = torch.as_tensor(c, dtype=torch.float32)
         if c.ndim != 3 or c.shape[1] != lengths[i] or c.shape[2] != model.generator.cond_dim:
             raise MotionValueError(
                 f"condition of level {i + 1} must be (B, {lengths[i]}, "
                 f"{model.generator.cond_dim}), got {tuple(c.shape)}"
             )
-        cs.append(c.expand(num_samples, -1, -1))
+        c = c.expand(num_samples, -1, -1)
+        cs.append(layout.pack([cb.T for cb in c], i).transpose(1, 2))  # (1, S_i, D)
     with torch.no_grad():
-        return model.generator.run(layout, noises, cs, keep=keep)
+        outs = model.generator.run(layout, noises, cs, keep=True)
+    stacked = [torch.stack(layout.unpack(o, i)) for i, o in enumerate(outs)]  # (B, C, T_i)
+    return stacked if keep else stacked[-1]
+
+
+def _layout(model: GenerativeModel, table: torch.Tensor) -> PackedLevels:
+    return PackedLevels.from_table(table, model.config.model.kernel_size - 1, model.device)
 
 
 def _to_motion(
@@ -303,14 +309,15 @@ def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.
         raise MotionValueError(f"clip_index {clip_index} out of range [0, {N})")
     dev = model.device
     lengths = model.lengths[clip_index].tolist()
-    layout = RaggedLevels.from_table(torch.tensor([lengths]), dev)
-    cond = torch.zeros(len(model.labels), device=dev)
+    layout = _layout(model, torch.tensor([lengths]))
+    cond = torch.zeros(len(model.labels), 1)
     cond[model.clip_labels[clip_index]] = 1
-    conds = [cond.expand(1, n, -1) for n in lengths]
-    noises = [model.zstar[clip_index][None].to(dev)]
-    noises += [torch.zeros(1, 1, n, device=dev) for n in lengths[1:]]
+    conds = [layout.pack([cond.expand(-1, n)], i).transpose(1, 2) for i, n in enumerate(lengths)]
+    noises = [layout.pack([model.zstar[clip_index]], 0)]
+    noises += [torch.zeros(1, 1, layout.sizes[i], device=dev) for i in range(1, len(lengths))]
     with torch.no_grad():
-        return model.generator.run(layout, noises, conds, keep=True)
+        outs = model.generator.run(layout, noises, conds, keep=True)
+    return [layout.unpack(o, i)[0][None] for i, o in enumerate(outs)]
 
 
 def reconstruct(model: GenerativeModel, clip_index: int, return_levels: bool = False):

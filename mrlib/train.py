@@ -13,8 +13,9 @@ and Hinz et al. 2021); levels of earlier blocks are frozen. One *iteration* of a
    90% of them mixing two labels at a random crossover level) run as one batch; the
    frozen levels' reconstructions are computed once per block.
 
-Batches mix clips of different lengths (``mrlib.pyramid.RaggedLevels``): random generation
-b follows the pyramid of clip ``b mod N``, so reals and fakes line up sample by sample.
+Batches mix clips of different lengths, packed end to end (``mrlib.pyramid.PackedLevels``):
+random generation b follows the pyramid of clip ``b mod N``, so reals and fakes line up
+sample by sample.
 
 Checkpoints (``mrlib.checkpoint``) hold everything needed to resume bit-exactly on CPU:
 networks, optimizers, iteration, and the RNG states. Ctrl-C finishes the current
@@ -51,7 +52,7 @@ from mrlib.losses import (
     smoothness_loss,
 )
 from mrlib.models import MultiResGenerator, build_critics, build_generator
-from mrlib.pyramid import RaggedLevels, build_pyramid, noise_amplitudes, pad_stack, pyramid_lengths
+from mrlib.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid_lengths
 
 __all__ = ["train", "Trainer", "TrainResult", "LOSS_NAMES", "wgan_gp_critic_loss"]
 
@@ -72,25 +73,31 @@ class TrainResult:
 
 def wgan_gp_critic_loss(
     critic,
-    pad_index: torch.Tensor,
     real: torch.Tensor,
     fake: torch.Tensor,
-    mask: torch.Tensor,
+    weights: torch.Tensor,
     alpha: torch.Tensor,
+    pad_index: torch.Tensor,
+    pad_index_pair: torch.Tensor,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """Critic loss ``E[D(fake)] - E[D(real)]`` (one critic forward on ``[real; fake]``) and
-    the gradient penalty (a separate forward: double backward through the real and fake
-    halves would be wasted work).
+    """Critic loss ``E[D(fake)] - E[D(real)]`` and gradient penalty of packed batches.
+
+    Real and fake are scored in one critic forward on ``[real, fake]`` (concatenated along
+    time, a packed batch of twice the samples); the penalty takes its own forward (a
+    double backward through the real and fake halves would be wasted work).
+    ``losses.critic_loss`` and ``losses.gradient_penalty`` are the reference.
 
     Args:
-        critic: a ``PatchCritic``; ``pad_index (2B, 1, T + 2p)`` its reflect-pad index
-            (the first B rows serve the penalty's forward).
-        real, fake: ``(B, C, T)``; ``mask (B, T)``; ``alpha (B, 1, 1)``.
+        critic: a ``PatchCritic``.
+        real, fake: ``(1, C, S)`` packed with the same layout; ``weights (1, S)``.
+        alpha: ``(1, 1, S)`` interpolation weight of each sample, spread over its frames.
+        pad_index: the layout's reflect-pad index ``(1, 1, S + 2p)``.
+        pad_index_pair: that of the layout repeated twice ``(1, 1, 2S + 2p)``.
     """
-    B = real.shape[0]
-    scores = critic(torch.cat([real, fake]), pad_index)  # (2B, T)
-    gp = gradient_penalty(lambda x: critic(x, pad_index[:B]), real, fake, mask, alpha)
-    return critic_loss(scores[:B], scores[B:], mask, mask), gp
+    S = real.shape[-1]
+    scores = critic(torch.cat([real, fake], -1), pad_index_pair)  # (1, 2S)
+    gp = gradient_penalty(lambda x: critic(x, pad_index), real, fake, weights, alpha)
+    return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
 
 
 def _rng_state() -> dict:
@@ -174,59 +181,67 @@ class Trainer:
         self.opt_g: torch.optim.Adam | None = None
         self.opt_d: torch.optim.Adam | None = None
 
-        # 3. fixed batch layouts --------------------------------------------------------------
+        # 3. fixed batch layouts (packed: samples end to end, see mrlib.pyramid) -------------
         N, S = data.num_clips, config.samples_per_clip
         self.N, self.B = N, N * S
         self.rand_clip = torch.arange(self.B) % N  # clip whose pyramid random sample b follows
-        dev = self.device
-        self.rec_layout = RaggedLevels.from_table(self.lengths, dev)
-        self.rand_layout = RaggedLevels.from_table(self.lengths[self.rand_clip], dev)
-        self.g_layout = RaggedLevels.from_table(
-            torch.cat([self.lengths, self.lengths[self.rand_clip]]), dev
-        )
-        self.fake_layout = RaggedLevels.from_table(
-            self.lengths[self.rand_clip].repeat(max(1, config.n_critic), 1), dev
-        )
-        self.critic_layout = RaggedLevels.from_table(self.lengths[self.rand_clip].repeat(2, 1), dev)
-        self.real = [
-            pad_stack([p[i] for p in pyramids])[0].to(dev) for i in range(L)
-        ]  # (N, C, T_i)
-        self.real_rand = [r[self.rand_clip.to(dev)] for r in self.real]  # (B, C, T_i)
-        self.rec_labels = lab[:, None].expand(N, L)  # (N, L)
+        dev, gap = self.device, 2 * pad
+        rand_table = self.lengths[self.rand_clip]
+        packed = lambda table: PackedLevels.from_table(table, gap, dev)  # noqa: E731
+        self.rec_layout = packed(self.lengths)
+        self.rand_layout = packed(rand_table)
+        self.g_layout = packed(torch.cat([self.lengths, rand_table]))  # [reconstructions; random]
+        self.fake_layout = packed(rand_table.repeat(max(1, config.n_critic), 1))  # critic steps
+        self.critic_layout = packed(rand_table.repeat(2, 1))  # [real; fake]
+        self.real = [self.rec_layout.pack([p[i] for p in pyramids], i) for i in range(L)]
+        self.real_rand = [
+            self.rand_layout.pack([pyramids[k][i] for k in self.rand_clip], i) for i in range(L)
+        ]
         self.clip_labels = lab
+        self.rec_labels = lab[:, None].expand(N, L)  # (N, L)
         fps_table = data.fps * self.lengths.double() / self.lengths[:, -1:].double()  # (N, L)
-        self.rand_fps = fps_table[self.rand_clip].float().to(dev)  # (B, L)
-        self.zstar_pad = pad_stack(self.zstar)[0].to(dev)  # (N, C, T_1)
+        rand_fps = fps_table[self.rand_clip].float()  # (B, L)
+        self.rand_fps = [
+            self.rand_layout.per_sample(rand_fps[:, i], i)[None] for i in range(L)
+        ]  # (1, S_i)
+        lay = self.rand_layout
+        self.w_rec = [self.rec_layout.weights(i) for i in range(L)]
+        self.w_rand = [lay.weights(i) for i in range(L)]
+        self.w_vel = [lay.weights(i, lay.trimmed(i, start=1)) for i in range(L)]
+        self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
+        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, C, S_1)
         self._rec_cache: tuple[int, torch.Tensor] | None = None
 
     # -- conditions and noise --------------------------------------------------------------
     def conditions(
-        self, label_table: torch.Tensor, layout: RaggedLevels, stop: int
+        self, label_table: torch.Tensor, layout: PackedLevels, stop: int
     ) -> list[torch.Tensor]:
-        """One-hot label conditions ``(B, T_i, K)`` of levels ``0..stop-1`` from a ``(B, L)``
-        table of label indices (constant over time)."""
-        onehot = F.one_hot(label_table.to(self.device), self.cond_dim).float()  # (B, L, K)
-        return [onehot[:, i, None, :].expand(-1, layout.sizes[i], -1) for i in range(stop)]
+        """One-hot label conditions ``(1, S_i, K)`` of levels ``0..stop-1`` from a ``(B, L)``
+        table of label indices (constant over each sample's frames)."""
+        onehot = F.one_hot(label_table, self.cond_dim).float()  # (B, L, K)
+        return [layout.per_sample(onehot[:, i], i)[None] for i in range(stop)]
 
-    def draw_random(self, batch: int, stop: int) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """Labels ``(batch, L)`` and noises ``[(batch, 1, T_i)]`` of random generations.
+    def draw_random(
+        self, layout: PackedLevels, stop: int
+    ) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        """Labels ``(B, L)`` and noises ``[(1, 1, S_i)]`` of the random generations of a
+        layout whose sample b follows clip ``b mod N``.
 
-        Sample b follows clip ``b mod N``; its coarse label is that clip's. With probability
-        ``mix_prob`` a second label (uniform) takes over from a random crossover level on
-        (style-mixing regularisation, paper Sec. 4.3)."""
-        L, K = self.config.model.num_levels, self.cond_dim
-        clip = torch.arange(batch) % self.N
-        a = self.clip_labels[clip]
+        Sample b's coarse label is its clip's. With probability ``mix_prob`` a second label
+        (uniform) takes over from a random crossover level on (style-mixing
+        regularisation, paper Sec. 4.3). Noise ``z_i ~ N(0, sigma_i)`` of the label in
+        use at level i, shared by all channels."""
+        L, K, batch = self.config.model.num_levels, self.cond_dim, layout.batch_size
+        a = self.clip_labels[torch.arange(batch) % self.N]
         mix = torch.rand(batch, generator=self.rng) < self.config.mix_prob
         b = torch.randint(K, (batch,), generator=self.rng)
         cross = torch.randint(1, max(L, 2), (batch,), generator=self.rng)  # levels >= cross use b
         levels = torch.arange(L)[None]
         table = torch.where(mix[:, None] & (levels >= cross[:, None]), b[:, None], a[:, None])
-        lengths = self.lengths[clip]
         noises = []
         for i in range(stop):
-            z = torch.randn(batch, 1, int(lengths[:, i].max()), generator=self.rng)
-            noises.append((z * self.sigma[table[:, i], i][:, None, None]).to(self.device))
+            z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
+            noises.append(z * layout.per_sample(self.sigma[table[:, i], i], i))
         return table, noises
 
     # -- blocks ------------------------------------------------------------------------------
@@ -247,17 +262,20 @@ class Trainer:
         self.opt_d = torch.optim.Adam(d_params, lr=c.lr, betas=c.betas)
         self._rec_cache = None
 
+    def _rec_noises(self, stop: int) -> list[torch.Tensor]:
+        """z*_1 at level 1, zero above (paper Sec. 3.4)."""
+        return [self.zstar_packed] + [
+            self.zstar_packed.new_zeros(1, 1, s) for s in self.rec_layout.sizes[1:stop]
+        ]
+
     def _rec_input(self, lo: int) -> torch.Tensor | None:
         """Frozen levels' reconstruction of every clip (output of level lo-1), cached."""
         if lo == 0:
             return None
         if self._rec_cache is None or self._rec_cache[0] != lo:
             with torch.no_grad():
-                noises = [self.zstar_pad] + [
-                    self.zstar_pad.new_zeros(self.N, 1, s) for s in self.rec_layout.sizes[1:]
-                ]
                 conds = self.conditions(self.rec_labels, self.rec_layout, lo)
-                x = self.generator.run(self.rec_layout, noises, conds, 0, lo)
+                x = self.generator.run(self.rec_layout, self._rec_noises(lo), conds, 0, lo)
             self._rec_cache = (lo, x)
         return self._rec_cache[1]
 
@@ -265,75 +283,75 @@ class Trainer:
         """One iteration (critic steps + one generator step) of the current block."""
         c, w = self.config, self.config.loss
         lo, hi = self.block_levels[0], self.block_levels[-1]
-        G, B, N = self.generator, self.B, self.N
+        G, N = self.generator, self.N
         losses: dict[int, dict[str, torch.Tensor]] = {i: {} for i in self.block_levels}
 
-        # 1. critic steps -------------------------------------------------------------------
+        # 1. critic steps: fakes of all of them from one gradient-free generation ------------
         if c.n_critic > 0:
-            nb = B * c.n_critic
-            table, noises = self.draw_random(nb, hi + 1)
+            table, noises = self.draw_random(self.fake_layout, hi + 1)
             with torch.no_grad():
                 conds = self.conditions(table, self.fake_layout, hi + 1)
-                fakes = G.run(self.fake_layout, noises, conds, 0, hi + 1, keep=True)[lo:]
-            alphas = torch.rand(c.n_critic, B, 1, 1, generator=self.rng).to(self.device)
+                fakes = G.run(self.fake_layout, noises, conds, 0, hi + 1, keep=True)
+            alphas = torch.rand(c.n_critic, self.B, generator=self.rng).to(self.device)
             for j in range(c.n_critic):
                 self.opt_d.zero_grad(set_to_none=True)
                 total = 0.0
-                for k, i in enumerate(self.block_levels):
-                    fake = fakes[k][j * B : (j + 1) * B]
-                    real = self.real_rand[i][..., : fake.shape[-1]]
-                    pad = self.critic_layout.pad_index(i, self.generator.pad)
+                for i in self.block_levels:
+                    S = self.rand_layout.sizes[i]
+                    fake = fakes[i][..., j * S : (j + 1) * S]  # the j-th copy of the random layout
+                    alpha = self.rand_layout.per_sample(alphas[j], i)[None, None]  # (1, 1, S)
                     wl, gp = wgan_gp_critic_loss(
-                        self.critics[i], pad, real, fake, self.rand_layout.masks[i], alphas[j]
+                        self.critics[i],
+                        self.real_rand[i],
+                        fake,
+                        self.w_rand[i],
+                        alpha,
+                        self.rand_layout.pad_index(i, G.pad),
+                        self.critic_layout.pad_index(i, G.pad),
                     )
                     total = total + wl + w.gp * gp
                     losses[i]["D"], losses[i]["gp"] = wl.detach(), gp.detach()
                 total.backward()
                 self.opt_d.step()
 
-        # 2. generator step: reconstruction + random generation in one batch -----------------
+        # 2. generator step: reconstructions and random generations in one batch -------------
         self.opt_g.zero_grad(set_to_none=True)
-        table, noises = self.draw_random(B, hi + 1)
-        rec_noises = [self.zstar_pad] + [
-            self.zstar_pad.new_zeros(N, 1, s) for s in self.rec_layout.sizes[1:]
-        ]
+        table, noises = self.draw_random(self.rand_layout, hi + 1)
         rand_conds = self.conditions(table, self.rand_layout, hi + 1)
+        rec_conds = self.conditions(self.rec_labels, self.rec_layout, hi + 1)
+        rec_noises = self._rec_noises(hi + 1)
         x_in = None
         if lo > 0:
             with torch.no_grad():
                 x_rand = G.run(self.rand_layout, noises, rand_conds, 0, lo)
-            x_in = torch.cat([self._rec_input(lo), x_rand])
+            x_in = torch.cat([self._rec_input(lo), x_rand], -1)
         all_noises, all_conds = [], []
-        rec_conds = self.conditions(self.rec_labels, self.rec_layout, hi + 1)
         for i in range(hi + 1):
             zr, zn = rec_noises[i], noises[i]
-            if zr.shape[1] != zn.shape[1]:
-                zn = zn.expand(-1, zr.shape[1], -1)
-            all_noises.append(torch.cat([zr, zn]))
-            all_conds.append(torch.cat([rec_conds[i], rand_conds[i]]))
+            zn = zn.expand(-1, zr.shape[1], -1)  # level 1: z*_1 has every channel
+            all_noises.append(torch.cat([zr, zn], -1))
+            all_conds.append(torch.cat([rec_conds[i], rand_conds[i]], 1))
         outs = G.run(self.g_layout, all_noises, all_conds, lo, hi + 1, x=x_in, keep=True)
         total = 0.0
         for k, i in enumerate(self.block_levels):
-            out_rec, out_rand = outs[k][:N], outs[k][N:]
-            mask_rec, mask_rand = self.rec_layout.masks[i], self.rand_layout.masks[i]
-            rec = reconstruction_loss(out_rec, self.real[i], mask_rec)
-            terms = {"rec": rec}
+            cut = self.g_layout.split(i, N)
+            out_rec, out_rand = outs[k][..., :cut], outs[k][..., cut:]
+            terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
             if c.n_critic > 0 and w.adv:
                 score = self.critics[i](out_rand, self.rand_layout.pad_index(i, G.pad))
-                terms["adv"] = generator_adversarial_loss(score, mask_rand)
+                terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
             need_con = w.con and i + 1 >= c.contact_from_level
             need_smooth = w.smooth and i + 1 >= c.smooth_start
             if need_con or need_smooth:
+                fps = self.rand_fps[i]
                 joints, feet, contacts = body_kinematics(
-                    out_rand, self.data_normalizer, self.rand_fps[:, i], self.body, self.betas
+                    out_rand, self.data_normalizer, fps, self.body, self.betas
                 )
                 if need_con:
-                    vel = backward_velocity(feet, self.rand_fps[:, i])
-                    m = mask_rand.clone()
-                    m[:, 0] = False
-                    terms["con"] = contact_consistency_loss(vel, contacts, m)
+                    vel = backward_velocity(feet, fps)
+                    terms["con"] = contact_consistency_loss(vel, contacts, self.w_vel[i])
                 if need_smooth:
-                    terms["smooth"] = smoothness_loss(joints, mask_rand)
+                    terms["smooth"] = smoothness_loss(joints, self.w_smooth[i])
             for name, value in terms.items():
                 total = total + getattr(w, name) * value
                 losses[i][name] = value.detach()
@@ -409,7 +427,7 @@ class Trainer:
         ):
             raise CheckpointError(None, "checkpoint pyramid lengths do not match the training data")
         self.zstar = [z.clone() for z in state["zstar"]]
-        self.zstar_pad = pad_stack(self.zstar)[0].to(self.device)
+        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)
         self.generator.load_state_dict(state["generator"])
         self.critics.load_state_dict(state["critics"])
         p = state["progress"]

@@ -14,9 +14,11 @@ from mrlib.losses import (
     critic_loss,
     generator_adversarial_loss,
     gradient_penalty,
-    masked_mean,
+    interior_mask,
+    mask_weights,
     reconstruction_loss,
     smoothness_loss,
+    weighted_mean,
 )
 from mrlib.motion import Motion
 from mrlib.rotations import axis_angle_to_matrix
@@ -29,10 +31,18 @@ def body():
     return load_body_model()
 
 
-def test_masked_mean_weights_clips_equally():
+def test_mask_weights_weigh_clips_equally():
     x = torch.tensor([[1.0, 1.0, 9.0], [3.0, 3.0, 3.0]])
     mask = torch.tensor([[True, True, False], [True, True, True]])
-    assert masked_mean(x, mask) == pytest.approx(2.0)  # (1 + 3) / 2, padding ignored
+    w = mask_weights(mask)
+    assert w.sum() == pytest.approx(1.0)
+    assert weighted_mean(x, w) == pytest.approx(2.0)  # (1 + 3) / 2, padding ignored
+
+
+def test_interior_mask():
+    m = torch.tensor([[True, True, True, True, False]])
+    assert interior_mask(m).tolist() == [[False, True, True, False, False]]
+    assert interior_mask(m, 1, 0).tolist() == [[False, True, True, True, False]]
 
 
 def test_contact_sigmoid_is_the_papers():
@@ -47,29 +57,31 @@ def test_contact_consistency_by_hand():
     v[0, 1, 0] = torch.tensor([3.0, 0.0, 4.0])  # 5 m/s, |v|^2 = 25
     c = torch.zeros(1, 3, 6)
     c[0, 1, 0] = 1.0
-    mask = torch.tensor([[False, True, True]])
+    w = mask_weights(torch.tensor([[False, True, True]]))
     expect = 25 * (1 / (1 + math.exp(-5))) / (2 * 6)  # mean over 2 valid frames x 6 vertices
-    assert contact_consistency_loss(v, c, mask).item() == pytest.approx(expect, rel=1e-6)
+    assert contact_consistency_loss(v, c, w).item() == pytest.approx(expect, rel=1e-6)
     c[0, 1, 0] = 0.0  # labelled not in contact: almost free
-    assert contact_consistency_loss(v, c, mask).item() < 0.01 * expect
+    assert contact_consistency_loss(v, c, w).item() < 0.01 * expect
 
 
 def test_smoothness_zero_for_constant_velocity_and_by_hand():
     t = torch.arange(10.0)
     p = torch.zeros(1, 10, 24, 3)
     p[..., 0] = 0.1 * t[None, :, None]  # every joint moves at constant speed
-    mask = torch.ones(1, 10, dtype=torch.bool)
-    assert smoothness_loss(p, mask).item() == pytest.approx(0.0, abs=1e-7)
+    inner = lambda m: mask_weights(interior_mask(m))  # noqa: E731
+    assert smoothness_loss(p, inner(torch.ones(1, 10, dtype=torch.bool))).item() == pytest.approx(
+        0.0, abs=1e-7
+    )
     q = torch.zeros(1, 5, 24, 3)
     q[0, 2, :, 1] = 0.3  # one frame pops up by 30 cm on all joints
     # frame 2: |0.3 - 0.1| = 0.2 per joint; frames 1, 3: 0.1 per joint; norm over 24 joints
     expect = (0.2 + 0.1 + 0.1) * math.sqrt(24) / 3
-    assert smoothness_loss(q, torch.ones(1, 5, dtype=torch.bool)).item() == pytest.approx(
+    assert smoothness_loss(q, inner(torch.ones(1, 5, dtype=torch.bool))).item() == pytest.approx(
         expect, rel=1e-5
     )
     # padding: a short sample's last valid frame (2) has no successor; only frame 1 is scored
     m = torch.tensor([[True, True, True, False, False]])
-    assert smoothness_loss(q, m).item() == pytest.approx(0.1 * math.sqrt(24), rel=1e-5)
+    assert smoothness_loss(q, inner(m)).item() == pytest.approx(0.1 * math.sqrt(24), rel=1e-5)
 
 
 def test_reconstruction_is_masked_l1():
@@ -77,13 +89,13 @@ def test_reconstruction_is_masked_l1():
     b = torch.ones(2, 3, 4)
     b[0, :, 2:] = 100.0  # padding of sample 0
     mask = torch.tensor([[True, True, False, False], [True, True, True, True]])
-    assert reconstruction_loss(a, b, mask).item() == pytest.approx(1.0)
+    assert reconstruction_loss(a, b, mask_weights(mask)).item() == pytest.approx(1.0)
 
 
 def test_wgan_terms_signs():
     real = torch.full((2, 5), 2.0)
     fake = torch.full((2, 5), -1.0)
-    m = torch.ones(2, 5, dtype=torch.bool)
+    m = mask_weights(torch.ones(2, 5, dtype=torch.bool))
     assert critic_loss(real, fake, m, m).item() == pytest.approx(-3.0)
     assert generator_adversarial_loss(fake, m).item() == pytest.approx(1.0)
 
@@ -95,16 +107,21 @@ def test_gradient_penalty_of_linear_critics(scale, expect):
     critic = lambda x: (x * w).sum(1)  # per-frame score; its per-frame gradient is w
     real, fake = torch.randn(2, 7, 9, generator=g), torch.randn(2, 7, 9, generator=g)
     alpha = torch.rand(2, 1, 1, generator=g)
-    gp = gradient_penalty(critic, real, fake, torch.ones(2, 9, dtype=torch.bool), alpha)
+    gp = gradient_penalty(
+        critic, real, fake, mask_weights(torch.ones(2, 9, dtype=torch.bool)), alpha
+    )
     assert gp.item() == pytest.approx(expect, abs=1e-5)
 
 
-def test_backward_velocity_per_sample_fps():
+def test_backward_velocity_per_sample_and_per_frame_fps():
     p = torch.zeros(2, 3, 1, 3)
     p[:, :, 0, 0] = torch.tensor([0.0, 1.0, 3.0])
     v = backward_velocity(p, torch.tensor([1.0, 10.0]))
     assert v[0, :, 0, 0].tolist() == [0.0, 1.0, 2.0]
     assert v[1, :, 0, 0].tolist() == [0.0, 10.0, 20.0]
+    v = backward_velocity(p[:1], torch.tensor([[5.0, 1.0, 10.0]]))  # packed: a rate per frame
+    assert v[0, :, 0, 0].tolist() == [0.0, 1.0, 20.0]
+    assert backward_velocity(p, 2.0)[1, :, 0, 0].tolist() == [0.0, 2.0, 4.0]
 
 
 def test_body_kinematics_matches_the_body_model(body):

@@ -14,7 +14,7 @@ from mrlib.models import (
     hidden_channel_joint,
     skeleton_mask,
 )
-from mrlib.pyramid import RaggedLevels, reflect_pad_index
+from mrlib.pyramid import PackedLevels
 from mrlib.skeleton import UPPER_BODY_JOINTS, graph_distances
 
 TINY = ModelConfig(num_levels=3, gen_hidden=(24, 48, 48), disc_hidden=(24, 48, 48))
@@ -23,8 +23,9 @@ IO = channel_joint()
 C = NUM_FEATURES
 
 
-def _pad(T, B=1, p=2):
-    return reflect_pad_index(torch.full((B,), T), T, p)
+def _pad(T, p=2):
+    """Reflect-pad index of one sequence of T frames."""
+    return PackedLevels.from_table([[T]], gap=0).pad_index(0, p)
 
 
 def test_hidden_channels_round_up_to_joint_groups():
@@ -143,23 +144,27 @@ def test_film_joints_config_restricts_modulation():
     assert (m == np.isin(IO, UPPER_BODY_JOINTS)).all()
 
 
-def test_shapes_through_every_level_with_ragged_batch():
+def test_shapes_through_every_level_with_packed_batch():
     torch.manual_seed(0)
     gen = build_generator(TINY, cond_dim=2)
     table = torch.tensor([[9, 12, 16], [12, 16, 21]])
-    lay = RaggedLevels.from_table(table)
-    noises = [torch.randn(2, C, 12)] + [torch.randn(2, 1, s) for s in lay.sizes[1:]]
-    conds = [torch.ones(2, s, 2) for s in lay.sizes]
+    lay = PackedLevels.from_table(table, gap=4)
+    noises = [torch.randn(1, C, lay.sizes[0])] + [torch.randn(1, 1, s) for s in lay.sizes[1:]]
+    conds = [torch.rand(1, s, 2) for s in lay.sizes]
     outs = gen.run(lay, noises, conds, keep=True)
-    assert [o.shape for o in outs] == [(2, C, s) for s in lay.sizes]
-    # each sample of the ragged batch equals that sample generated alone
+    assert [o.shape for o in outs] == [(1, C, s) for s in lay.sizes]
+    # each sample of the packed batch equals that sample generated alone
     for b in range(2):
-        solo = RaggedLevels.from_table(table[b : b + 1])
-        n_b = [n[b : b + 1, :, : table[b, i]] for i, n in enumerate(noises)]
-        c_b = [c[b : b + 1, : table[b, i]] for i, c in enumerate(conds)]
+        solo = PackedLevels.from_table(table[b : b + 1], gap=0)
+        sl = [
+            slice(int(lay.offsets[i][b]), int(lay.offsets[i][b]) + int(table[b, i]))
+            for i in range(3)
+        ]
+        n_b = [n[..., sl[i]] for i, n in enumerate(noises)]
+        c_b = [c[:, sl[i]] for i, c in enumerate(conds)]
         alone = gen.run(solo, n_b, c_b, keep=True)
         for i in range(3):
-            assert torch.allclose(outs[i][b, :, : table[b, i]], alone[i][0], atol=1e-5)
+            assert torch.allclose(outs[i][..., sl[i]], alone[i], atol=1e-5)
     # levels can be run in two halves (frozen levels, then a block)
     mid = gen.run(lay, noises, conds, 0, 2)
     top = gen.run(lay, noises, conds, 2, 3, x=mid)
@@ -170,7 +175,7 @@ def test_critics_score_patches_without_sigmoid():
     critics = build_critics(TINY)
     assert len(critics) == 3
     x = torch.randn(2, C, 20) * 10
-    s = critics[0](x, _pad(20, B=2))
+    s = critics[0](x, _pad(20).expand(2, -1, -1))
     assert s.shape == (2, 20)
     assert s.abs().max() > 1 or s.min() < 0  # unbounded scores
 

@@ -4,15 +4,12 @@ import torch.nn.functional as F
 
 from mrlib.errors import ClipTooShortError
 from mrlib.pyramid import (
-    RaggedLevels,
+    PackedLevels,
     build_pyramid,
     level_fps,
     noise_amplitudes,
-    pad_stack,
     pyramid_lengths,
-    reflect_pad_index,
     resample_linear,
-    resample_linear_ragged,
 )
 
 g = torch.Generator().manual_seed(0)
@@ -47,42 +44,64 @@ def test_resample_linear_matches_interpolate_and_keeps_constants():
     assert torch.allclose(resample_linear(c, 31), torch.full((1, 3, 31), 2.5))
 
 
-def test_ragged_resampling_equals_per_sample_interpolate():
-    """The batched, padded version against the naive per-sample oracle."""
-    lin = torch.tensor([7, 12, 9])
-    lout = torch.tensor([10, 16, 30])
-    x = torch.randn(3, 4, 12, generator=g)
-    y = resample_linear_ragged(x, lin, lout)
-    assert y.shape == (3, 4, 30)
-    for b in range(3):
-        ref = F.interpolate(
-            x[b : b + 1, :, : lin[b]], size=int(lout[b]), mode="linear", align_corners=False
-        )
-        assert torch.allclose(y[b : b + 1, :, : lout[b]], ref, atol=1e-6)
+def _layout(table, gap=4):
+    return PackedLevels.from_table(torch.tensor(table), gap)
 
 
-def test_ragged_resampling_ignores_padding():
-    lin, lout = torch.tensor([5, 8]), torch.tensor([7, 11])
-    x = torch.randn(2, 3, 8, generator=g)
-    x2 = x.clone()
-    x2[0, :, 5:] = 1e6  # garbage after sample 0's end
-    assert torch.equal(
-        resample_linear_ragged(x, lin, lout)[0, :, :7],
-        resample_linear_ragged(x2, lin, lout)[0, :, :7],
+def test_pack_unpack_round_trip_and_offsets():
+    lay = _layout([[4, 6], [7, 9], [5, 8]])
+    assert lay.batch_size == 3 and lay.num_levels == 2
+    assert lay.sizes == [4 + 7 + 5 + 12, 6 + 9 + 8 + 12]
+    assert lay.offsets[1].tolist() == [0, 10, 23]
+    clips = [torch.randn(3, n, generator=g) for n in (6, 9, 8)]
+    x = lay.pack(clips, 1)
+    assert x.shape == (1, 3, lay.sizes[1])
+    assert all(torch.equal(a, b) for a, b in zip(lay.unpack(x, 1), clips, strict=True))
+    assert lay.valid[1].sum() == 23 and lay.split(1, 2) == 23
+    assert (
+        lay.per_sample(torch.tensor([1.0, 2.0, 3.0]), 0).tolist()
+        == [1.0] * 8 + [2.0] * 11 + [3.0] * 9
     )
 
 
-def test_reflect_pad_index_matches_f_pad_per_sample():
-    lengths = torch.tensor([6, 9])
-    x = torch.randn(2, 3, 9, generator=g)
-    idx = reflect_pad_index(lengths, 9, 2)
-    xp = x.gather(2, idx.expand(2, 3, -1))
-    for b in range(2):
-        n = int(lengths[b])
-        ref = F.pad(x[b : b + 1, :, :n], (2, 2), mode="reflect")
-        assert torch.equal(xp[b : b + 1, :, : n + 4], ref)
+def test_packed_upsampling_equals_per_sample_interpolate():
+    """The packed version against the naive per-sample oracle."""
+    lay = _layout([[7, 10], [12, 16], [9, 30]])
+    clips = [torch.randn(4, n, generator=g) for n in (7, 12, 9)]
+    y = lay.upsample(lay.pack(clips, 0), 1)
+    assert y.shape == (1, 4, lay.sizes[1])
+    for c, out in zip(clips, lay.unpack(y, 1), strict=True):
+        ref = F.interpolate(c[None], size=out.shape[-1], mode="linear", align_corners=False)[0]
+        assert torch.allclose(out, ref, atol=1e-6)
+
+
+def test_packed_reflect_padding_equals_per_sample_f_pad():
+    lay = _layout([[6], [9], [4]])
+    clips = [torch.randn(3, n, generator=g) for n in (6, 9, 4)]
+    x = lay.pack(clips, 0)
+    idx = lay.pad_index(0, 2)
+    xp = x.gather(2, idx.expand(1, 3, -1))  # (1, 3, S + 4)
+    for b, c in enumerate(clips):
+        o, n = int(lay.offsets[0][b]), c.shape[-1]
+        ref = F.pad(c[None], (2, 2), mode="reflect")[0]
+        assert torch.equal(xp[0, :, o : o + n + 4], ref)  # padded position u is centre u - 2
     with pytest.raises(ClipTooShortError):
-        reflect_pad_index(torch.tensor([2]), 2, 2)
+        _layout([[2]]).pad_index(0, 2)
+    with pytest.raises(Exception, match="gap"):
+        _layout([[9], [9]], gap=2).pad_index(0, 2)  # two samples need a gap of 2p
+
+
+def test_packed_weights_make_per_sample_means():
+    lay = _layout([[2], [4]])
+    w = lay.weights(0)
+    assert w.sum().item() == pytest.approx(1.0)
+    x = lay.pack([torch.full((1, 2), 1.0), torch.full((1, 4), 3.0)], 0)
+    assert (x[0, 0] * w[0]).sum().item() == pytest.approx(2.0)  # (1 + 3) / 2
+    inner = lay.trimmed(0, start=1, end=1)
+    assert inner.sum() == 0 + 2
+    assert lay.weights(0, inner)[0, lay.offsets[0][1] + 1].item() == pytest.approx(
+        0.25
+    )  # 1 / (2 * B)
 
 
 def test_data_pyramid_and_noise_amplitudes():
@@ -101,18 +120,3 @@ def test_data_pyramid_and_noise_amplitudes():
     smooth = torch.sin(torch.linspace(0, 3, 40))[None].repeat(6, 1)
     a = noise_amplitudes(build_pyramid(smooth, lengths))
     assert (a[1:] < 0.1 * a[0]).all()
-
-
-def test_pad_stack_and_ragged_levels():
-    clips = [torch.randn(3, n, generator=g) for n in (5, 9)]
-    x, lengths = pad_stack(clips)
-    assert x.shape == (2, 3, 9) and lengths.tolist() == [5, 9]
-    assert torch.equal(x[0, :, :5], clips[0])
-    table = torch.tensor([[4, 5, 7], [6, 8, 11]])
-    lay = RaggedLevels.from_table(table)
-    assert lay.sizes == [6, 8, 11] and lay.batch_size == 2 and not lay.uniform
-    assert lay.masks[2].sum(1).tolist() == [7, 11]
-    y = lay.upsample(torch.randn(2, 3, 8, generator=g), 2)
-    assert y.shape == (2, 3, 11)
-    sub = lay.select(slice(1, 2))
-    assert sub.sizes == [6, 8, 11] and sub.uniform

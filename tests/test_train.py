@@ -87,19 +87,25 @@ def test_config_json_round_trip_and_validation():
 
 def test_batched_critic_loss_equals_reference():
     from mrlib.models import PatchCritic
-    from mrlib.pyramid import reflect_pad_index
+    from mrlib.pyramid import PackedLevels
 
     torch.manual_seed(0)
     critic = PatchCritic(TINY_MODEL)
-    real, fake = torch.randn(2, 153, 12), torch.randn(2, 153, 12)
-    lengths = torch.tensor([12, 9])
-    mask = torch.arange(12)[None] < lengths[:, None]
-    alpha = torch.rand(2, 1, 1)
-    pad2 = reflect_pad_index(lengths.repeat(2), 12, 2)
-    wl, gp = wgan_gp_critic_loss(critic, pad2, real, fake, mask, alpha)
-    pad = reflect_pad_index(lengths, 12, 2)
-    ref_w = critic_loss(critic(real, pad), critic(fake, pad), mask, mask)
-    ref_gp = gradient_penalty(lambda x: critic(x, pad), real, fake, mask, alpha)
+    lengths = torch.tensor([[12], [9]])
+    lay, pair = (
+        PackedLevels.from_table(lengths, 4),
+        PackedLevels.from_table(lengths.repeat(2, 1), 4),
+    )
+    real = lay.pack([torch.randn(153, 12), torch.randn(153, 9)], 0)
+    fake = lay.pack([torch.randn(153, 12), torch.randn(153, 9)], 0)
+    w = lay.weights(0)
+    alpha = lay.per_sample(torch.rand(2), 0)[None, None]
+    wl, gp = wgan_gp_critic_loss(
+        critic, real, fake, w, alpha, lay.pad_index(0, 2), pair.pad_index(0, 2)
+    )
+    pad = lay.pad_index(0, 2)
+    ref_w = critic_loss(critic(real, pad), critic(fake, pad), w, w)
+    ref_gp = gradient_penalty(lambda x: critic(x, pad), real, fake, w, alpha)
     assert torch.allclose(wl, ref_w, atol=1e-6) and torch.allclose(gp, ref_gp, atol=1e-6)
 
 
