@@ -12,7 +12,12 @@ Rendering helpers import pyvista / matplotlib only when called.
 """
 
 from mrlib.body import BodyModel, BodyOutput, load_body_model
-from mrlib.contacts import DEFAULT_CONTACT_THRESHOLD, foot_contacts, foot_vertex_velocity, plot_contacts
+from mrlib.contacts import (
+    DEFAULT_CONTACT_THRESHOLD,
+    foot_contacts,
+    foot_vertex_velocity,
+    plot_contacts,
+)
 from mrlib.errors import (
     BodyModelError,
     BVHFormatError,

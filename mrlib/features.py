@@ -26,7 +26,7 @@ import torch
 
 from mrlib.errors import MotionValueError
 from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_6d, sixd_to_axis_angle, sixd_to_matrix
+from mrlib.rotations import axis_angle_to_6d, sixd_to_axis_angle
 from mrlib.skeleton import CONTACT_NAMES, JOINT_NAMES, NUM_CONTACTS, NUM_JOINTS
 
 __all__ = [
@@ -67,7 +67,9 @@ def channel_joint() -> np.ndarray:
     return np.concatenate([owner, np.zeros(3, np.int64), np.asarray(CONTACT_JOINTS)])
 
 
-def motion_to_features(motion: Motion, body=None, *, contact_threshold: float | None = None) -> torch.Tensor:
+def motion_to_features(
+    motion: Motion, body=None, *, contact_threshold: float | None = None
+) -> torch.Tensor:
     """Motion -> ``(T, 153)`` float32 feature tensor (layout in the module docstring).
 
     Contact labels come from ``motion.contacts`` when present; otherwise they are
@@ -75,7 +77,9 @@ def motion_to_features(motion: Motion, body=None, *, contact_threshold: float | 
     ``mrlib.contacts.foot_contacts``.
     """
     if not isinstance(motion, Motion):
-        raise MotionValueError(f"motion_to_features expects a mrlib.Motion, got {type(motion).__name__}")
+        raise MotionValueError(
+            f"motion_to_features expects a mrlib.Motion, got {type(motion).__name__}"
+        )
     T = motion.num_frames
     if T < 2:
         raise MotionValueError(f"need at least 2 frames to compute root velocity, got {T}")
@@ -98,12 +102,16 @@ def motion_to_features(motion: Motion, body=None, *, contact_threshold: float | 
 def split_features(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """``(..., T, 153)`` -> rot6d ``(..., T, 24, 6)``, root ``(..., T, 3)``, contacts ``(..., T, 6)``."""
     if x.shape[-1] != NUM_FEATURES:
-        raise MotionValueError(f"features must have {NUM_FEATURES} channels, got shape {tuple(x.shape)}")
+        raise MotionValueError(
+            f"features must have {NUM_FEATURES} channels, got shape {tuple(x.shape)}"
+        )
     rot = x[..., ROT_SLICE].reshape(*x.shape[:-1], NUM_JOINTS, 6)
     return rot, x[..., ROOT_SLICE], x[..., CONTACT_SLICE]
 
 
-def root_velocity_to_trans(root: torch.Tensor, fps: float, origin: torch.Tensor | None = None) -> torch.Tensor:
+def root_velocity_to_trans(
+    root: torch.Tensor, fps: float, origin: torch.Tensor | None = None
+) -> torch.Tensor:
     """Integrate root channels ``(..., T, 3)`` = (vx, y, vz) into translation ``(..., T, 3)``.
 
     Differentiable. ``origin`` ``(..., 2)`` is the ground-plane start (x0, z0), zero by
@@ -136,7 +144,9 @@ def features_to_motion(
     """
     x = torch.as_tensor(np.asarray(x) if not isinstance(x, torch.Tensor) else x).detach().cpu()
     if x.ndim != 2 or x.shape[-1] != NUM_FEATURES:
-        raise MotionValueError(f"features must have shape (T, {NUM_FEATURES}), got {tuple(x.shape)}")
+        raise MotionValueError(
+            f"features must have shape (T, {NUM_FEATURES}), got {tuple(x.shape)}"
+        )
     if not torch.isfinite(x).all():
         raise MotionValueError("features contain NaN or inf values")
     if normalizer is not None:
@@ -171,8 +181,12 @@ class FeatureNormalizer:
     std: torch.Tensor  # (C,)
 
     @classmethod
-    def fit(cls, features: list[torch.Tensor] | torch.Tensor, channels: slice | None = ROOT_SLICE,
-            min_std: float = 1e-2) -> FeatureNormalizer:
+    def fit(
+        cls,
+        features: list[torch.Tensor] | torch.Tensor,
+        channels: slice | None = ROOT_SLICE,
+        min_std: float = 1e-2,
+    ) -> FeatureNormalizer:
         """Statistics over all frames of all clips; ``channels`` selects what is
         normalised (None: every channel); ``min_std`` floors near-constant channels."""
         xs = features if isinstance(features, (list, tuple)) else [features]

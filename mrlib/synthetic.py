@@ -94,8 +94,13 @@ def _anchor_root(poses: np.ndarray, fps: float, body, left_stance: np.ndarray) -
     return trans.astype(np.float32)
 
 
-def synthetic_walk(style: str | GaitStyle = "walk_normal", seconds: float = 8.0, fps: float = 30.0,
-                   seed: int = 0, body=None) -> Motion:
+def synthetic_walk(
+    style: str | GaitStyle = "walk_normal",
+    seconds: float = 8.0,
+    fps: float = 30.0,
+    seed: int = 0,
+    body=None,
+) -> Motion:
     """A procedural walk along +Z in one of ``STYLES`` (or a custom ``GaitStyle``).
 
     ``seed`` adds small smooth random variation of amplitudes, so two takes of the same
@@ -139,8 +144,14 @@ def synthetic_walk(style: str | GaitStyle = "walk_normal", seconds: float = 8.0,
     poses[:, 0] = _compose(_roty(d(4) * np.sin(phase)), _rotz(d(s.sway) * np.sin(phase)))
     # the left leg is in stance while it moves backwards, i.e. while cos(phase) < 0
     trans = _anchor_root(poses, fps, body, left_stance=np.cos(phase) < 0)
-    return Motion(poses, trans, fps, label=name, name=f"{name}_seed{seed}",
-                  meta={"source": "mrlib.synthetic", "synthetic": True})
+    return Motion(
+        poses,
+        trans,
+        fps,
+        label=name,
+        name=f"{name}_seed{seed}",
+        meta={"source": "mrlib.synthetic", "synthetic": True},
+    )
 
 
 def synthetic_wave(seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=None) -> Motion:
@@ -160,7 +171,9 @@ def synthetic_wave(seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=
     # rotation about +Z for the right arm), waving about the elbow
     raise_ = _rotz(np.full(T, d(10)) + d(5) * np.sin(2 * np.pi * 0.3 * t))
     poses[:, J["right_shoulder"]] = _compose(_roty(np.full(T, -d(20))), raise_)
-    poses[:, J["right_elbow"]] = _compose(_rotz(np.full(T, -d(95))), _rotx(d(25) * np.sin(2 * np.pi * f * t)))
+    poses[:, J["right_elbow"]] = _compose(
+        _rotz(np.full(T, -d(95))), _rotx(d(25) * np.sin(2 * np.pi * f * t))
+    )
     poses[:, J["right_wrist"]] = _rotz(d(10) * np.sin(2 * np.pi * f * t + 0.5))
     shift = d(3) * np.sin(2 * np.pi * rng.uniform(0.15, 0.3) * t)
     poses[:, 0] = _rotz(shift)
@@ -172,11 +185,19 @@ def synthetic_wave(seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=
     with torch.no_grad():
         feet = body(rot, torch.zeros(T, 3), vertex_ids=list(body.foot_vertex_ids)).vertices.numpy()
     trans[:, 1] = -feet[:, :, 1].min(1)
-    return Motion(poses, trans, fps, label="wave", name=f"wave_seed{seed}",
-                  meta={"source": "mrlib.synthetic", "synthetic": True})
+    return Motion(
+        poses,
+        trans,
+        fps,
+        label="wave",
+        name=f"wave_seed{seed}",
+        meta={"source": "mrlib.synthetic", "synthetic": True},
+    )
 
 
-def synthetic_dataset(seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=None) -> list[Motion]:
+def synthetic_dataset(
+    seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=None
+) -> list[Motion]:
     """The labelled set in ``data_samples/``: three walk styles and a wave."""
     clips = [synthetic_walk(name, seconds, fps, seed, body) for name in STYLES]
     return clips + [synthetic_wave(seconds, fps, seed, body)]

@@ -51,7 +51,9 @@ def test_root_velocity_is_metres_per_second():
     trans = np.stack([np.arange(T) * 0.05, np.full(T, 0.9), np.zeros(T)], -1)  # 1.5 m/s at 30 fps
     m = Motion(np.zeros((T, 24, 3)), trans, 30, contacts=np.zeros((T, 6)))
     root = motion_to_features(m)[:, ROOT_SLICE]
-    assert torch.allclose(root[:, 0], torch.full((T,), 1.5)) and torch.allclose(root[:, 1], torch.full((T,), 0.9))
+    assert torch.allclose(root[:, 0], torch.full((T,), 1.5)) and torch.allclose(
+        root[:, 1], torch.full((T,), 0.9)
+    )
     # integration is differentiable
     r = root.clone().requires_grad_()
     root_velocity_to_trans(r, 30.0).sum().backward()

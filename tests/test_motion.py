@@ -10,7 +10,9 @@ rng = np.random.default_rng(0)
 
 
 def _motion(T=30, fps=30.0):
-    return Motion(rng.normal(size=(T, 24, 3)) * 0.5, np.cumsum(rng.normal(size=(T, 3)) * 0.01, 0), fps)
+    return Motion(
+        rng.normal(size=(T, 24, 3)) * 0.5, np.cumsum(rng.normal(size=(T, 3)) * 0.01, 0), fps
+    )
 
 
 def test_shapes_and_defaults():

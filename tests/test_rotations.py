@@ -25,7 +25,10 @@ def test_round_trips_batched():
     R = axis_angle_to_matrix(aa)
     assert R.shape == (7, 24, 3, 3)
     assert geodesic_distance(sixd_to_matrix(matrix_to_6d(R)), R).max() < 1e-10
-    assert geodesic_distance(axis_angle_to_matrix(sixd_to_axis_angle(axis_angle_to_6d(aa))), R).max() < 1e-10
+    assert (
+        geodesic_distance(axis_angle_to_matrix(sixd_to_axis_angle(axis_angle_to_6d(aa))), R).max()
+        < 1e-10
+    )
     assert geodesic_distance(axis_angle_to_matrix(matrix_to_axis_angle(R)), R).max() < 1e-10
 
 

@@ -36,4 +36,9 @@ def test_neighbourhood_radius_two():
 
 def test_contacts_attach_to_feet_and_ankles():
     assert len(CONTACT_JOINTS) == NUM_CONTACTS == 6
-    assert {JOINT_NAMES[j] for j in CONTACT_JOINTS} == {"left_foot", "left_ankle", "right_foot", "right_ankle"}
+    assert {JOINT_NAMES[j] for j in CONTACT_JOINTS} == {
+        "left_foot",
+        "left_ankle",
+        "right_foot",
+        "right_ankle",
+    }

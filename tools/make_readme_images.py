@@ -25,8 +25,9 @@ def main() -> None:
     walk = mrlib.load_motion(ROOT / "data_samples" / "walk_happy.npz")
     contacts = mrlib.foot_contacts(walk, body)
     frames = np.linspace(0, 44, 6).astype(int)
-    img = mrlib.render_meshes(walk.replace(contacts=contacts), body, frames=frames, layout="path",
-                              window_size=(1100, 420))
+    img = mrlib.render_meshes(
+        walk.replace(contacts=contacts), body, frames=frames, layout="path", window_size=(1100, 420)
+    )
     iio.imwrite(OUT / "walk_contacts.png", img)
     print("wrote", OUT / "walk_contacts.png", img.shape)
 
