@@ -33,8 +33,8 @@ Recipe of one synthetic pair (``make_synthetic_pair``):
 
 Measured with ``python tools/make_speech_samples.py --out DIR --check`` (16 pairs of two
 sentences on the Bandai bases, 25 fps, seed 0): Pearson correlation between loudness and
-hand speed r = 0.39 +- 0.06 (min 0.28; best lag -0.12 to -0.32 s, the hands lead), against
-0.11 for the same motions with the next pair's audio; beat alignment 0.63 against 0.44.
+hand speed r = 0.39 +- 0.05 (min 0.30; best lag -0.12 to -0.32 s, the hands lead), against
+0.14 for the same motions with the next pair's audio; beat alignment 0.62 against 0.44.
 
 Every synthetic ``Motion`` carries ``meta["synthetic"] = True`` and the recipe. Motion
 derived from the Bandai Namco clips is CC BY-NC 4.0 data: ``synthetic_corpus`` writes it

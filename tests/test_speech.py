@@ -50,7 +50,7 @@ def _tone(seconds=2.0, f0=150.0, f1=None, amp=0.3):
     return (np.asarray(amp) * np.sin(2 * np.pi * np.cumsum(f) / SR)).astype(np.float32)
 
 
-# -- alignment ----------------------------------------------------------------------------------
+# -- alignment -----------------------------------------------------------------------------
 def test_levels_have_the_pyramid_lengths():
     lengths = pyramid_lengths(250, SPEECH_NUM_LEVELS)
     feats = torch.randn(500, 7)  # 10 s at 50 fps
@@ -119,7 +119,7 @@ def test_normalizer_and_conditions_for_a_batch():
     assert torch.equal(batch[-1][0, :90], conds[0][-1])
 
 
-# -- features -------------------------------------------------------------------------------------
+# -- features ------------------------------------------------------------------------------
 def test_log_mel_features_on_a_chirp():
     amp = np.where(np.arange(2 * SR) < SR, 0.1, 0.5)
     wav = _tone(2.0, 100.0, 400.0, amp)
@@ -230,7 +230,7 @@ def test_extractor_config_round_trip():
         SpeechFeatureConfig(kind="mfcc")
 
 
-# -- audio ----------------------------------------------------------------------------------------
+# -- audio ---------------------------------------------------------------------------------
 def test_load_audio_mixes_down_and_resamples(tmp_path):
     import soundfile
 
@@ -256,6 +256,15 @@ def test_load_audio_mixes_down_and_resamples(tmp_path):
         assert e.value.path == tmp_path / f"{name}.wav"
 
 
+def test_shipped_espeak_sample():
+    wav, sr = load_audio(ROOT / "data_samples" / "speech" / "hello.wav")
+    assert sr == SR and 3.0 < len(wav) / SR < 6.0
+    onsets = detect_onsets(wav, sr)
+    assert 2.0 < len(onsets) / (len(wav) / SR) < 8.0  # syllable-rate onsets
+    feats = SpeechFeatureExtractor(kind="logmel")(wav, sr)
+    assert feats.shape == (num_feature_frames(len(wav)), 83) and torch.isfinite(feats).all()
+
+
 def test_energy_envelope_tracks_amplitude():
     amp = np.where(np.arange(2 * SR) < SR, 0.1, 0.5)
     env = energy_envelope(_tone(2.0, 150, amp=amp), SR, fps=25)
@@ -275,7 +284,7 @@ def test_onsets_of_tone_bursts():
     assert len(onsets) == len(starts) and np.abs(onsets - starts).max() < 0.03
 
 
-# -- measures -------------------------------------------------------------------------------------
+# -- measures ------------------------------------------------------------------------------
 def _translating(T=60, fps=30.0, v=(0.6, 0.0, 0.8)):
     trans = np.outer(np.arange(T) / fps, v) + [0, 0.9, 0]
     return Motion(np.zeros((T, 24, 3)), trans, fps)

@@ -70,7 +70,7 @@ class SpeechModelError(MrlibError, ValueError):
     """Speech model weights are missing or unusable."""
 
 
-# -- log-mel fallback ---------------------------------------------------------------------
+# -- log-mel fallback ----------------------------------------------------------------------
 def _hz_to_mel(f):
     return 2595.0 * np.log10(1.0 + np.asarray(f, np.float64) / 700.0)  # HTK
 
@@ -185,7 +185,7 @@ def log_mel_features(
     return torch.cat(feats, -1).float()
 
 
-# -- WavLM -----------------------------------------------------------------------------------
+# -- WavLM ---------------------------------------------------------------------------------
 def _missing_weights_message(tried: list[str]) -> str:
     return (
         "WavLM weights not found (looked in: " + "; ".join(tried) + "). mrlib never "
@@ -250,10 +250,15 @@ def load_wavlm(path: str | Path | None = None, device: str | torch.device = "cpu
     do_normalize = model.config.feat_extract_norm == "layer"
     if path is not None:
         pre = Path(source) / "preprocessor_config.json"
-        if pre.is_file():
-            import json
+    else:
+        from huggingface_hub import try_to_load_from_cache
 
-            do_normalize = bool(json.loads(pre.read_text()).get("do_normalize", do_normalize))
+        cached = try_to_load_from_cache(WAVLM_DEFAULT_ID, "preprocessor_config.json")
+        pre = Path(cached) if isinstance(cached, str) else None
+    if pre is not None and pre.is_file():
+        import json
+
+        do_normalize = bool(json.loads(pre.read_text()).get("do_normalize", do_normalize))
     return model.to(device).eval(), do_normalize
 
 
@@ -317,7 +322,7 @@ def wavlm_features(
     return torch.cat(pieces)
 
 
-# -- the front end ------------------------------------------------------------------------------
+# -- the front end -------------------------------------------------------------------------
 @dataclass(frozen=True)
 class SpeechFeatureConfig:
     """Which speech features to compute; saved with a speech-conditioned model.
