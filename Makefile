@@ -8,11 +8,10 @@ READY := $(VENV)/.mrlib-ready
 
 # Real motion capture used by the real-data tests, notebooks and benchmarks.
 export MRLIB_DATA_DIR ?= $(abspath ../shared/data/bandai-namco-motion-1)
-# Headless rendering (pyvista/VTK through EGL) and plotting.
+# Headless rendering (pyvista/VTK through EGL).
 export PYVISTA_OFF_SCREEN ?= true
 export PYVISTA_JUPYTER_BACKEND ?= static
 export VTK_DEFAULT_OPENGL_WINDOW ?= vtkEGLRenderWindow
-export MPLBACKEND ?= Agg
 
 .PHONY: env demo test lint format lab bench clean
 
