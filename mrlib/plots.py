@@ -1,0 +1,278 @@
+"""Pictures of the evaluation metrics: which training frames a generated clip copies, how
+well the training timeline is covered, and how quality evolves during training.
+
+* :func:`plot_segmentation` draws the patched-nearest-neighbour (PNN) segmentation of
+  ``mrlib.metrics.global_diversity(..., return_segmentation=True)``: generated frames on
+  the x axis, the training frames each segment is matched to on the y axis. A copy of
+  the training clip is one long diagonal; a generator that recombines the clip shows
+  many short diagonals that jump around.
+* :func:`plot_coverage_strip` draws ``mrlib.metrics.coverage_profile`` as a heat strip
+  over the training timeline: for every training window (by its first frame), the
+  distance to its nearest generated window, green below the coverage threshold ``eps``
+  (covered) and red above it.
+* :func:`plot_quality_curve` draws a quantity measured at checkpoints against training
+  time, with its target (``bench/time_to_quality.py``).
+
+Like ``mrlib.render``, this module imports matplotlib only inside its functions; every
+function draws into a given Axes or a new figure and returns the Axes.
+
+Dimension letters: T frames, S samples, N windows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from mrlib.errors import MotionValueError
+
+__all__ = [
+    "segmentation_frame_map",
+    "plot_segmentation",
+    "plot_coverage_strip",
+    "plot_quality_curve",
+]
+
+# Colours of consecutive segments (tab10 without its grey, which reads as "missing").
+_SEGMENT_COLOURS = (
+    "tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple",
+    "tab:brown", "tab:pink", "tab:olive", "tab:cyan",
+)  # fmt: skip
+
+
+def _check_int(name: str, value: Any, minimum: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise MotionValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def segmentation_frame_map(
+    segmentation: Sequence[tuple[int, int, int]], num_frames: int, num_ref_frames: int | None = None
+) -> np.ndarray:
+    """The training frame every generated frame is matched to, ``(T_gen,)`` int.
+
+    Args:
+        segmentation: ``(gen_start, gen_stop, ref_start)`` triples as returned by
+            ``global_diversity(..., return_segmentation=True)``: generated frames
+            ``[gen_start, gen_stop)`` copy training frames from ``ref_start`` on. They
+            must tile ``[0, num_frames)`` in order, without gaps or overlaps.
+        num_frames: ``T_gen``, frames of the generated clip.
+        num_ref_frames: ``T_ref``; when given, every matched frame must lie in
+            ``[0, T_ref)``.
+
+    Returns:
+        ``frame_map`` with ``frame_map[t] = ref_start + (t - gen_start)`` for the segment
+        holding ``t``; ``reference[frame_map]`` is the nearest-neighbour "collage" of the
+        generated clip.
+    """
+    T = _check_int("num_frames", num_frames)
+    out = np.empty(T, dtype=np.int64)
+    pos = 0
+    for k, seg in enumerate(segmentation):
+        try:
+            a, b, r = (int(v) for v in seg)
+        except (TypeError, ValueError):
+            raise MotionValueError(
+                f"segment {k} must be a (gen_start, gen_stop, ref_start) triple, got {seg!r}"
+            ) from None
+        if a != pos or b <= a:
+            raise MotionValueError(
+                f"segment {k} = {(a, b, r)} does not continue the tiling at frame {pos} "
+                "(segments must be in order, non-empty, without gaps or overlaps)"
+            )
+        if r < 0 or (num_ref_frames is not None and r + (b - a) > num_ref_frames):
+            raise MotionValueError(
+                f"segment {k} = {(a, b, r)} matches training frames {r}..{r + b - a - 1}, "
+                f"outside [0, {num_ref_frames if num_ref_frames is not None else 'T_ref'})"
+            )
+        if b > T:
+            raise MotionValueError(f"segment {k} = {(a, b, r)} ends after frame {T}")
+        out[a:b] = np.arange(r, r + b - a)
+        pos = b
+    if pos != T:
+        raise MotionValueError(f"the segmentation covers frames [0, {pos}) of {T}")
+    return out
+
+
+def _new_axes(ax: Any, figsize: tuple[float, float]):
+    if ax is not None:
+        return ax
+    import matplotlib.pyplot as plt
+
+    _, ax = plt.subplots(figsize=figsize, layout="constrained")
+    return ax
+
+
+def plot_segmentation(
+    segmentation: Sequence[tuple[int, int, int]],
+    num_frames: int,
+    num_ref_frames: int,
+    ax: Any = None,
+    *,
+    fps: float | None = None,
+    title: str | None = None,
+):
+    """Which training frames each segment of a generated clip copies (PNN).
+
+    Args:
+        segmentation: ``(gen_start, gen_stop, ref_start)`` triples tiling the generated
+            clip (see :func:`segmentation_frame_map`).
+        num_frames: ``T_gen``, frames of the generated clip.
+        num_ref_frames: ``T_ref``, frames of the training clip.
+        ax: a matplotlib Axes; a new figure when None.
+        fps: label the axes in seconds instead of frames.
+        title: default: the number of segments.
+
+    Returns:
+        The Axes. Segment k is a diagonal from ``(gen_start, ref_start)`` to
+        ``(gen_stop - 1, ref_start + gen_stop - gen_start - 1)`` over a lightly shaded
+        band of the generated frames it covers; the dotted lines mark the training clip.
+    """
+    T_ref = _check_int("num_ref_frames", num_ref_frames)
+    segmentation_frame_map(segmentation, num_frames, T_ref)  # validates the tiling
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise MotionValueError(f"fps must be a positive number, got {fps!r}")
+    s = 1.0 / fps if fps is not None else 1.0
+    ax = _new_axes(ax, (8.0, 3.6))
+    for k, (a, b, r) in enumerate(segmentation):
+        c = _SEGMENT_COLOURS[k % len(_SEGMENT_COLOURS)]
+        ax.axvspan(a * s, b * s, color=c, alpha=0.10, lw=0)
+        ax.plot(
+            [a * s, (b - 1) * s], [r * s, (r + b - a - 1) * s], color=c, lw=3.0,
+            solid_capstyle="round", label=f"gen {a}-{b - 1} <- train {r}-{r + b - a - 1}",
+        )  # fmt: skip
+    for y in (0, T_ref - 1):
+        ax.axhline(y * s, color="0.5", lw=0.8, ls=":")
+    unit = "s" if fps is not None else "frame"
+    ax.set_xlim(0, num_frames * s)
+    ax.set_ylim(-0.03 * T_ref * s, 1.03 * T_ref * s)
+    ax.set_xlabel(f"generated clip ({unit})")
+    ax.set_ylabel(f"training clip ({unit})")
+    n = len(segmentation)
+    ax.set_title(title if title is not None else f"nearest training segments ({n} segments)")
+    return ax
+
+
+def plot_coverage_strip(
+    profile: Any,
+    eps: float,
+    ax: Any = None,
+    *,
+    window: int | None = None,
+    row_labels: Sequence[str] | None = None,
+    fps: float | None = None,
+    title: str | None = None,
+    colorbar: bool = True,
+):
+    """Heat strip of nearest-neighbour distances over the training timeline.
+
+    Args:
+        profile: ``(N,)`` or ``(S, N)``: for each of the ``N = T_ref - window + 1``
+            training windows (by first frame), the distance to the closest window of a
+            generated clip (``mrlib.metrics.coverage_profile``); one row per sample.
+        eps: the coverage threshold; windows closer than it are covered. The colour
+            scale turns from green to red at ``eps``.
+        ax: a matplotlib Axes; a new figure when None.
+        window: the window length ``T_c``, for the axis label.
+        row_labels: one label per row; default ``"sample i"``. Each gets the row's
+            coverage in percent appended.
+        fps: label the timeline in seconds instead of frames.
+        title: default: the mean coverage over the rows.
+        colorbar: add a colour bar with ``eps`` marked.
+
+    Returns:
+        The Axes (its image is ``ax.images[0]``, holding the profile as given).
+    """
+    from matplotlib.colors import TwoSlopeNorm
+
+    if not (np.isfinite(eps) and eps > 0):
+        raise MotionValueError(f"eps must be a positive number, got {eps!r}")
+    p = np.asarray(profile, dtype=np.float64)
+    if p.ndim == 1:
+        p = p[None]
+    if p.ndim != 2 or p.shape[1] == 0 or p.shape[0] == 0:
+        raise MotionValueError(f"profile must have shape (N,) or (S, N), got {np.shape(profile)}")
+    if not np.isfinite(p).all() or (p < 0).any():
+        raise MotionValueError("profile must hold finite, non-negative distances")
+    if row_labels is not None and len(row_labels) != len(p):
+        raise MotionValueError(f"got {len(row_labels)} row labels for {len(p)} rows")
+    if fps is not None and not (np.isfinite(fps) and fps > 0):
+        raise MotionValueError(f"fps must be a positive number, got {fps!r}")
+    S, N = p.shape
+    covered = (p < eps).mean(1)  # (S,)
+    s = 1.0 / fps if fps is not None else 1.0
+    ax = _new_axes(ax, (8.0, 0.9 + 0.32 * S))
+    norm = TwoSlopeNorm(vmin=0.0, vcenter=eps, vmax=max(2.0 * eps, float(p.max())))
+    im = ax.imshow(
+        p, aspect="auto", cmap="RdYlGn_r", norm=norm, interpolation="nearest",
+        extent=(0, N * s, S - 0.5, -0.5),
+    )  # fmt: skip
+    labels = list(row_labels) if row_labels is not None else [f"sample {i}" for i in range(S)]
+    ax.set_yticks(
+        range(S), [f"{lab} ({100 * c:.0f}%)" for lab, c in zip(labels, covered, strict=True)]
+    )
+    unit = "s" if fps is not None else "frame"
+    what = f"{window}-frame window" if window is not None else "window"
+    ax.set_xlabel(f"training clip: first {unit} of each {what}")
+    ax.set_title(
+        title
+        if title is not None
+        else f"coverage {100 * covered.mean():.1f}% (green: nearest generated window < eps = {eps:g})"
+    )
+    if colorbar:
+        cb = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04)
+        cb.ax.axhline(eps, color="k", lw=1.5)
+        cb.set_label("distance", fontsize=8)
+    return ax
+
+
+def plot_quality_curve(
+    times: Any,
+    values: Any,
+    target: float | None = None,
+    ax: Any = None,
+    *,
+    higher_is_better: bool = True,
+    label: str | None = None,
+    ylabel: str | None = None,
+    reached_at: float | None = None,
+):
+    """A quality measure at training checkpoints against wall time, with its target.
+
+    Args:
+        times: ``(K,)`` training time of each checkpoint (seconds).
+        values: ``(K,)`` the measure there.
+        target: the target value, drawn as a dashed line; the side that fails it is
+            shaded.
+        higher_is_better: which side of ``target`` passes.
+        label: legend entry of the curve.
+        reached_at: mark the time the target (of all measures) was first met.
+
+    Returns:
+        The Axes.
+    """
+    t = np.asarray(times, dtype=np.float64)
+    v = np.asarray(values, dtype=np.float64)
+    if t.ndim != 1 or v.shape != t.shape or len(t) == 0:
+        raise MotionValueError(
+            f"times and values must be 1-D of the same non-zero length, got {t.shape}, {v.shape}"
+        )
+    ax = _new_axes(ax, (6.0, 3.4))
+    ax.plot(t, v, "o-", ms=3, label=label)
+    if target is not None:
+        ax.axhline(target, color="k", ls="--", lw=1)
+        lo, hi = ax.get_ylim()
+        if higher_is_better:
+            ax.axhspan(min(lo, target), target, color="tab:red", alpha=0.06, lw=0)
+        else:
+            ax.axhspan(target, max(hi, target), color="tab:red", alpha=0.06, lw=0)
+        ax.set_ylim(lo, hi)
+    if reached_at is not None:
+        ax.axvline(reached_at, color="tab:green", lw=1.5)
+    ax.set_xlabel("training time (s)")
+    if ylabel:
+        ax.set_ylabel(ylabel)
+    ax.grid(alpha=0.3)
+    return ax
