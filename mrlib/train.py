@@ -213,7 +213,10 @@ class Trainer:
         self._rec_cache: tuple[int, torch.Tensor] | None = None
 
     # -- conditions and noise --------------------------------------------------------------
-    def conditions(
+    # The networks take any control signal (B, T_i, D) per level. These two methods are the
+    # only place where labels become conditions: a trainer for another signal (per-frame
+    # speech features) overrides them.
+    def label_conditions(
         self, label_table: torch.Tensor, layout: PackedLevels, stop: int
     ) -> list[torch.Tensor]:
         """One-hot label conditions ``(1, S_i, K)`` of levels ``0..stop-1`` from a ``(B, L)``
@@ -221,16 +224,21 @@ class Trainer:
         onehot = F.one_hot(label_table, self.cond_dim).float()  # (B, L, K)
         return [layout.per_sample(onehot[:, i], i)[None] for i in range(stop)]
 
+    def rec_conditions(self, stop: int) -> list[torch.Tensor]:
+        """Conditions of the reconstructions: every clip's own label at every level."""
+        return self.label_conditions(self.rec_labels, self.rec_layout, stop)
+
     def draw_random(
         self, layout: PackedLevels, stop: int
-    ) -> tuple[torch.Tensor, list[torch.Tensor]]:
-        """Labels ``(B, L)`` and noises ``[(1, 1, S_i)]`` of the random generations of a
-        layout whose sample b follows clip ``b mod N``.
+    ) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+        """Conditions ``[(1, S_i, K)]`` and noises ``[(1, 1, S_i)]`` of levels ``0..stop-1``
+        for the random generations of a layout whose sample b follows clip ``b mod N``.
 
         Sample b's coarse label is its clip's. With probability ``mix_prob`` a second label
         (uniform) takes over from a random crossover level on (style-mixing
-        regularisation, paper Sec. 4.3). Noise ``z_i ~ N(0, sigma_i)`` of the label in
-        use at level i, shared by all channels."""
+        regularisation, paper Sec. 4.3); reconstructions never mix. Noise
+        ``z_i ~ N(0, sigma_i)`` with the sigma of the label in use at level i, shared by
+        all channels."""
         L, K, batch = self.config.model.num_levels, self.cond_dim, layout.batch_size
         a = self.clip_labels[torch.arange(batch) % self.N]
         mix = torch.rand(batch, generator=self.rng) < self.config.mix_prob
@@ -242,7 +250,7 @@ class Trainer:
         for i in range(stop):
             z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
             noises.append(z * layout.per_sample(self.sigma[table[:, i], i], i))
-        return table, noises
+        return self.label_conditions(table, layout, stop), noises
 
     # -- blocks ------------------------------------------------------------------------------
     @property
@@ -274,7 +282,7 @@ class Trainer:
             return None
         if self._rec_cache is None or self._rec_cache[0] != lo:
             with torch.no_grad():
-                conds = self.conditions(self.rec_labels, self.rec_layout, lo)
+                conds = self.rec_conditions(lo)
                 x = self.generator.run(self.rec_layout, self._rec_noises(lo), conds, 0, lo)
             self._rec_cache = (lo, x)
         return self._rec_cache[1]
@@ -288,9 +296,8 @@ class Trainer:
 
         # 1. critic steps: fakes of all of them from one gradient-free generation ------------
         if c.n_critic > 0:
-            table, noises = self.draw_random(self.fake_layout, hi + 1)
+            conds, noises = self.draw_random(self.fake_layout, hi + 1)
             with torch.no_grad():
-                conds = self.conditions(table, self.fake_layout, hi + 1)
                 fakes = G.run(self.fake_layout, noises, conds, 0, hi + 1, keep=True)
             alphas = torch.rand(c.n_critic, self.B, generator=self.rng).to(self.device)
             for j in range(c.n_critic):
@@ -316,9 +323,8 @@ class Trainer:
 
         # 2. generator step: reconstructions and random generations in one batch -------------
         self.opt_g.zero_grad(set_to_none=True)
-        table, noises = self.draw_random(self.rand_layout, hi + 1)
-        rand_conds = self.conditions(table, self.rand_layout, hi + 1)
-        rec_conds = self.conditions(self.rec_labels, self.rec_layout, hi + 1)
+        rand_conds, noises = self.draw_random(self.rand_layout, hi + 1)
+        rec_conds = self.rec_conditions(hi + 1)
         rec_noises = self._rec_noises(hi + 1)
         x_in = None
         if lo > 0:
