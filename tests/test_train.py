@@ -223,3 +223,20 @@ def test_checkpoint_errors(tmp_path):
         load_checkpoint(tmp_path / "other.pt")
     save_checkpoint(tmp_path / "ok.pt", {"x": torch.ones(1)})
     assert torch.equal(load_checkpoint(tmp_path / "ok.pt")["x"], torch.ones(1))
+
+
+def test_training_set_from_motions():
+    a = synthetic_walk("walk_sad", seconds=1.0, fps=20.0)
+    b = synthetic_walk("walk_happy", seconds=1.0, fps=10.0)
+    ts = TrainingSet.from_motions([a, b, a])
+    assert ts.labels == ["walk_happy", "walk_sad"] and ts.clip_labels == [1, 0, 1]
+    assert ts.fps == 20.0 and ts.lengths == [20, 19, 20]  # b resampled to 20 fps
+    assert ts.label_index("walk_sad") == 1 and ts.label_index(0) == 0
+    assert all(x.shape == (153, n) for x, n in zip(ts.normalized(), ts.lengths, strict=True))
+    assert TrainingSet.from_motions([a], labels=["custom"]).labels == ["custom"]
+    from mrlib.errors import MotionValueError
+
+    with pytest.raises(MotionValueError):
+        ts.label_index("walk_proud")
+    with pytest.raises(MotionValueError):
+        TrainingSet.from_motions([])
