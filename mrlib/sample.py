@@ -362,6 +362,17 @@ def _contact_runs(c: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
+def _body_inputs(motion: Motion, body) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Rotation matrices ``(T, 24, 3, 3)``, translation ``(T, 3)`` and betas of a motion."""
+    from mrlib.rotations import axis_angle_to_matrix
+
+    R = axis_angle_to_matrix(torch.as_tensor(motion.poses, dtype=torch.float32))
+    betas = np.zeros(body.num_betas, np.float32)
+    b = np.asarray(motion.betas, np.float32).reshape(-1)[: body.num_betas]
+    betas[: len(b)] = b
+    return R, torch.as_tensor(motion.trans, dtype=torch.float32), torch.from_numpy(betas)
+
+
 def contact_skating(motion: Motion, body=None) -> float:
     """Mean speed (m/s) of the contact vertices on frames labelled in contact (both the
     frame and its predecessor): 0 for perfectly planted feet."""
@@ -371,7 +382,7 @@ def contact_skating(motion: Motion, body=None) -> float:
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels")
     with torch.no_grad():
-        R, t, b = body._motion_inputs(motion)
+        R, t, b = _body_inputs(motion, body)
         p = body.forward(R, t, b, vertex_ids=list(body.foot_vertex_ids)).vertices  # (T, 6, 3)
     v = (p[1:] - p[:-1]).norm(dim=-1) * motion.fps  # (T-1, 6)
     c = torch.as_tensor(motion.contacts > 0.5)
@@ -402,7 +413,7 @@ def cleanup_foot_contacts(
         raise MotionValueError("motion has no contact labels to clean up")
     body = body or load_body_model()
     ids = list(body.foot_vertex_ids)
-    R, trans, betas = body._motion_inputs(motion)
+    R, trans, betas = _body_inputs(motion, body)
     with torch.no_grad():
         p0 = body.forward(R, trans, betas, vertex_ids=ids).vertices  # (T, 6, 3)
     c = np.asarray(motion.contacts) > 0.5
