@@ -472,7 +472,9 @@ class Trainer:
         old_handler = None
         if threading.current_thread() is threading.main_thread():
 
-            def _on_sigint(signum, frame):  # first Ctrl-C: stop after this iteration
+            def _on_sigint(signum, frame):
+                # first Ctrl-C: finish this iteration, save, return; a second one stops at
+                # once without saving (the last checkpoint stays the last consistent state)
                 if stop["flag"]:
                     raise KeyboardInterrupt
                 stop["flag"] = True
@@ -497,8 +499,10 @@ class Trainer:
                     )
                     try:
                         while self.iteration < n_iter:
+                            stop["in_step"] = True
                             losses = self.step()
                             self.iteration += 1
+                            stop["in_step"] = False
                             if self.iteration % c.log_every == 0 or self.iteration == n_iter:
                                 last = {
                                     i + 1: {k: float(v) for k, v in d.items()}
@@ -532,6 +536,8 @@ class Trainer:
                             if stop["flag"]:
                                 raise KeyboardInterrupt
                     except KeyboardInterrupt:
+                        if stop.get("in_step"):
+                            raise  # forced stop mid-iteration: nothing consistent to save
                         interrupted = True
                     finally:
                         bar.close()

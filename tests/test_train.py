@@ -181,6 +181,26 @@ def test_ctrl_c_saves_a_checkpoint_and_returns(data, body, tmp_path):
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # handler restored
 
 
+def test_interrupt_inside_a_step_keeps_the_last_checkpoint(data, body, tmp_path):
+    """A KeyboardInterrupt raised inside an iteration (a second Ctrl-C) propagates and does
+    not overwrite the last consistent checkpoint with a half-done iteration."""
+    trainer = Trainer(data, tiny(), tmp_path, body=body)
+    step, calls = trainer.step, []
+
+    def failing_step():
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return step()
+
+    trainer.step = failing_step
+    with pytest.raises(KeyboardInterrupt):
+        trainer.fit(progress=False)
+    assert (
+        load_checkpoint(tmp_path / "checkpoint.pt")["progress"]["iteration"] == 2
+    )  # checkpoint_every=2
+
+
 def test_seeded_runs_are_reproducible(data, body, tmp_path):
     cfg = tiny(block_iterations=(2, 0))
     a = train(data, cfg, tmp_path / "a", body=body, progress=False)
