@@ -222,7 +222,8 @@ def _add_sample(sub):
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10\n"
         "  mrlib sample ckpt.pt --crossover walk_sad:1-3 walk_happy:4-6 --num 4 --render\n"
-        "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5",
+        "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5\n"
+        "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render",
     )
     p.add_argument("checkpoint", type=Path)
     g = p.add_mutually_exclusive_group()
@@ -242,6 +243,12 @@ def _add_sample(sub):
         metavar=("LABEL_A", "LABEL_B", "W"),
         help="interpolate the two label embeddings with weight W of B (0..1) at every level",
     )
+    g.add_argument(
+        "--audio",
+        type=Path,
+        default=None,
+        help="speech-conditioned models: gestures for this audio file (.wav/.flac), as long as it",
+    )
     p.add_argument(
         "--seconds", type=float, default=None, help="length in seconds (default: a training clip's)"
     )
@@ -259,10 +266,14 @@ def _add_sample(sub):
 
 
 def _cmd_sample(args) -> int:
-    from mrlib.io import save_motion
     from mrlib.sample import generate, load_model
 
+    if args.audio is not None:
+        motions, tag = _audio_samples(args)
+        return _write_samples(motions, tag, args)
     model = load_model(args.checkpoint, device=args.device)
+    if model.generator.cond_dim != len(model.labels):
+        raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
     length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
     kw = {}
     if args.crossover:
@@ -283,6 +294,26 @@ def _cmd_sample(args) -> int:
         fix_contacts=args.fix_contacts,
         **kw,
     )
+    return _write_samples(motions, tag, args)
+
+
+def _audio_samples(args):
+    from mrlib.speech_train import generate_from_audio, load_speech_model
+
+    if args.seconds is not None:
+        raise MrlibError(
+            "--seconds does not apply to --audio: the motion lasts as long as the audio"
+        )
+    model = load_speech_model(args.checkpoint, device=args.device)
+    motions = generate_from_audio(
+        model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=args.fix_contacts
+    )
+    return motions, args.audio.stem
+
+
+def _write_samples(motions, tag: str, args) -> int:
+    from mrlib.io import save_motion
+
     motions = motions if isinstance(motions, list) else [motions]
     args.out.mkdir(parents=True, exist_ok=True)
     for i, m in enumerate(motions):
