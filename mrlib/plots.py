@@ -173,7 +173,8 @@ def plot_coverage_strip(
             training windows (by first frame), the distance to the closest window of a
             generated clip (``mrlib.metrics.coverage_profile``); one row per sample.
         eps: the coverage threshold; windows closer than it are covered. The colour
-            scale turns from green to red at ``eps``.
+            scale runs from green (0) through yellow (``eps``) to red (``2 eps`` and
+            beyond).
         ax: a matplotlib Axes; a new figure when None.
         window: the window length ``T_c``, for the axis label.
         row_labels: one label per row; default ``"sample i"``. Each gets the row's
@@ -204,7 +205,8 @@ def plot_coverage_strip(
     covered = (p < eps).mean(1)  # (S,)
     s = 1.0 / fps if fps is not None else 1.0
     ax = _new_axes(ax, (8.0, 0.9 + 0.32 * S))
-    norm = TwoSlopeNorm(vmin=0.0, vcenter=eps, vmax=max(2.0 * eps, float(p.max())))
+    # A fixed scale (0 .. 2 eps) keeps strips comparable; farther windows saturate red.
+    norm = TwoSlopeNorm(vmin=0.0, vcenter=eps, vmax=2.0 * eps)
     im = ax.imshow(
         p, aspect="auto", cmap="RdYlGn_r", norm=norm, interpolation="nearest",
         extent=(0, N * s, S - 0.5, -0.5),
@@ -222,7 +224,8 @@ def plot_coverage_strip(
         else f"coverage {100 * covered.mean():.1f}% (green: nearest generated window < eps = {eps:g})"
     )
     if colorbar:
-        cb = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04)
+        extend = "max" if p.max() > 2.0 * eps else "neither"
+        cb = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04, extend=extend)
         cb.ax.axhline(eps, color="k", lw=1.5)
         cb.set_label("distance", fontsize=8)
     return ax

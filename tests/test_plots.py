@@ -89,12 +89,13 @@ def test_plot_coverage_strip_shows_the_profile_around_eps():
     ax = plot_coverage_strip(profile, eps=2.0, window=30, row_labels=["a", "b"])
     img = ax.images[0]
     np.testing.assert_array_equal(np.asarray(img.get_array()), profile)
-    assert img.norm.vcenter == 2.0 and img.norm.vmin == 0.0 and img.norm.vmax == 5.0
+    assert img.norm.vcenter == 2.0 and img.norm.vmin == 0.0 and img.norm.vmax == 4.0
+    assert ax.figure.axes[1].get_label() == "<colorbar>"
     ticks = [t.get_text() for t in ax.get_yticklabels()]
     assert ticks == ["a (50%)", "b (75%)"]
     assert "62.5%" in ax.get_title() and "30-frame" in ax.get_xlabel()
     assert len(ax.figure.axes) == 2  # the colour bar
-    # one row, all covered: the colour scale still spans [0, 2 eps]
+    # one row, all covered: the colour scale spans [0, 2 eps] whatever the values
     ax1 = plot_coverage_strip(np.full(10, 0.3), eps=1.5, colorbar=False)
     assert ax1.images[0].norm.vmax == 3.0 and len(ax1.figure.axes) == 1
     assert ax1.get_yticklabels()[0].get_text() == "sample 0 (100%)"
