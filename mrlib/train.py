@@ -130,7 +130,9 @@ class Trainer:
     """Holds the networks, data pyramids, layouts and optimizers of one training run.
 
     Use :func:`train` unless you need step-level control (``step`` runs one iteration of
-    the current block and returns its losses).
+    the current block and returns its losses). Creating a trainer seeds torch's, numpy's
+    and Python's global generators with ``config.seed`` (network initialisation); every
+    random draw of training then comes from the trainer's own generator ``rng``.
     """
 
     def __init__(self, data: TrainingSet, config: TrainConfig, out_dir: str | Path, body=None):
@@ -151,6 +153,10 @@ class Trainer:
         self.body = body.to(self.device) if hasattr(body, "to") else body
         self.betas = torch.as_tensor(
             np.asarray(data.betas), dtype=torch.float32, device=self.device
+        )
+        norm = data.normalizer
+        self.data_normalizer = FeatureNormalizer(
+            norm.mean.to(self.device), norm.std.to(self.device)
         )
 
         # 1. pyramids, noise amplitudes, reconstruction noise --------------------------------
@@ -364,13 +370,6 @@ class Trainer:
         total.backward()
         self.opt_g.step()
         return losses
-
-    @property
-    def data_normalizer(self) -> FeatureNormalizer:
-        if not hasattr(self, "_norm_dev"):
-            n = self.data.normalizer
-            self._norm_dev = FeatureNormalizer(n.mean.to(self.device), n.std.to(self.device))
-        return self._norm_dev
 
     # -- checkpoints -------------------------------------------------------------------------
     def state_dict(self) -> dict:
