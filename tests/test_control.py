@@ -1,0 +1,287 @@
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib.config import ModelConfig, TrainConfig
+from mrlib.control import (
+    CrossoverView,
+    _nn_distance,
+    band_distances,
+    condition_fidelity_of_model,
+    crossover_blend,
+    crossover_conditions,
+    crossover_cutoff,
+    crossover_evidence,
+    interactive_crossover,
+    lowpass,
+    nearest_sequence_strip,
+    plot_nearest_sequence,
+    rms_profile,
+    split_bands,
+)
+from mrlib.data import TrainingSet
+from mrlib.errors import MotionValueError
+from mrlib.metrics import condition_fidelity, local_diversity, metric_features
+from mrlib.pyramid import level_fps, pyramid_lengths
+from mrlib.sample import generate, label_weights, load_model
+from mrlib.synthetic import synthetic_walk, synthetic_wave
+from mrlib.train import train
+
+# A plumbing model: trained for two iterations per block, its samples mean nothing.
+CFG = TrainConfig(
+    model=ModelConfig(num_levels=4, gen_hidden=(24, 24), disc_hidden=(24, 24)),
+    block_iterations=(2, 2),
+    n_critic=1,
+    checkpoint_every=0,
+)
+
+
+@pytest.fixture(scope="module")
+def body():
+    from mrlib.body import load_body_model
+
+    return load_body_model()
+
+
+@pytest.fixture(scope="module")
+def clips(body):
+    return [
+        synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=body),
+        synthetic_wave(seconds=3.6, fps=10.0, body=body),
+    ]
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory, body, clips):
+    torch.set_num_threads(1)
+    out = tmp_path_factory.mktemp("control_model")
+    res = train(TrainingSet.from_motions(clips), CFG, out, body=body, progress=False)
+    return load_model(res.checkpoint)
+
+
+# -- bands -------------------------------------------------------------------------------
+def _sine(freq, fps=30.0, seconds=20.0, channels=3):
+    t = np.arange(int(fps * seconds)) / fps
+    return np.stack([np.sin(2 * np.pi * freq * t + k) for k in range(channels)], 1)
+
+
+def test_lowpass_passes_slow_removes_fast_and_halves_the_cutoff():
+    fps, fc = 30.0, 4.0
+    mid = slice(60, -60)  # away from the clip ends
+    amp = lambda x: np.sqrt(2 * (x[mid] ** 2).mean())  # noqa: E731
+    for f in (0.5, 3.0, fc, 5.0, 8.0):  # the documented response
+        expected = 1 / (1 + (np.tan(np.pi * f / fps) / np.tan(np.pi * fc / fps)) ** 8)
+        assert amp(lowpass(_sine(f), fps, fc)) == pytest.approx(expected, abs=0.01)
+    assert amp(lowpass(_sine(12.0), fps, fc)) < 0.001
+    x = _sine(1.0) + 0.3 * _sine(9.0) + 2.0
+    low, high = split_bands(x, fps, fc)
+    assert np.allclose(low + high, x)
+    assert amp(high - 0.3 * _sine(9.0)) < 0.02  # the residual is the fast part
+    ramp = np.linspace(0, 1, 40)[:, None] + np.zeros((1, 2))
+    assert np.allclose(lowpass(ramp, fps, fc), ramp, atol=1e-3)  # lines and constants pass
+    assert np.allclose(lowpass(np.ones((1, 3)), fps, fc), 1.0)  # one frame: nothing to filter
+    with pytest.raises(MotionValueError, match="cutoff"):
+        lowpass(x, fps, 15.0)  # at Nyquist
+    with pytest.raises(MotionValueError, match="cutoff"):
+        lowpass(x, fps, 0.0)
+    with pytest.raises(MotionValueError, match="T, D"):
+        lowpass(x[:, 0], fps, fc)
+
+
+def test_rms_profile():
+    x = np.zeros((4, 2))
+    x[:, 0] = [1, -1, 1, -1]
+    x[:, 1] = 3
+    assert np.allclose(rms_profile(x), [1.0, 3.0])
+    with pytest.raises(MotionValueError):
+        rms_profile(np.zeros(5))
+
+
+def test_nn_distance_is_local_diversity_for_one_reference_and_min_over_several():
+    rng = np.random.default_rng(0)
+    x, r1, r2 = rng.normal(size=(30, 5)), rng.normal(size=(25, 5)), rng.normal(size=(20, 5)) + 3
+    for w in (1, 4):
+        assert _nn_distance(x, [r1], w) == pytest.approx(local_diversity(x, r1, window=w))
+    # windows never straddle references: joining them can only give smaller or equal
+    both = _nn_distance(x, [r1, r2], 4)
+    assert both <= min(_nn_distance(x, [r1], 4), _nn_distance(x, [r2], 4)) + 1e-12
+    assert both >= _nn_distance(x, [np.concatenate([r1, r2])], 4) - 1e-12
+
+
+def test_band_distances_recover_a_constructed_crossover(body):
+    """Ground truth by construction: the low band of one take of style A plus the
+    residual of one take of style B must be nearer A in the low band and B in the
+    residual, judged against other takes (other seeds) of A and of B."""
+    fps, cutoff = 30.0, 1.5  # the synthetic gaits have harmonics above 1.5 Hz
+    styles = ["walk_sad", "walk_happy", "walk_normal", "wave"]
+
+    def take(style, seed):
+        m = (
+            synthetic_wave(seconds=3.0, fps=fps, seed=seed, body=body)
+            if style == "wave"
+            else synthetic_walk(style, seconds=3.0, fps=fps, seed=seed, body=body)
+        )
+        return metric_features(m, contacts=False)
+
+    refs = {s: [take(s, 0), take(s, 1)] for s in styles}
+    test = {s: split_bands(take(s, 2), fps, cutoff) for s in styles}
+    for a in styles:
+        for b in styles:
+            if a == b:
+                continue
+            d = band_distances(test[a][0] + test[b][1], refs[a], refs[b], fps, cutoff)
+            assert d[0] < d[1], (a, b, d)  # low band from A
+            assert d[3] < d[2], (a, b, d)  # residual from B
+    with pytest.raises(MotionValueError, match="at least one reference"):
+        band_distances(test["wave"][0], [], refs["wave"], fps, cutoff)
+
+
+# -- levels and conditions ------------------------------------------------------------------
+def test_crossover_cutoff_is_the_nyquist_frequency_of_the_level(model):
+    mc = model.config.model
+    lengths = pyramid_lengths(40, mc.num_levels, mc.scale_factor, min_length=3)
+    for i in range(1, mc.num_levels):
+        assert crossover_cutoff(model, i, 40) == pytest.approx(level_fps(10.0, lengths)[i - 1] / 2)
+    for bad in (0, mc.num_levels, 1.5):
+        with pytest.raises(MotionValueError, match="crossover level"):
+            crossover_cutoff(model, bad, 40)
+
+
+def test_crossover_conditions_and_blend(model):
+    assert crossover_conditions(model, "walk_sad", "wave", 1) == [
+        ("walk_sad", (1, 1)),
+        ("wave", (2, 4)),
+    ]
+    with pytest.raises(MotionValueError, match="unknown label"):
+        crossover_conditions(model, "walk_sad", "jump", 2)
+    plain = label_weights(model, conditions=crossover_conditions(model, "walk_sad", "wave", 2))
+    full = label_weights(model, blend=crossover_blend(model, "walk_sad", "wave", 2, 1.0))
+    assert torch.equal(plain, full)  # weight 1 is the plain crossover
+    none = label_weights(model, blend=crossover_blend(model, "walk_sad", "wave", 2, 0.0))
+    assert torch.equal(none, label_weights(model, condition="walk_sad"))
+    half = label_weights(model, blend=crossover_blend(model, "walk_sad", "wave", 2, 0.25))
+    assert half[:2].tolist() == [[1.0, 0.0], [1.0, 0.0]]
+    assert half[2:].tolist() == [[0.75, 0.25], [0.75, 0.25]]
+    with pytest.raises(MotionValueError, match="blend weight"):
+        crossover_blend(model, "walk_sad", "wave", 2, 1.5)
+
+
+# -- crossover evidence ----------------------------------------------------------------------
+def test_crossover_evidence_returns_finite_reproducible_distances(model):
+    e = crossover_evidence(model, "walk_sad", "wave", 2, num_samples=2, seed=3)
+    d = [e.low_to_coarse, e.low_to_fine, e.high_to_coarse, e.high_to_fine]
+    assert all(np.isfinite(v) and v >= 0 for v in d)
+    assert e.per_sample.shape == (2, 4) and np.allclose(e.per_sample.mean(0), d)
+    assert e.coarse_label == "walk_sad" and e.fine_label == "wave" and e.level == 2
+    assert e.cutoff_hz == pytest.approx(crossover_cutoff(model, 2, 40))  # sad clip: 40 frames
+    assert all(np.isfinite(v) and v > 0 for v in e.residual_rms)
+    again = crossover_evidence(model, "walk_sad", "wave", 2, num_samples=2, seed=3)
+    assert np.array_equal(e.per_sample, again.per_sample)
+    rows = e.as_rows()
+    assert [r["expected"] for r in rows] == ["walk_sad", "wave"]
+    assert e.holds == (e.low_holds and e.high_holds)
+    assert "walk_sad" in e.to_markdown() and "residual" in e.to_markdown()
+    axes = e.plot()
+    assert len(axes) == 2
+    clips_ref = crossover_evidence(
+        model, 1, 0, 1, num_samples=1, seed=0, reference="clips", cutoff=2.0, window=3
+    )
+    assert clips_ref.fine_label == "walk_sad" and clips_ref.cutoff_hz == 2.0
+    assert np.isfinite(clips_ref.per_sample).all()
+
+
+def test_crossover_evidence_validates(model):
+    with pytest.raises(MotionValueError, match="same"):
+        crossover_evidence(model, "wave", "wave", 2, num_samples=1)
+    with pytest.raises(MotionValueError, match="reference"):
+        crossover_evidence(model, "walk_sad", "wave", 2, num_samples=1, reference="data")
+    with pytest.raises(MotionValueError, match="num_samples"):
+        crossover_evidence(model, "walk_sad", "wave", 2, num_samples=0)
+    with pytest.raises(MotionValueError, match="cutoff"):
+        crossover_evidence(model, "walk_sad", "wave", 2, num_samples=1, cutoff=6.0)
+
+
+# -- nearest sequence -------------------------------------------------------------------------
+def test_nearest_sequence_strip_finds_the_source_of_a_slice(clips):
+    refs = {"sad": clips[0], "wave": clips[1]}
+    part = clips[1].slice(5, 30)
+    s = nearest_sequence_strip(part, refs, window=10)
+    assert s.names == ("sad", "wave") and s.labels == ("walk_sad", "wave")
+    assert len(s.index) == 25 - 10 + 1
+    assert (s.index == 1).all() and np.array_equal(s.start, np.arange(5, 21))
+    assert np.allclose(s.distance, 0, atol=1e-6)
+    assert s.shares() == {"sad": 0.0, "wave": 1.0} and s.label_shares()["wave"] == 1.0
+    # features work too, and the strip switches source where the clip does
+    joined = np.concatenate([metric_features(clips[0].slice(0, 20)), metric_features(part)])
+    s2 = nearest_sequence_strip(joined, refs, window=5)
+    assert (s2.index[:16] == 0).all() and (s2.index[20:] == 1).all()
+    axes = plot_nearest_sequence(s)
+    assert len(axes) == 2 and axes[1].get_legend() is not None
+    with pytest.raises(MotionValueError, match="window"):
+        nearest_sequence_strip(part, refs, window=0)
+    with pytest.raises(MotionValueError, match="fewer than the window"):
+        nearest_sequence_strip(part.slice(0, 5), refs, window=10)
+    with pytest.raises(MotionValueError, match="GenerativeModel or a mapping"):
+        nearest_sequence_strip(part, [clips[0]], window=10)
+
+
+def test_nearest_sequence_strip_of_a_model_uses_its_training_clips(model):
+    m = generate(model, "wave", seed=0)
+    s = nearest_sequence_strip(m, model, window=10)
+    assert s.names == tuple(model.clip_names) and s.labels == ("walk_sad", "wave")
+    assert len(s.index) == m.num_frames - 9 and s.fps == 10.0
+    assert np.isfinite(s.distance).all() and (s.distance >= 0).all()
+
+
+# -- condition fidelity -------------------------------------------------------------------------
+def test_condition_fidelity_of_model_matches_the_metric(model):
+    f = condition_fidelity_of_model(model, num_samples=2, length=36, seed=1, window=10)
+    assert set(f.per_label) == {"walk_sad", "wave"} and 0 <= f.overall <= 1
+    assert f.overall == pytest.approx(np.mean(list(f.per_label.values())))
+    # the same number straight from mrlib.metrics
+    refs = nearest_sequence_strip.__globals__["_reference_features"](model)
+    references = dict(zip(refs[1], refs[2], strict=True))
+    samples = generate(model, "wave", length=36, seed=1, num_samples=2)
+    assert f.per_label["wave"] == pytest.approx(condition_fidelity(samples, references, window=10))
+    assert "**all**" in f.to_markdown()
+    with pytest.raises(MotionValueError, match="num_samples"):
+        condition_fidelity_of_model(model, num_samples=0)
+
+
+# -- interactive view -------------------------------------------------------------------------
+def test_interactive_crossover_builds_and_its_callback_regenerates(model):
+    ipywidgets = pytest.importorskip("ipywidgets")
+    box, update = interactive_crossover(model, render=False, window=10)
+    assert isinstance(box, ipywidgets.VBox)
+    view = update()
+    assert isinstance(view, CrossoverView) and view.image is None
+    assert view.weights.shape == (4, 2) and "walk_sad" in view.title and "wave" in view.title
+    assert len(view.strip.index) == view.motion.num_frames - 9
+    # the controls drive the callback: fine weight 0 is the coarse label alone
+    controls = {c.description: c for row in box.children[:2] for c in row.children}
+    controls["fine weight"].value = 0.0
+    view0 = update()
+    pure = generate(model, "walk_sad", length=view0.motion.num_frames, seed=0)
+    assert np.allclose(view0.motion.poses, pure.poses, atol=1e-5)
+    controls["crossover i"].value = 3
+    assert update().weights[:3, 0].tolist() == [1.0, 1.0, 1.0]
+
+
+def test_interactive_crossover_mesh_view(model, monkeypatch):
+    pytest.importorskip("ipywidgets")
+    import mrlib.render
+
+    calls = []
+
+    def fake_render(motion, body, frames=None, **kw):  # the real one takes seconds
+        calls.append(list(frames))
+        return np.zeros((40, 120, 3), np.uint8)
+
+    monkeypatch.setattr(mrlib.render, "render_meshes", fake_render)
+    _, update = interactive_crossover(model, body=object(), frames=3, window=10)
+    view = update()
+    assert view.image.shape == (40, 120, 3) and len(calls[-1]) == 3
