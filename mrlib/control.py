@@ -71,6 +71,9 @@ __all__ = [
     "plot_nearest_sequence",
     "ConditionFidelity",
     "condition_fidelity_of_model",
+    "coverage_per_sequence",
+    "TrainRecord",
+    "train_or_reuse",
     "CrossoverView",
     "interactive_crossover",
 ]
@@ -724,6 +727,81 @@ def condition_fidelity_of_model(
         window=int(window),
         seed=int(seed),
     )
+
+
+def coverage_per_sequence(
+    model: Any,
+    num_samples: int = 20,
+    length_factor: float = 2.0,
+    seed: int = 0,
+    eps: float = 2.0,
+    window: int = 30,
+) -> dict[str, float]:
+    """``mrlib.metrics.coverage`` of every training sequence by samples of its label.
+
+    For clip k (label l, ``T_k`` frames): ``num_samples`` samples of label l, each
+    ``round(length_factor * T_k)`` frames, and the mean over them of the share of clip
+    k's ``window``-frame windows with a generated window closer than ``eps``.
+
+    Returns:
+        clip name -> coverage in [0, 1].
+    """
+    from mrlib.metrics import coverage
+    from mrlib.sample import generate
+
+    num_samples = _check_count("num_samples", num_samples)
+    if not (np.isfinite(length_factor) and length_factor > 0):
+        raise MotionValueError(f"length_factor must be positive, got {length_factor}")
+    names, labels, feats = _reference_features(model)
+    out = {}
+    for name, lab, ref in zip(names, labels, feats, strict=True):
+        length = max(window, round(length_factor * len(ref)))
+        ms = generate(model, lab, length=length, seed=seed, num_samples=num_samples)
+        out[name] = coverage([ms] if isinstance(ms, Motion) else ms, ref, window=window, eps=eps)
+    return out
+
+
+@dataclass(frozen=True)
+class TrainRecord:
+    """How a model of :func:`train_or_reuse` came about."""
+
+    checkpoint: Any  # pathlib.Path
+    wall_time_s: float  # training time of the run that wrote the checkpoint
+    reused: bool  # True: an earlier, finished run with the same config and clips
+
+
+def train_or_reuse(
+    data: Any, config: Any, out_dir: Any, *, body: Any = None, progress: bool = True
+) -> tuple[Any, TrainRecord]:
+    """Train with ``mrlib.train.train`` unless ``out_dir`` already holds a finished run
+    with the same config and the same clips; then load it. Notebooks use this so that a
+    reader's long run is not repeated on every execution.
+
+    Returns:
+        ``(model, record)``: the ``GenerativeModel`` and a :class:`TrainRecord`; for a
+        reused run the wall time is the last ``time_s`` of its ``losses.csv`` (the time
+        of its last logged iteration, without the final checkpoint write).
+    """
+    import csv
+    from pathlib import Path
+
+    from mrlib.config import config_from_json
+    from mrlib.sample import load_model
+    from mrlib.train import train
+
+    out = Path(out_dir)
+    ckpt, log = out / "checkpoint.pt", out / "losses.csv"
+    if ckpt.exists() and ckpt.with_suffix(".pt.json").exists() and log.exists():
+        same_config = config_from_json(ckpt.with_suffix(".pt.json").read_text()) == config
+        if same_config:
+            model = load_model(ckpt)
+            if model.trained_levels == model.num_levels and model.clip_names == list(data.names):
+                with open(log, newline="") as fh:
+                    rows = list(csv.DictReader(fh))
+                wall = float(rows[-1]["time_s"]) if rows else float("nan")
+                return model, TrainRecord(ckpt, wall, True)
+    res = train(data, config, out, body=body, progress=progress)
+    return load_model(res.checkpoint), TrainRecord(res.checkpoint, res.wall_time_s, False)
 
 
 # ---------------------------------------------------------------------------------------

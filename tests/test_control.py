@@ -12,6 +12,7 @@ from mrlib.control import (
     _nn_distance,
     band_distances,
     condition_fidelity_of_model,
+    coverage_per_sequence,
     crossover_blend,
     crossover_conditions,
     crossover_cutoff,
@@ -22,6 +23,7 @@ from mrlib.control import (
     plot_nearest_sequence,
     rms_profile,
     split_bands,
+    train_or_reuse,
 )
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
@@ -285,3 +287,29 @@ def test_interactive_crossover_mesh_view(model, monkeypatch):
     _, update = interactive_crossover(model, body=object(), frames=3, window=10)
     view = update()
     assert view.image.shape == (40, 120, 3) and len(calls[-1]) == 3
+
+
+# -- coverage and training helpers ------------------------------------------------------------
+def test_coverage_per_sequence_matches_the_metric(model):
+    from mrlib.metrics import coverage
+
+    cov = coverage_per_sequence(model, num_samples=2, length_factor=1.5, seed=4, window=10)
+    assert list(cov) == model.clip_names and all(0 <= v <= 1 for v in cov.values())
+    refs = nearest_sequence_strip.__globals__["_reference_features"](model)[2]
+    samples = generate(model, "wave", length=round(1.5 * len(refs[1])), seed=4, num_samples=2)
+    assert cov[model.clip_names[1]] == pytest.approx(coverage(samples, refs[1], window=10))
+    with pytest.raises(MotionValueError, match="length_factor"):
+        coverage_per_sequence(model, length_factor=0.0)
+
+
+def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips):
+    data = TrainingSet.from_motions([c.slice(0, 30) for c in clips])
+    cfg = CFG.replace(block_iterations=(1, 1))
+    m1, r1 = train_or_reuse(data, cfg, tmp_path, body=body, progress=False)
+    assert not r1.reused and r1.wall_time_s > 0 and r1.checkpoint.exists()
+    m2, r2 = train_or_reuse(data, cfg, tmp_path, body=body, progress=False)
+    assert r2.reused and 0 < r2.wall_time_s <= r1.wall_time_s  # last logged iteration
+    for p, q in zip(m1.generator.parameters(), m2.generator.parameters(), strict=True):
+        assert torch.equal(p, q)
+    _, r3 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
+    assert not r3.reused  # another config trains again
