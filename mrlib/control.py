@@ -66,6 +66,7 @@ __all__ = [
     "crossover_blend",
     "CrossoverEvidence",
     "crossover_evidence",
+    "evidence_table",
     "NearestSequenceStrip",
     "nearest_sequence_strip",
     "plot_nearest_sequence",
@@ -271,6 +272,24 @@ class CrossoverEvidence:
             fontsize=10,
         )
         return axes
+
+
+def evidence_table(evidences: Sequence[CrossoverEvidence]) -> str:
+    """Several :class:`CrossoverEvidence` as one Markdown table, a row each: labels,
+    crossover level, cutoff, the four distances and whether each direction holds."""
+    head = (
+        "| coarse (A) | fine (B) | level | cutoff Hz | low to A | low to B | "
+        "residual to A | residual to B | low from A | residual from B |"
+    )
+    out = [head, "|" + "---|" * 10]
+    yes = {True: "yes", False: "**no**"}
+    for e in evidences:
+        out.append(
+            f"| {e.coarse_label} | {e.fine_label} | {e.level} | {e.cutoff_hz:.1f} | "
+            f"{e.low_to_coarse:.3f} | {e.low_to_fine:.3f} | {e.high_to_coarse:.4f} | "
+            f"{e.high_to_fine:.4f} | {yes[e.low_holds]} | {yes[e.high_holds]} |"
+        )
+    return "\n".join(out)
 
 
 def _reference_features(
@@ -667,10 +686,14 @@ class ConditionFidelity:
     """Condition fidelity of single-condition samples (``mrlib.metrics.condition_fidelity``).
 
     ``overall`` pools every window of every sample (all samples have the same length, so
-    it is the mean of ``per_label``)."""
+    it is the mean of ``per_label``). ``confusion (K, K)``: row = requested label, column
+    = label of the nearest training window, shares of windows (rows sum to 1; with one
+    clip per label its diagonal is ``per_label``), in the order of ``labels``."""
 
     overall: float
     per_label: dict[str, float]
+    labels: tuple[str, ...]
+    confusion: np.ndarray
     num_samples: int
     length: int
     window: int
@@ -681,6 +704,26 @@ class ConditionFidelity:
         rows += [f"| {k} | {100 * v:.1f}% |" for k, v in self.per_label.items()]
         rows.append(f"| **all** | **{100 * self.overall:.1f}%** |")
         return "\n".join(rows)
+
+    def plot(self, ax: Any = None):
+        """The confusion matrix as an image, shares in %."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(4.6, 3.8))
+        K = len(self.labels)
+        ax.imshow(100 * self.confusion, cmap="Blues", vmin=0, vmax=100)
+        for i in range(K):
+            for j in range(K):
+                v = 100 * self.confusion[i, j]
+                ax.text(j, i, f"{v:.0f}", ha="center", va="center",
+                        color="white" if v > 60 else "black", fontsize=9)  # fmt: skip
+        ax.set_xticks(range(K), self.labels, rotation=30, ha="right")
+        ax.set_yticks(range(K), self.labels)
+        ax.set_xlabel("label of the nearest training window")
+        ax.set_ylabel("requested label")
+        ax.set_title(f"condition fidelity {100 * self.overall:.1f}% (diagonal, %)", fontsize=10)
+        return ax
 
 
 def condition_fidelity_of_model(
@@ -714,14 +757,20 @@ def condition_fidelity_of_model(
     }
     if length is None:
         length = 2 * int(model.lengths[:, -1].max())
-    per_label = {}
-    for lab in refs:
+    per_label, names = {}, list(refs)
+    confusion = np.zeros((len(names), len(names)))
+    for k, lab in enumerate(names):
         ms = generate(model, lab, length=int(length), seed=seed, num_samples=num_samples)
         ms = [ms] if isinstance(ms, Motion) else ms
         per_label[lab] = condition_fidelity(ms, refs, window=window)
+        for m in ms:
+            shares = nearest_sequence_strip(m, refs, window).shares()
+            confusion[k] += [shares[n] / len(ms) for n in names]
     return ConditionFidelity(
         overall=float(np.mean(list(per_label.values()))),
         per_label=per_label,
+        labels=tuple(names),
+        confusion=confusion,
         num_samples=int(num_samples),
         length=int(length),
         window=int(window),

@@ -17,6 +17,7 @@ from mrlib.control import (
     crossover_conditions,
     crossover_cutoff,
     crossover_evidence,
+    evidence_table,
     interactive_crossover,
     lowpass,
     nearest_sequence_strip,
@@ -187,6 +188,8 @@ def test_crossover_evidence_returns_finite_reproducible_distances(model):
     assert [r["expected"] for r in rows] == ["walk_sad", "wave"]
     assert e.holds == (e.low_holds and e.high_holds)
     assert "walk_sad" in e.to_markdown() and "residual" in e.to_markdown()
+    table = evidence_table([e, e]).splitlines()
+    assert len(table) == 4 and table[2].startswith("| walk_sad | wave | 2 |")
     axes = e.plot()
     assert len(axes) == 2
     clips_ref = crossover_evidence(
@@ -250,6 +253,11 @@ def test_condition_fidelity_of_model_matches_the_metric(model):
     samples = generate(model, "wave", length=36, seed=1, num_samples=2)
     assert f.per_label["wave"] == pytest.approx(condition_fidelity(samples, references, window=10))
     assert "**all**" in f.to_markdown()
+    # the confusion matrix, from the nearest-sequence strips, agrees with the metric
+    assert f.labels == ("walk_sad", "wave") and f.confusion.shape == (2, 2)
+    assert np.allclose(f.confusion.sum(1), 1.0)
+    assert np.allclose(np.diag(f.confusion), [f.per_label[k] for k in f.labels])
+    assert f.plot() is not None
     with pytest.raises(MotionValueError, match="num_samples"):
         condition_fidelity_of_model(model, num_samples=0)
 
