@@ -171,11 +171,14 @@ class Trainer:
         self.sigma = torch.stack(
             [self.sigma_clip[lab == k].mean(0) for k in range(data.num_labels)]
         )
-        # GANimator's default z*: N(0, 1) on every channel (full_zstar=1, not scaled by sigma_1)
-        self.zstar = [
-            torch.randn(NUM_FEATURES, int(self.lengths[k, 0]), generator=self.rng)
-            for k in range(data.num_clips)
-        ]
+        # Fixed reconstruction noise z*_1 of every clip (zero above level 1). "shared": a draw
+        # of the random noise itself, N(0, sigma_1) shared by all channels (paper Sec. 3.2-3.4);
+        # "full": N(0, 1) on every channel (GANimator's default, full_zstar=1).
+        k0 = NUM_FEATURES if config.zstar == "full" else 1
+        self.zstar = []
+        for k in range(data.num_clips):
+            z = torch.randn(k0, int(self.lengths[k, 0]), generator=self.rng)
+            self.zstar.append(z if config.zstar == "full" else z * self.sigma_clip[k, 0])
 
         # 2. networks -------------------------------------------------------------------------
         self.cond_dim = data.num_labels
@@ -215,7 +218,7 @@ class Trainer:
         self.w_rand = [lay.weights(i) for i in range(L)]
         self.w_vel = [lay.weights(i, lay.trimmed(i, start=1)) for i in range(L)]
         self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
-        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, C, S_1)
+        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, 1 or C, S_1)
         self._rec_cache: tuple[int, torch.Tensor] | None = None
 
     # -- conditions and noise --------------------------------------------------------------
@@ -340,7 +343,7 @@ class Trainer:
         all_noises, all_conds = [], []
         for i in range(hi + 1):
             zr, zn = rec_noises[i], noises[i]
-            zn = zn.expand(-1, zr.shape[1], -1)  # level 1: z*_1 has every channel
+            zn = zn.expand(-1, zr.shape[1], -1)  # level 1: a "full" z*_1 has every channel
             all_noises.append(torch.cat([zr, zn], -1))
             all_conds.append(torch.cat([rec_conds[i], rand_conds[i]], 1))
         outs = G.run(self.g_layout, all_noises, all_conds, lo, hi + 1, x=x_in, keep=True)

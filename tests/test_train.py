@@ -116,7 +116,8 @@ def test_train_writes_log_and_safe_checkpoint(data, body, tmp_path):
     assert state["labels"] == ["walk_happy", "walk_normal", "walk_sad"]
     assert state["progress"] == {"block": 2, "iteration": 0, "done": True}
     assert state["lengths"].shape == (3, 3) and state["sigma"].shape == (3, 3)
-    assert [z.shape for z in state["zstar"]] == [(153, int(n)) for n in state["lengths"][:, 0]]
+    # z*_1: one shared channel of N(0, sigma_1) per clip (the "shared" default)
+    assert [z.shape for z in state["zstar"]] == [(1, int(n)) for n in state["lengths"][:, 0]]
     assert json.loads((tmp_path / "checkpoint.pt.json").read_text()) == json.loads(state["config"])
     assert not list(tmp_path.glob(".*tmp*"))  # the atomic write left no temporary file
     with open(res.log) as fh:
@@ -199,6 +200,20 @@ def test_interrupt_inside_a_step_keeps_the_last_checkpoint(data, body, tmp_path)
     assert (
         load_checkpoint(tmp_path / "checkpoint.pt")["progress"]["iteration"] == 2
     )  # checkpoint_every=2
+
+
+def test_full_channel_zstar_option(data, body, tmp_path):
+    trainer = Trainer(data, tiny(zstar="full"), tmp_path, body=body)
+    assert [z.shape[0] for z in trainer.zstar] == [153] * 3
+    shared = Trainer(data, tiny(), tmp_path, body=body)
+    ratio = torch.stack(
+        [z.std() / s for z, s in zip(shared.zstar, shared.sigma_clip[:, 0], strict=True)]
+    )
+    assert ((ratio > 0.5) & (ratio < 1.5)).all()  # drawn with the level-1 noise amplitude
+    trainer.block = 1
+    trainer.start_block()
+    losses = trainer.step()  # a full-channel z* goes through the same batched step
+    assert set(losses) == {2} and torch.isfinite(losses[2]["rec"])
 
 
 def test_seeded_runs_are_reproducible(data, body, tmp_path):
