@@ -119,7 +119,11 @@ class PackedLevels:
         sizes: per level, total packed length ``S_i = sum_b (T_ib + gap)``.
         owner: per level ``(S_i,)`` the sample each frame belongs to (gap frames belong to
             the sample they follow).
+        local: per level ``(S_i,)`` frame index within its sample (``>= T_ib`` in the gap).
         valid: per level ``(1, S_i)`` bool, False on gap frames.
+
+    A padded batch would spend ``B * max_b T_ib - sum_b T_ib`` frames on padding (a third
+    of the work for the four Bandai walks of 143-347 frames); packing spends ``B * gap``.
     """
 
     table: torch.Tensor
