@@ -75,6 +75,7 @@ __all__ = [
     "coverage_per_sequence",
     "TrainRecord",
     "train_or_reuse",
+    "crop_to_bodies",
     "CrossoverView",
     "interactive_crossover",
 ]
@@ -248,7 +249,7 @@ class CrossoverEvidence:
         import matplotlib.pyplot as plt
 
         if axes is None:
-            _, axes = plt.subplots(1, 2, figsize=(9, 3.4))
+            _, axes = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
         axes = np.atleast_1d(axes)
         if len(axes) != 2:
             raise MotionValueError("CrossoverEvidence.plot needs two axes (one per band)")
@@ -660,6 +661,8 @@ def plot_nearest_sequence(
         extent=(0, N / fps, 0, 1),
     )
     band.set_yticks([])
+    band.tick_params(labelbottom=False)
+    pos.set_xlim(0, N / fps)
     band.set_title(
         title or f"nearest training sequence of every {strip.window}-frame window", fontsize=10
     )
@@ -856,6 +859,24 @@ def train_or_reuse(
 # ---------------------------------------------------------------------------------------
 # Interactive crossover
 # ---------------------------------------------------------------------------------------
+def crop_to_bodies(image: np.ndarray, pad: int = 16, min_saturation: int = 25) -> np.ndarray:
+    """Crop a ``render_meshes`` image ``(H, W, 3)`` uint8 to its coloured pixels (skin,
+    contact markers) plus ``pad`` pixels: the white background and the grey floor have
+    (almost) equal RGB channels and fall away. Returns the image unchanged when nothing
+    is coloured."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] < 3:
+        raise MotionValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
+    rgb = img[..., :3].astype(np.int16)
+    coloured = (rgb.max(-1) - rgb.min(-1)) > min_saturation  # (H, W)
+    rows, cols = np.flatnonzero(coloured.any(1)), np.flatnonzero(coloured.any(0))
+    if len(rows) == 0:
+        return img
+    r0, r1 = max(0, rows[0] - pad), min(img.shape[0], rows[-1] + pad + 1)
+    c0, c1 = max(0, cols[0] - pad), min(img.shape[1], cols[-1] + pad + 1)
+    return img[r0:r1, c0:c1]
+
+
 @dataclass
 class CrossoverView:
     """What one call of the interactive view made."""
@@ -955,7 +976,8 @@ def interactive_crossover(
         title = f"coarse '{a}' at levels 1-{i}, fine '{fine_txt}' at levels {i + 1}-{L} (seed {seed.value})"
         image = None
         if render:
-            image = render_meshes(motion, body, frames=evenly_spaced_frames(len(motion), frames))
+            frame_ids = evenly_spaced_frames(len(motion), frames)
+            image = crop_to_bodies(render_meshes(motion, body, frames=frame_ids))
         fig = plt.figure(figsize=(10, 6.4 if render else 3.4))
         ratios = [4, 0.5, 2] if render else [0.5, 2]  # (mesh view,) band, positions
         grid = fig.add_gridspec(len(ratios), 1, height_ratios=ratios)

@@ -13,6 +13,7 @@ from mrlib.control import (
     band_distances,
     condition_fidelity_of_model,
     coverage_per_sequence,
+    crop_to_bodies,
     crossover_blend,
     crossover_conditions,
     crossover_cutoff,
@@ -321,3 +322,15 @@ def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips):
         assert torch.equal(p, q)
     _, r3 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
     assert not r3.reused  # another config trains again
+
+
+def test_crop_to_bodies_keeps_the_coloured_pixels():
+    img = np.full((60, 80, 3), 255, np.uint8)
+    img[40:, :] = 170  # grey floor
+    img[10:20, 30:35] = (210, 170, 140)  # skin
+    out = crop_to_bodies(img, pad=2)
+    assert out.shape == (14, 9, 3) and (out[2:-2, 2:-2] == (210, 170, 140)).all()
+    blank = np.full((5, 5, 3), 255, np.uint8)
+    assert crop_to_bodies(blank).shape == (5, 5, 3)
+    with pytest.raises(MotionValueError, match="image"):
+        crop_to_bodies(np.zeros((5, 5)))
