@@ -908,6 +908,9 @@ def interactive_crossover(
     length: int | None = None,
     window: int = 30,
     render: bool = True,
+    coarse: str | None = None,
+    fine: str | None = None,
+    level: int | None = None,
 ) -> tuple[Any, Callable[[], CrossoverView]]:
     """An ipywidgets UI for label crossover.
 
@@ -930,6 +933,8 @@ def interactive_crossover(
         length: frames per sample; default the longest training clip.
         window: window of the nearest-sequence strip.
         render: draw the mesh view (off: only the strip, e.g. without pyvista).
+        coarse, fine, level: initial control values (default: the first label, the
+            last label, ``L // 2``).
     Returns:
         ``(widget, update)``: the ``VBox`` to display and the callback; ``update()``
         regenerates with the current control values and returns a :class:`CrossoverView`.
@@ -954,10 +959,12 @@ def interactive_crossover(
     references = _references_of(model)  # computed once, reused by every update
     labels = list(model.labels)
 
-    coarse = w.Dropdown(options=labels, value=labels[0], description="coarse")
-    fine = w.Dropdown(options=labels, value=labels[-1], description="fine")
+    first = [model.labels[model.label_index(x)] for x in (coarse or labels[0], fine or labels[-1])]
+    level = max(1, L // 2) if level is None else _check_level(model, level)
+    coarse = w.Dropdown(options=labels, value=first[0], description="coarse")
+    fine = w.Dropdown(options=labels, value=first[1], description="fine")
     level = w.IntSlider(
-        value=max(1, L // 2), min=1, max=L - 1, description="crossover i", continuous_update=False
+        value=level, min=1, max=L - 1, description="crossover i", continuous_update=False
     )
     seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
     weight = w.FloatSlider(

@@ -293,9 +293,14 @@ def test_interactive_crossover_mesh_view(model, monkeypatch):
         return np.zeros((40, 120, 3), np.uint8)
 
     monkeypatch.setattr(mrlib.render, "render_meshes", fake_render)
-    _, update = interactive_crossover(model, body=object(), frames=3, window=10)
+    _, update = interactive_crossover(
+        model, body=object(), frames=3, window=10, coarse="wave", fine="walk_sad", level=1
+    )
     view = update()
     assert view.image.shape == (40, 120, 3) and len(calls[-1]) == 3
+    assert view.title.startswith("coarse 'wave' at levels 1-1, fine 'walk_sad' at levels 2-4")
+    with pytest.raises(MotionValueError, match="unknown label"):
+        interactive_crossover(model, render=False, coarse="jump")
 
 
 # -- coverage and training helpers ------------------------------------------------------------
