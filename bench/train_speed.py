@@ -4,6 +4,8 @@ Run from the repository root::
 
     python bench/train_speed.py                 # paper-size networks, 1 and 4 clips
     python bench/train_speed.py --iters 2       # quicker, noisier
+    BENCH_THREADS=1 python bench/train_speed.py # one torch thread (on a busy machine, two
+                                                # threads per process thrash)
 
 Both implementations use the same networks (``ModelConfig`` of the ``paper`` preset:
 8 levels, 128/256/256 hidden channels), the same losses and the same data (Bandai Namco
