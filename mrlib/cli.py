@@ -15,7 +15,7 @@ EPILOG = """examples:
   mrlib info data_samples/walk_happy.npz
   mrlib train data_samples/*.npz --preset tutorial --out runs/samples
   mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10 --out outputs/happy
-  mrlib sample runs/samples/checkpoint.pt --crossover walk_sad:1-3 walk_happy:4-6 --out outputs/mix
+  mrlib sample runs/samples/checkpoint.pt --crossover walk_sad:1-4 walk_happy:5-8 --out outputs/mix
   mrlib export clip.bvh clip.npz
 """
 
@@ -221,7 +221,7 @@ def _add_sample(sub):
         "Writes one .npz (SMPL parameters) and one .bvh per sample, and a mesh render with --render.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10\n"
-        "  mrlib sample ckpt.pt --crossover walk_sad:1-3 walk_happy:4-6 --num 4 --render\n"
+        "  mrlib sample ckpt.pt --crossover walk_sad:1-4 walk_happy:5-8 --num 4 --render\n"
         "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5\n"
         "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render",
     )
