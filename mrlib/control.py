@@ -826,7 +826,8 @@ def train_or_reuse(
     data: Any, config: Any, out_dir: Any, *, body: Any = None, progress: bool = True
 ) -> tuple[Any, TrainRecord]:
     """Train with ``mrlib.train.train`` unless ``out_dir`` already holds a finished run
-    with the same config and the same clips; then load it. Notebooks use this so that a
+    with the same config (field for field, as saved next to the checkpoint) and the same
+    clips; then load it. Notebooks use this so that a
     reader's long run is not repeated on every execution.
 
     Returns:
@@ -835,17 +836,20 @@ def train_or_reuse(
         of its last logged iteration, without the final checkpoint write).
     """
     import csv
+    import json
     from pathlib import Path
 
-    from mrlib.config import config_from_json
+    from mrlib.config import config_to_json
     from mrlib.sample import load_model
     from mrlib.train import train
 
     out = Path(out_dir)
     ckpt, log = out / "checkpoint.pt", out / "losses.csv"
     if ckpt.exists() and ckpt.with_suffix(".pt.json").exists() and log.exists():
-        same_config = config_from_json(ckpt.with_suffix(".pt.json").read_text()) == config
-        if same_config:
+        # Compare the JSON itself: a field missing from it means an older mrlib wrote the
+        # run, whose defaults may differ from today's.
+        saved = json.loads(ckpt.with_suffix(".pt.json").read_text())
+        if saved == json.loads(config_to_json(config)):
             model = load_model(ckpt)
             if model.trained_levels == model.num_levels and model.clip_names == list(data.names):
                 with open(log, newline="") as fh:

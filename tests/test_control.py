@@ -1,3 +1,5 @@
+import json
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -327,6 +329,13 @@ def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips):
         assert torch.equal(p, q)
     _, r3 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
     assert not r3.reused  # another config trains again
+    # a run written by an older mrlib (a config field missing from its JSON) is not reused
+    meta = r3.checkpoint.with_suffix(".pt.json")
+    saved = json.loads(meta.read_text())
+    saved.pop("samples_per_clip")  # today's default, the same value as in cfg
+    meta.write_text(json.dumps(saved))
+    _, r4 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
+    assert not r4.reused
 
 
 def test_crop_to_bodies_keeps_the_coloured_pixels():
