@@ -6,18 +6,23 @@ The public API, in the order data flows through it::
     body = mrlib.load_body_model()                      # real SMPL or the embedded default body
     x = mrlib.motion_to_features(motion, body)          # (T, 153) model features
     contacts = mrlib.foot_contacts(motion, body)        # (T, 6) foot contact labels
+    result = mrlib.train(mrlib.TrainingSet.from_motions(clips), mrlib.tutorial(), "runs/x")
+    model = mrlib.load_model(result.checkpoint)
+    new = mrlib.generate(model, "walk_happy", length=600, seed=0)
 
 Conventions (metres, Y up, 6D = first two matrix columns) are stated in ``mrlib.skeleton``.
 Rendering helpers import pyvista / matplotlib only when called.
 """
 
 from mrlib.body import BodyModel, BodyOutput, load_body_model
+from mrlib.config import ModelConfig, TrainConfig, get_preset, paper, tutorial
 from mrlib.contacts import (
     DEFAULT_CONTACT_THRESHOLD,
     foot_contacts,
     foot_vertex_velocity,
     plot_contacts,
 )
+from mrlib.data import TrainingSet
 from mrlib.errors import (
     BodyModelError,
     BVHFormatError,
@@ -28,6 +33,7 @@ from mrlib.errors import (
     MrlibError,
     UnsupportedFormatError,
 )
+from mrlib.evaluate import EvaluationResult, evaluate, evaluate_model
 from mrlib.features import (
     NUM_FEATURES,
     FeatureNormalizer,
@@ -46,7 +52,10 @@ from mrlib.metrics import (
     reconstruction_error,
 )
 from mrlib.motion import Motion
+from mrlib.plausibility import plausibility_report
 from mrlib.render import animate_skeleton, plot_skeleton_strip, render_meshes, save_gif
+from mrlib.sample import cleanup_foot_contacts, generate, load_model, reconstruct
+from mrlib.train import train
 
 __version__ = "0.1.0"
 
@@ -69,6 +78,23 @@ __all__ = [
     "motion_to_features",
     "features_to_motion",
     "FeatureNormalizer",
+    # the model: configure, train, sample
+    "ModelConfig",
+    "TrainConfig",
+    "paper",
+    "tutorial",
+    "get_preset",
+    "TrainingSet",
+    "train",
+    "load_model",
+    "generate",
+    "reconstruct",
+    "cleanup_foot_contacts",
+    # evaluation
+    "evaluate",
+    "evaluate_model",
+    "EvaluationResult",
+    "plausibility_report",
     # metrics
     "metric_features",
     "coverage",
