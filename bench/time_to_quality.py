@@ -52,10 +52,11 @@ The training time at the first passing checkpoint is compared with GANimator's p
 schedule (Li et al., SIGGRAPH 2022: 15,000 iterations per two-level block, 5 critic steps
 per generator step, one model per clip) on this 2-core machine: 7.3 hours for the
 213-frame clip, from the naive GANimator-style step of ``bench/train_speed.py`` times
-15,000 iterations for each of the paper's four blocks. When
-``bench/results/train_speed.json`` holds single-clip naive timings of all four blocks,
-the projection is recomputed from them (the JSON says which was used). For the ``four``
-set the ratio is against one such run, though GANimator-mode needs one run per clip.
+15,000 iterations for each of the paper's four blocks. The ratio is taken against
+that figure. When ``bench/results/train_speed.json`` holds single-clip naive timings of
+all four blocks, the projection from those is reported next to it (it depends on that
+run's load and clip). For the ``four`` set the ratio is against one such run, though
+GANimator-mode needs one run per clip.
 
 Results are printed as tables and written to ``bench/results/time_to_quality.json``
 (with the load average during the run: on a shared machine the times are upper bounds).
@@ -319,20 +320,28 @@ def plot_curves(results: list[dict], targets: Targets, path: Path) -> Path:
     return path
 
 
-def ganimator_projection() -> tuple[float, str]:
-    """Hours of GANimator's schedule for the 213-frame clip on this machine, and the source."""
+def ganimator_projection() -> tuple[float, dict | None]:
+    """Hours of GANimator's schedule for one clip on this machine: the stated projection
+    for the 213-frame clip (the ratio is taken against it), and, when
+    ``bench/results/train_speed.json`` has single-clip naive timings of all four blocks,
+    the projection from those (measured under that run's load, on its clip)."""
     path = ROOT / "bench" / "results" / "train_speed.json"
+    measured = None
     try:
-        rows = json.loads(path.read_text())["rows"]
-        naive = {
-            r["block"]: r["s_per_it"] for r in rows if r["impl"] == "naive" and r["clips"] == 1
-        }
+        d = json.loads(path.read_text())
+        rows = [r for r in d["rows"] if r["impl"] == "naive" and r["clips"] == 1]
+        naive = {r["block"]: r["s_per_it"] for r in rows}
         if len(naive) == GANIMATOR_BLOCKS:
-            hours = GANIMATOR_ITERS_PER_BLOCK * sum(naive.values()) / 3600
-            return hours, f"{path.name}: naive single-clip s/it of blocks {sorted(naive)}"
+            measured = {
+                "hours": GANIMATOR_ITERS_PER_BLOCK * sum(naive.values()) / 3600,
+                "s_per_it": [naive[b] for b in sorted(naive)],
+                "frames": rows[0].get("frames"),
+                "loadavg_at_end": d.get("meta", {}).get("loadavg_at_end"),
+                "source": str(path.relative_to(ROOT)),
+            }
     except (OSError, KeyError, ValueError, TypeError):
         pass
-    return GANIMATOR_HOURS_213, "stated projection (naive GANimator-style step x 15,000 x 4 blocks)"
+    return GANIMATOR_HOURS_213, measured
 
 
 def git_commit() -> str:
@@ -385,7 +394,7 @@ def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
     )  # fmt: skip
     res = train(data, cfg, out_root / key, body=body, progress=False, callback=cb)
     total_train = time.perf_counter() - t_start - cb.eval_s
-    hours, source = ganimator_projection()
+    hours, measured = ganimator_projection()
     reached = cb.reached
     out = {
         "set": key,
@@ -406,7 +415,7 @@ def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
             "block": reached["block"],
         },
         "ganimator_hours": hours,
-        "ganimator_source": source,
+        "ganimator_measured": measured,
         "ratio": None if reached is None else hours * 3600 / reached["train_s"],
     }  # fmt: skip
     return out
@@ -494,6 +503,12 @@ def main(argv=None) -> int:
         print(
             f"| {r['set']} | {', '.join(str(f) for f in r['frames'])} | {when} | {it} | "
             f"{r['ganimator_hours']:.1f} h | {ratio} | {min(loads):.1f}-{max(loads):.1f} |"
+        )
+    measured = results[0]["ganimator_measured"]
+    if measured is not None:
+        print(
+            f"GANimator projection from {measured['source']} (clip of {measured['frames']} "
+            f"frames, load {measured['loadavg_at_end']}): {measured['hours']:.1f} h"
         )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps({"meta": meta, "sets": results}, indent=2, default=float) + "\n")
