@@ -6,12 +6,13 @@ The public API, in the order data flows through it::
     body = mrlib.load_body_model()                      # real SMPL or the embedded default body
     x = mrlib.motion_to_features(motion, body)          # (T, 153) model features
     contacts = mrlib.foot_contacts(motion, body)        # (T, 6) foot contact labels
-    result = mrlib.train(mrlib.TrainingSet.from_motions(clips), mrlib.tutorial(), "runs/x")
+    result = mrlib.train.train(mrlib.TrainingSet.from_motions(clips), mrlib.tutorial(), "runs/x")
     model = mrlib.load_model(result.checkpoint)
     new = mrlib.generate(model, "walk_happy", length=600, seed=0)
 
 Conventions (metres, Y up, 6D = first two matrix columns) are stated in ``mrlib.skeleton``.
-Rendering helpers import pyvista / matplotlib only when called.
+Rendering helpers import pyvista / matplotlib only when called. Submodules keep
+their own names (``mrlib.train``, ``mrlib.evaluate``, ``mrlib.sample``, ...).
 """
 
 from mrlib.body import BodyModel, BodyOutput, load_body_model
@@ -33,7 +34,7 @@ from mrlib.errors import (
     MrlibError,
     UnsupportedFormatError,
 )
-from mrlib.evaluate import EvaluationResult, evaluate, evaluate_model
+from mrlib.evaluate import EvaluationResult, evaluate_model
 from mrlib.features import (
     NUM_FEATURES,
     FeatureNormalizer,
@@ -55,7 +56,6 @@ from mrlib.motion import Motion
 from mrlib.plausibility import plausibility_report
 from mrlib.render import animate_skeleton, plot_skeleton_strip, render_meshes, save_gif
 from mrlib.sample import cleanup_foot_contacts, generate, load_model, reconstruct
-from mrlib.train import train
 
 __version__ = "0.1.0"
 
@@ -85,13 +85,11 @@ __all__ = [
     "tutorial",
     "get_preset",
     "TrainingSet",
-    "train",
     "load_model",
     "generate",
     "reconstruct",
     "cleanup_foot_contacts",
     # evaluation
-    "evaluate",
     "evaluate_model",
     "EvaluationResult",
     "plausibility_report",
