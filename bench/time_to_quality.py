@@ -4,7 +4,7 @@ Run from the repository root::
 
     python bench/time_to_quality.py                       # both sets, tutorial preset
     python bench/time_to_quality.py --set one --max-minutes 10 --eval-every 50
-    python bench/time_to_quality.py --set four --iterations 600,400,400 --samples 20
+    python bench/time_to_quality.py --set four --iterations 400,400,400,3000 --fix-contacts
 
 Two fixed training sets of Bandai Namco clips (``$MRLIB_DATA_DIR``):
 
@@ -423,7 +423,10 @@ def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--set", choices=["one", "four", "both"], default="both")
+    p.add_argument(
+        "--set", choices=["one", "four", "both"], default="both",
+        help="one: walk_happy_001 alone; four: walk_{normal,happy,sad,angry}_001 [default: both]",
+    )  # fmt: skip
     p.add_argument("--preset", default="tutorial", choices=["tutorial", "paper"])
     p.add_argument(
         "--iterations", default=None, metavar="N[,N...]",
@@ -442,7 +445,10 @@ def main(argv=None) -> int:
         "--samples", type=int, default=10,
         help="generated clips per training clip at each evaluation [default: 10]",
     )  # fmt: skip
-    p.add_argument("--skate-margin", type=float, default=Targets.skate_margin_pct)
+    p.add_argument(
+        "--skate-margin", type=float, default=Targets.skate_margin_pct,
+        help="allowed skating share above the training clip's, in points [default: 5]",
+    )  # fmt: skip
     p.add_argument(
         "--full-schedule", action="store_true",
         help="keep training (and evaluating) after the target is met",
