@@ -35,11 +35,13 @@ from mrlib.speech_train import (
     evaluate_speech_sync,
     generate_from_audio,
     load_speech_model,
+    phrase_loudness,
     residual_operators,
     speech_model_from_trainer,
     speech_paper,
     speech_train,
     speech_tutorial,
+    wrist_lift,
 )
 
 SR = 16_000
@@ -316,14 +318,26 @@ def test_audio_drives_the_motion_and_the_control_is_computed(trained, body):
     assert not np.allclose(a.poses[:, 16:22], b.poses[:, 16:22])  # same noise, other speech
     utts = [(bursts(3.0, s), SR) for s in (1, 2)]
     res = evaluate_speech_sync(model, utts, seeds=(0,), body=body)
-    assert len(res.rows) == 2 and set(res.summary()) == {
-        "r_model",
-        "r_shuffled",
-        "beat_model",
-        "beat_shuffled",
-    }
-    assert all(-1 <= r["r_model"] <= 1 and 0 <= r["beat_shuffled"] <= 1 for r in res.rows)
+    keys = {f"{k}_{w}" for k in ("r", "beat", "lift") for w in ("model", "shuffled")}
+    assert len(res.rows) == 2 and set(res.summary()) == keys
+    assert all(-1 <= r["lift_model"] <= 1 and 0 <= r["beat_shuffled"] <= 1 for r in res.rows)
     assert "other utterance" in res.to_markdown()
+
+
+def test_phrase_loudness_and_wrist_lift(body):
+    wav = np.zeros(3 * SR, np.float32)
+    wav[SR : 2 * SR] = 0.3 * np.sin(2 * np.pi * 150 * np.arange(SR) / SR)  # 1 s of sound
+    e = phrase_loudness(wav, SR, 25.0, 75)
+    assert e.shape == (75,) and 0 <= e.min() and e.max() <= 1
+    # a 1 s plateau of 1 under a Gaussian of sigma 0.5 s: P(|Z| < 1) = 0.683 at its centre
+    assert abs(e[37] - 0.683) < 0.05 and e[0] < 0.05 and e[74] < 0.05
+    T = 20
+    m = loop_motion(standing_base(seconds=1.0, fps=25.0), T)
+    lift = np.linspace(0, 1.2, T)[:, None] * np.array([[-1.0, 0, 0]])  # shoulder flexion
+    up = apply_offsets(m, {"left_shoulder": lift, "right_shoulder": lift})
+    h0, h1 = wrist_lift(m, body), wrist_lift(up, body)
+    assert h0.shape == (T,) and h0.max() < 0  # hanging arms: wrists below the pelvis
+    assert abs(h1[0] - h0[0]) < 1e-6 and h1[-1] - h0[-1] > 0.3
 
 
 def test_film_modulates_only_the_upper_body():
