@@ -66,6 +66,10 @@ class ModelConfig:
     # body (mrlib.skeleton.UPPER_BODY_JOINTS) so the legs are left to the generator.
     film_joints: tuple[int, ...] | None = None
     leaky_slope: float = 0.2
+    # Critics that see the condition (projection discriminator, Miyato & Koyama 2018). The
+    # paper's critics are unconditional: random generations are then judged only on
+    # realism, and the label reaches them only through the reconstruction loss.
+    critic_condition: bool = False
 
     def __post_init__(self):
         if self.num_levels < 1:

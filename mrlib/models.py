@@ -207,23 +207,50 @@ class LevelGenerator(nn.Module):
 class PatchCritic(nn.Module):
     """WGAN critic D_i: a small fully convolutional skeleton-aware net (receptive field
     ``n_layers * (K - 1) + 1`` frames) that scores every temporal patch; no sigmoid.
-    The score of a sequence is the mean of its patch scores (``mrlib.losses``)."""
+    The score of a sequence is the mean of its patch scores (``mrlib.losses``).
 
-    def __init__(self, config: ModelConfig):
+    With ``cond_dim > 0`` the critic is conditional, by projection (Miyato & Koyama,
+    ICLR 2018): ``D(x, c)_t = w * h(x)_t + <P c_t, h(x)_t>``, ``h`` the last hidden
+    activation ``(C_h, T)``, ``P`` a linear map of the per-frame condition. The paper's
+    critics are unconditional (``cond_dim = 0``); see ``ModelConfig.critic_condition``.
+    """
+
+    def __init__(self, config: ModelConfig, cond_dim: int = 0):
         super().__init__()
         joints = [channel_joint()] + [hidden_channel_joint(w) for w in config.disc_hidden]
         joints.append(np.zeros(1, np.int64))
         self.body = ConvStack(
             joints, config.kernel_size, config.neighbour_radius, config.leaky_slope, dense_last=True
         )
+        self.cond_dim = int(cond_dim)
+        self.project = (
+            nn.Linear(self.cond_dim, len(joints[-2]), bias=False) if self.cond_dim > 0 else None
+        )
 
     @property
     def receptive_field(self) -> int:
         return len(self.body.layers) * (self.body.pad * 2) + 1
 
-    def forward(self, x: torch.Tensor, pad_index: torch.Tensor) -> torch.Tensor:
-        """``x (B, C, T)`` -> per-frame patch scores ``(B, T)``."""
-        return self.body(x, pad_index)[:, 0]
+    def forward(
+        self, x: torch.Tensor, pad_index: torch.Tensor, cond: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """``x (B, C, T)``, ``cond (B, T, D)`` (conditional critics only) -> per-frame
+        patch scores ``(B, T)``."""
+        if self.project is None:
+            if cond is not None:
+                raise ValueError("this critic is unconditional; do not pass a condition")
+            return self.body(x, pad_index)[:, 0]
+        if cond is None or cond.shape[-1] != self.cond_dim or cond.shape[1] != x.shape[-1]:
+            got = None if cond is None else tuple(cond.shape)
+            raise ValueError(
+                f"conditional critic needs cond (B, {x.shape[-1]}, {self.cond_dim}), got {got}"
+            )
+        layers = self.body.layers
+        h = x
+        for layer in layers[:-1]:
+            h = F.leaky_relu(layer(h, pad_index), self.body.slope)
+        score = layers[-1](h, pad_index)[:, 0]  # (B, T)
+        return score + (self.project(cond).transpose(1, 2) * h).sum(1)
 
 
 class MultiResGenerator(nn.Module):
@@ -286,6 +313,6 @@ def build_generator(config: ModelConfig, cond_dim: int) -> MultiResGenerator:
     return MultiResGenerator(config, cond_dim)
 
 
-def build_critics(config: ModelConfig) -> nn.ModuleList:
-    """One patch critic per level."""
-    return nn.ModuleList(PatchCritic(config) for _ in range(config.num_levels))
+def build_critics(config: ModelConfig, cond_dim: int = 0) -> nn.ModuleList:
+    """One patch critic per level; conditional (projection) when ``cond_dim > 0``."""
+    return nn.ModuleList(PatchCritic(config, cond_dim) for _ in range(config.num_levels))

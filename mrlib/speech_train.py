@@ -57,7 +57,7 @@ import numpy as np
 import torch
 
 from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import ModelConfig, TrainConfig, config_from_json
+from mrlib.config import ConfigError, ModelConfig, TrainConfig, config_from_json
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
@@ -476,6 +476,11 @@ class SpeechTrainer(Trainer):
             raise MotionValueError(
                 "random_audio='unpaired' needs unpaired audio clips; add some or pass "
                 "random_audio='paired'"
+            )
+        if config.model.critic_condition:
+            raise ConfigError(
+                "critic_condition is implemented for label conditions only; speech "
+                "models use the paper's unconditional critics (critic_condition=False)"
             )
         if config.model.film_joints is None:
             warnings.warn(

@@ -79,6 +79,8 @@ def wgan_gp_critic_loss(
     alpha: torch.Tensor,
     pad_index: torch.Tensor,
     pad_index_pair: torch.Tensor,
+    cond_real: torch.Tensor | None = None,
+    cond_fake: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Critic loss ``E[D(fake)] - E[D(real)]`` and gradient penalty of packed batches.
 
@@ -93,10 +95,18 @@ def wgan_gp_critic_loss(
         alpha: ``(1, 1, S)`` interpolation weight of each sample, spread over its frames.
         pad_index: the layout's reflect-pad index ``(1, 1, S + 2p)``.
         pad_index_pair: that of the layout repeated twice ``(1, 1, 2S + 2p)``.
+        cond_real, cond_fake: ``(1, S, D)`` conditions of a conditional critic (the real
+            clips' own, and those the fakes were generated with; the penalty's
+            interpolates take the fakes'); None for an unconditional critic.
     """
     S = real.shape[-1]
-    scores = critic(torch.cat([real, fake], -1), pad_index_pair)  # (1, 2S)
-    gp = gradient_penalty(lambda x: critic(x, pad_index), real, fake, weights, alpha)
+    if cond_fake is None:
+        scores = critic(torch.cat([real, fake], -1), pad_index_pair)  # (1, 2S)
+        gp = gradient_penalty(lambda x: critic(x, pad_index), real, fake, weights, alpha)
+    else:
+        both = torch.cat([cond_real, cond_fake], 1)
+        scores = critic(torch.cat([real, fake], -1), pad_index_pair, both)
+        gp = gradient_penalty(lambda x: critic(x, pad_index, cond_fake), real, fake, weights, alpha)
     return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
 
 
@@ -183,7 +193,8 @@ class Trainer:
         # 2. networks -------------------------------------------------------------------------
         self.cond_dim = data.num_labels
         self.generator: MultiResGenerator = build_generator(mc, self.cond_dim).to(self.device)
-        self.critics = build_critics(mc).to(self.device)
+        critic_cond = self.cond_dim if mc.critic_condition else 0
+        self.critics = build_critics(mc, critic_cond).to(self.device)
         self.block = 0
         self.iteration = 0
         self.done = False
@@ -208,6 +219,13 @@ class Trainer:
         ]
         self.clip_labels = lab
         self.rec_labels = lab[:, None].expand(N, L)  # (N, L)
+        self.real_rand_conds = (
+            self.label_conditions(
+                lab[self.rand_clip][:, None].expand(self.B, L), self.rand_layout, L
+            )
+            if mc.critic_condition
+            else None
+        )  # a conditional critic sees every real clip with its own label
         fps_table = data.fps * self.lengths.double() / self.lengths[:, -1:].double()  # (N, L)
         rand_fps = fps_table[self.rand_clip].float()  # (B, L)
         self.rand_fps = [
@@ -316,6 +334,12 @@ class Trainer:
                     S = self.rand_layout.sizes[i]
                     fake = fakes[i][..., j * S : (j + 1) * S]  # the j-th copy of the random layout
                     alpha = self.rand_layout.per_sample(alphas[j], i)[None, None]  # (1, 1, S)
+                    cc = {}
+                    if self.real_rand_conds is not None:
+                        cc = dict(
+                            cond_real=self.real_rand_conds[i],
+                            cond_fake=conds[i][:, j * S : (j + 1) * S],
+                        )
                     wl, gp = wgan_gp_critic_loss(
                         self.critics[i],
                         self.real_rand[i],
@@ -324,6 +348,7 @@ class Trainer:
                         alpha,
                         self.rand_layout.pad_index(i, G.pad),
                         self.critic_layout.pad_index(i, G.pad),
+                        **cc,
                     )
                     total = total + wl + w.gp * gp
                     losses[i]["D"], losses[i]["gp"] = wl.detach(), gp.detach()
@@ -353,7 +378,8 @@ class Trainer:
             out_rec, out_rand = outs[k][..., :cut], outs[k][..., cut:]
             terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
             if c.n_critic > 0 and w.adv:
-                score = self.critics[i](out_rand, self.rand_layout.pad_index(i, G.pad))
+                cond = rand_conds[i] if self.real_rand_conds is not None else None
+                score = self.critics[i](out_rand, self.rand_layout.pad_index(i, G.pad), cond)
                 terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
             need_con = w.con and i + 1 >= c.contact_from_level
             need_smooth = w.smooth and i + 1 >= c.smooth_start

@@ -184,3 +184,27 @@ def test_critics_score_patches_without_sigmoid():
 def test_mask_density_shrinks_with_radius(radius):
     m = skeleton_mask(hidden_channel_joint(24), hidden_channel_joint(24), radius)
     assert m.float().mean() == pytest.approx(float((DIST <= radius).mean()))
+
+
+def test_conditional_critic_is_a_projection_of_the_last_hidden_layer():
+    torch.manual_seed(0)
+    critic = PatchCritic(TINY, cond_dim=3)
+    x = torch.randn(2, C, 20)
+    pad = _pad(20).expand(2, -1, -1)
+    a = torch.eye(3)[0].expand(2, 20, 3)
+    b = torch.eye(3)[2].expand(2, 20, 3)
+    sa, sb = critic(x, pad, a), critic(x, pad, b)
+    assert sa.shape == (2, 20) and not torch.allclose(sa, sb)
+    # the label enters linearly: D(x, (a + b) / 2) is the mean of the two scores
+    assert torch.allclose(critic(x, pad, (a + b) / 2), (sa + sb) / 2, atol=1e-5)
+    # with the projection zeroed it is the unconditional critic
+    with torch.no_grad():
+        critic.project.weight.zero_()
+    plain = PatchCritic(TINY)
+    plain.load_state_dict({k: v for k, v in critic.state_dict().items() if "project" not in k})
+    assert torch.allclose(critic(x, pad, a), plain(x, pad), atol=1e-6)
+    with pytest.raises(ValueError, match="needs cond"):
+        critic(x, pad)
+    with pytest.raises(ValueError, match="unconditional"):
+        plain(x, pad, a)
+    assert len(build_critics(TINY, cond_dim=3)) == 3

@@ -275,3 +275,22 @@ def test_training_set_from_motions():
         ts.label_index("walk_proud")
     with pytest.raises(MotionValueError):
         TrainingSet.from_motions([])
+
+
+def test_conditional_critics_train_resume_and_see_each_samples_label(data, body, tmp_path):
+    cfg = tiny(model=dataclasses.replace(TINY_MODEL, critic_condition=True), mix_prob=1.0)
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    assert all(c.project is not None and c.cond_dim == 3 for c in tr.critics)
+    # reals are shown with their own clip's label at every level
+    for i, cond in enumerate(tr.real_rand_conds):
+        owner = tr.rand_layout.owner[i]
+        assert torch.equal(cond[0].argmax(-1), tr.clip_labels[tr.rand_clip][owner])
+    tr.start_block()
+    before = [p.detach().clone() for p in tr.critics[0].project.parameters()]
+    tr.step()
+    assert not torch.equal(before[0], tr.critics[0].project.weight)
+    res = train(data, cfg, tmp_path / "run", body=body, progress=False)
+    state = load_checkpoint(res.checkpoint)
+    assert any("project" in k for k in state["critics"])
+    again = Trainer.from_checkpoint(res.checkpoint)
+    assert again.config.model.critic_condition and again.critics[0].project is not None
