@@ -6,6 +6,7 @@ standing base, so every test runs anywhere in a few seconds.
 """
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -154,6 +155,15 @@ def test_presets_follow_the_paper():
     p = speech_paper()
     assert p.block_iterations == (15000, 25000, 25000, 25000, 25000) and p.lr == 1e-4
     assert (p.loss.adv, p.loss.con, p.loss.rec, p.loss.smooth) == (1.0, 5.0, 50.0, 5.0)
+
+
+def test_conditional_critics_are_refused_for_speech(data, body, tmp_path):
+    from mrlib.config import ConfigError
+
+    cfg = tiny()
+    cfg = cfg.replace(model=dataclasses.replace(cfg.model, critic_condition=True))
+    with pytest.raises(ConfigError, match="label conditions only"):
+        SpeechTrainer(data, cfg, tmp_path, body=body)
 
 
 def test_training_set_holds_paired_and_unpaired_audio(data, pairs, body):
@@ -443,3 +453,26 @@ def test_cli_sample_audio(trained, tmp_path, capsys):
     assert main(["sample", str(trained.checkpoint), "--out", str(out)]) == 1
     assert "speech-conditioned model: pass --audio" in capsys.readouterr().err
     assert main(args + ["--seconds", "3"]) == 1
+
+
+def test_cli_train_speech_from_folders(tmp_path, capsys):
+    from mrlib.cli import main
+    from mrlib.io import save_motion
+
+    paired, unpaired = tmp_path / "paired", tmp_path / "unpaired"
+    paired.mkdir()
+    unpaired.mkdir()
+    for k in range(2):
+        p = pair(3.2, 20 + k)
+        soundfile.write(str(paired / f"talk{k}.wav"), bursts(3.2, 20 + k), SR)
+        save_motion(p.motion, paired / f"talk{k}.npz")
+    soundfile.write(str(unpaired / "extra.wav"), bursts(4.0, 30), SR)
+    out = tmp_path / "run"
+    args = ["train-speech", str(paired), "--unpaired", str(unpaired), "--iterations", "1"]
+    assert main(args + ["--out", str(out), "--no-progress"]) == 0
+    state = load_checkpoint(out / "checkpoint.pt")
+    assert state["speech"]["random_audio"] == "unpaired"
+    assert json.loads(state["speech"]["feature_config"])["kind"] == "logmel"
+    assert "done" in capsys.readouterr().out
+    assert main(["train-speech", "--out", str(out)]) == 1  # neither folder nor --resume
+    assert main(args[:2] + ["--iterations", "1,2", "--out", str(out)]) == 1  # 5 blocks
