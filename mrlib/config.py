@@ -117,6 +117,11 @@ class TrainConfig:
     # z*_1: "shared" = a draw of z_1 itself, N(0, sigma_1) shared by all channels (the paper's
     # noise, Sec. 3.2); "full" = N(0, 1) on every channel (GANimator's default)
     zstar: str = "shared"
+    # With conditional critics (ModelConfig.critic_condition): how a style-mixed sample is
+    # scored from its crossover level on. "none": without a label (a zero condition, i.e.
+    # the critic's unconditional score), so only single-label generations are held to
+    # their label; "label": with the label that drove each level.
+    critic_mixed: str = "none"
     smooth_from_level: int | None = None  # first level (1-based) with L_smooth; None: L//2+1
     contact_from_level: int = 1  # first level with L_con
     seed: int = 0
@@ -141,6 +146,8 @@ class TrainConfig:
             raise ConfigError("n_critic must be >= 0 and samples_per_clip >= 1")
         if self.zstar not in ("shared", "full"):
             raise ConfigError(f"zstar must be 'shared' or 'full', got {self.zstar!r}")
+        if self.critic_mixed not in ("none", "label"):
+            raise ConfigError(f"critic_mixed must be 'none' or 'label', got {self.critic_mixed!r}")
         if not 0 <= self.mix_prob <= 1:
             raise ConfigError(f"mix_prob must be in [0, 1], got {self.mix_prob}")
 

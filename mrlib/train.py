@@ -272,12 +272,25 @@ class Trainer:
         b = torch.randint(K, (batch,), generator=self.rng)
         cross = torch.randint(1, max(L, 2), (batch,), generator=self.rng)  # levels >= cross use b
         levels = torch.arange(L)[None]
-        table = torch.where(mix[:, None] & (levels >= cross[:, None]), b[:, None], a[:, None])
+        mixed = mix[:, None] & (levels >= cross[:, None])  # (B, L) levels driven by b
+        table = torch.where(mixed, b[:, None], a[:, None])
+        self._last_mixed = mixed  # read by the conditional critics (critic_conditions)
         noises = []
         for i in range(stop):
             z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
             noises.append(z * layout.per_sample(self.sigma[table[:, i], i], i))
         return self.label_conditions(table, layout, stop), noises
+
+    def critic_conditions(
+        self, conds: list[torch.Tensor], layout: PackedLevels
+    ) -> list[torch.Tensor]:
+        """What a conditional critic sees with the fakes of the latest :meth:`draw_random`
+        on ``layout``: their conditions, with a style-mixed sample's zeroed from its
+        crossover level on when ``critic_mixed == "none"``."""
+        if self.config.critic_mixed == "label":
+            return conds
+        keep = (~self._last_mixed).float()  # (B, L)
+        return [c * layout.per_sample(keep[:, i], i)[None, :, None] for i, c in enumerate(conds)]
 
     # -- blocks ------------------------------------------------------------------------------
     @property
@@ -326,6 +339,8 @@ class Trainer:
             conds, noises = self.draw_random(self.fake_layout, hi + 1)
             with torch.no_grad():
                 fakes = G.run(self.fake_layout, noises, conds, 0, hi + 1, keep=True)
+            if self.real_rand_conds is not None:
+                conds = self.critic_conditions(conds, self.fake_layout)
             alphas = torch.rand(c.n_critic, self.B, generator=self.rng).to(self.device)
             for j in range(c.n_critic):
                 self.opt_d.zero_grad(set_to_none=True)
@@ -358,6 +373,11 @@ class Trainer:
         # 2. generator step: reconstructions and random generations in one batch -------------
         self.opt_g.zero_grad(set_to_none=True)
         rand_conds, noises = self.draw_random(self.rand_layout, hi + 1)
+        critic_conds = (
+            None
+            if self.real_rand_conds is None
+            else self.critic_conditions(rand_conds, self.rand_layout)
+        )
         rec_conds = self.rec_conditions(hi + 1)
         rec_noises = self._rec_noises(hi + 1)
         x_in = None
@@ -378,7 +398,7 @@ class Trainer:
             out_rec, out_rand = outs[k][..., :cut], outs[k][..., cut:]
             terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
             if c.n_critic > 0 and w.adv:
-                cond = rand_conds[i] if self.real_rand_conds is not None else None
+                cond = None if critic_conds is None else critic_conds[i]
                 score = self.critics[i](out_rand, self.rand_layout.pad_index(i, G.pad), cond)
                 terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
             need_con = w.con and i + 1 >= c.contact_from_level

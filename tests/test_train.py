@@ -285,6 +285,20 @@ def test_conditional_critics_train_resume_and_see_each_samples_label(data, body,
     for i, cond in enumerate(tr.real_rand_conds):
         owner = tr.rand_layout.owner[i]
         assert torch.equal(cond[0].argmax(-1), tr.clip_labels[tr.rand_clip][owner])
+    # fakes: the label of each level, zeroed from a mixed sample's crossover level on
+    conds, _ = tr.draw_random(tr.rand_layout, 3)
+    mixed = tr._last_mixed
+    assert mixed.any() and (~mixed).any()
+    seen = tr.critic_conditions(conds, tr.rand_layout)
+    for i in range(3):
+        owner = tr.rand_layout.owner[i]
+        assert torch.equal(seen[i][0].sum(-1), (~mixed[owner, i]).float())
+        assert torch.equal(
+            seen[i][0].argmax(-1)[~mixed[owner, i]], conds[i][0].argmax(-1)[~mixed[owner, i]]
+        )
+    tr.config = cfg.replace(critic_mixed="label")
+    assert tr.critic_conditions(conds, tr.rand_layout) is conds
+    tr.config = cfg
     tr.start_block()
     before = [p.detach().clone() for p in tr.critics[0].project.parameters()]
     tr.step()
