@@ -1,6 +1,12 @@
 """Render the pictures used in README.md from data that ships with mrlib.
 
-    python tools/make_readme_images.py      # writes docs/images/*.png
+    python tools/make_readme_images.py                  # writes docs/images/*.png
+    python tools/make_readme_images.py --no-crossover   # only the contact render (seconds)
+
+The crossover picture trains the ``tutorial`` preset on the four clips of
+``data_samples/`` (a few minutes on a laptop CPU; the run is kept in
+``outputs/readme_model`` and reused), then renders a coarse-A / fine-B sample next to
+pure A and pure B samples with the same noise.
 
 Only the embedded default body and the synthetic data_samples are used, so the images
 carry no third-party data.
@@ -19,7 +25,59 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "images"
 
 
+def crossover_figure(body, coarse: str = "walk_sad", fine: str = "walk_happy", seed: int = 2):
+    """Three mesh strips (pure coarse label, pure fine label, crossover), labels named."""
+    import torch
+    from matplotlib.figure import Figure
+
+    from mrlib.config import tutorial
+    from mrlib.control import train_or_reuse
+    from mrlib.data import TrainingSet
+    from mrlib.render import evenly_spaced_frames
+    from mrlib.sample import generate
+
+    torch.set_num_threads(1)
+    clips = [mrlib.load_motion(p) for p in sorted((ROOT / "data_samples").glob("*.npz"))]
+    data = TrainingSet.from_motions(clips, body=body)
+    model, _ = train_or_reuse(data, tutorial(), ROOT / "outputs" / "readme_model", body=body)
+    L, split, length = model.num_levels, model.num_levels // 2, 90
+    rows = [
+        (f"'{coarse}' at every level", generate(model, coarse, length=length, seed=seed)),
+        (
+            f"crossover: '{coarse}' at levels 1-{split} (coarse), '{fine}' at levels {split + 1}-{L} (fine)",
+            generate(
+                model,
+                conditions=[(coarse, (1, split)), (fine, (split + 1, L))],
+                length=length,
+                seed=seed,
+            ),
+        ),
+        (f"'{fine}' at every level", generate(model, fine, length=length, seed=seed)),
+    ]
+    frames = evenly_spaced_frames(length, 6)
+    imgs = [
+        mrlib.render_meshes(
+            m, body, frames=frames, highlight_contacts=False, window_size=(1100, 330)
+        )
+        for _, m in rows
+    ]
+    h, w = imgs[0].shape[:2]
+    fig = Figure(figsize=(w / 100, 3 * (h + 36) / 100), dpi=100)
+    for k, ((title, _), img) in enumerate(zip(rows, imgs, strict=True)):
+        ax = fig.add_axes((0, 1 - (k + 1) / 3, 1, (h / (h + 36)) / 3))
+        ax.imshow(img)
+        ax.axis("off")
+        ax.set_title(title, fontsize=11)
+    fig.savefig(OUT / "crossover.png")
+    print("wrote", OUT / "crossover.png")
+
+
 def main() -> None:
+    import argparse
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--no-crossover", action="store_true", help="skip the crossover picture")
+    args = p.parse_args()
     OUT.mkdir(parents=True, exist_ok=True)
     body = mrlib.load_body_model()
     walk = mrlib.load_motion(ROOT / "data_samples" / "walk_happy.npz")
@@ -30,6 +88,8 @@ def main() -> None:
     )
     iio.imwrite(OUT / "walk_contacts.png", img)
     print("wrote", OUT / "walk_contacts.png", img.shape)
+    if not args.no_crossover:
+        crossover_figure(body)
 
 
 if __name__ == "__main__":
