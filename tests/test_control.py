@@ -316,6 +316,12 @@ def test_coverage_per_sequence_matches_the_metric(model):
     assert cov[model.clip_names[1]] == pytest.approx(coverage(samples, refs[1], window=10))
     with pytest.raises(MotionValueError, match="length_factor"):
         coverage_per_sequence(model, length_factor=0.0)
+    many = coverage_per_sequence(model, 2, 1.5, seed=4, window=10, eps=(2.0, 1e9, 1e-9))
+    assert (
+        many[2.0] == cov and set(many[1e9].values()) == {1.0} and set(many[1e-9].values()) == {0.0}
+    )
+    with pytest.raises(MotionValueError, match="eps"):
+        coverage_per_sequence(model, eps=-1.0)
 
 
 def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips):
