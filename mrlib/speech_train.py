@@ -57,7 +57,7 @@ import numpy as np
 import torch
 
 from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import ConfigError, ModelConfig, TrainConfig, config_from_json
+from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig, config_from_json
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
@@ -130,6 +130,14 @@ def speech_tutorial() -> TrainConfig:
     clips, levels 1-2 only): the arms' reconstruction error falls below that of each
     clip's median pose after ~700 iterations at 2e-3; at 1e-4 the whole reconstruction
     error is still above it after 300.
+
+    The smoothness weight is 0.5, not the paper's 5: the smoothness term penalises the
+    fast beat strokes that carry the syllable-level coupling. Measured on the synthetic
+    set (12 paired + 12 unpaired clips, 4 held-out utterances x 3 seeds): the
+    loudness / hand-speed correlation was 0.125 +- 0.123 with weight 5 (driving the same
+    model with another utterance's audio: 0.155) and 0.236 +- 0.093 with 0.5 (other
+    audio: 0.157); the phrase-level loudness / wrist-height correlation was 0.81 and 0.77
+    (other audio 0.24 and 0.23).
     """
     return TrainConfig(
         model=ModelConfig(
@@ -140,6 +148,7 @@ def speech_tutorial() -> TrainConfig:
             film_joints=UPPER_BODY_JOINTS,
         ),
         block_size=2,
+        loss=LossWeights(smooth=0.5),
         block_iterations=(1500, 800, 600, 500, 500),
         lr=2e-3,
         n_critic=1,
