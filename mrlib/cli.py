@@ -172,6 +172,7 @@ def _single_clip(data, k: int):
 
 
 def _cmd_train(args) -> int:
+    from mrlib.config import ganimator_mode
     from mrlib.data import TrainingSet
     from mrlib.train import train
 
@@ -192,7 +193,7 @@ def _cmd_train(args) -> int:
             one = _single_clip(data, k)
             out = args.out / data.names[k]
             print(f"[{k + 1}/{data.num_clips}] {data.names[k]} -> {out}")
-            res = train(one, cfg.replace(mix_prob=0.0), out, progress=not args.no_progress)
+            res = train(one, ganimator_mode(cfg), out, progress=not args.no_progress)
             if res.interrupted:
                 return 130
         return 0

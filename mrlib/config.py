@@ -52,6 +52,7 @@ __all__ = [
     "tutorial",
     "PRESETS",
     "get_preset",
+    "ganimator_mode",
     "config_to_json",
     "config_from_json",
 ]
@@ -224,6 +225,13 @@ def tutorial() -> TrainConfig:
         checkpoint_every=200,
         log_every=10,
     )
+
+
+def ganimator_mode(config: TrainConfig) -> TrainConfig:
+    """``config`` for a GANimator-style baseline (one model per clip, Li et al. 2022): no
+    style mixing (one label, nothing to mix) and unconditional critics."""
+    model = dataclasses.replace(config.model, critic_condition=False)
+    return config.replace(mix_prob=0.0, model=model)
 
 
 PRESETS = {"paper": paper, "tutorial": tutorial}

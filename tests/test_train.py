@@ -308,3 +308,14 @@ def test_conditional_critics_train_resume_and_see_each_samples_label(data, body,
     assert any("project" in k for k in state["critics"])
     again = Trainer.from_checkpoint(res.checkpoint)
     assert again.config.model.critic_condition and again.critics[0].project is not None
+
+
+def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
+    from mrlib.config import ganimator_mode
+
+    t = tutorial()
+    g = ganimator_mode(t)
+    assert t.model.critic_condition and t.mix_prob == 0.9
+    assert not g.model.critic_condition and g.mix_prob == 0.0
+    assert dataclasses.replace(g.model, critic_condition=True) == t.model
+    assert g.replace(mix_prob=0.9, model=t.model) == t
