@@ -25,13 +25,15 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "images"
 
 
-def crossover_figure(body, coarse: str = "walk_sad", fine: str = "walk_happy", seed: int = 2):
+def crossover_figure(
+    body, coarse: str = "walk_sad", fine: str = "walk_happy", split: int = 2, seed: int = 2
+):
     """Three mesh strips (pure coarse label, pure fine label, crossover), labels named."""
     import torch
     from matplotlib.figure import Figure
 
     from mrlib.config import tutorial
-    from mrlib.control import train_or_reuse
+    from mrlib.control import crop_to_bodies, train_or_reuse
     from mrlib.data import TrainingSet
     from mrlib.render import evenly_spaced_frames
     from mrlib.sample import generate
@@ -40,7 +42,7 @@ def crossover_figure(body, coarse: str = "walk_sad", fine: str = "walk_happy", s
     clips = [mrlib.load_motion(p) for p in sorted((ROOT / "data_samples").glob("*.npz"))]
     data = TrainingSet.from_motions(clips, body=body)
     model, _ = train_or_reuse(data, tutorial(), ROOT / "outputs" / "readme_model", body=body)
-    L, split, length = model.num_levels, model.num_levels // 2, 90
+    L, length = model.num_levels, 90
     rows = [
         (f"'{coarse}' at every level", generate(model, coarse, length=length, seed=seed)),
         (
@@ -56,12 +58,18 @@ def crossover_figure(body, coarse: str = "walk_sad", fine: str = "walk_happy", s
     ]
     frames = evenly_spaced_frames(length, 6)
     imgs = [
-        mrlib.render_meshes(
-            m, body, frames=frames, highlight_contacts=False, window_size=(1100, 330)
+        crop_to_bodies(
+            mrlib.render_meshes(
+                m, body, frames=frames, highlight_contacts=False, window_size=(1400, 520)
+            )
         )
         for _, m in rows
     ]
-    h, w = imgs[0].shape[:2]
+    h, w = max(i.shape[0] for i in imgs), max(i.shape[1] for i in imgs)
+    imgs = [
+        np.pad(i, ((0, h - i.shape[0]), (0, w - i.shape[1]), (0, 0)), constant_values=255)
+        for i in imgs
+    ]
     fig = Figure(figsize=(w / 100, 3 * (h + 36) / 100), dpi=100)
     for k, ((title, _), img) in enumerate(zip(rows, imgs, strict=True)):
         ax = fig.add_axes((0, 1 - (k + 1) / 3, 1, (h / (h + 36)) / 3))
