@@ -286,11 +286,20 @@ class Trainer:
     ) -> list[torch.Tensor]:
         """What a conditional critic sees with the fakes of the latest :meth:`draw_random`
         on ``layout``: their conditions, with a style-mixed sample's zeroed from its
-        crossover level on when ``critic_mixed == "none"``."""
+        crossover level on when ``critic_mixed == "none"``. The real clip that shares the
+        sample's slot is then scored without its label too: were only fakes ever
+        unlabelled, the critic could tell them apart by the missing label alone (the
+        projection term is outside the gradient penalty's reach), which we saw diverge."""
         if self.config.critic_mixed == "label":
             return conds
-        keep = (~self._last_mixed).float()  # (B, L)
+        keep = self._critic_keep()
         return [c * layout.per_sample(keep[:, i], i)[None, :, None] for i, c in enumerate(conds)]
+
+    def _critic_keep(self) -> torch.Tensor:
+        """``(B, L)`` 1 where the latest draw's sample is scored with its label, else 0."""
+        if self.config.critic_mixed == "label":
+            return torch.ones_like(self._last_mixed, dtype=torch.float32)
+        return (~self._last_mixed).float()
 
     # -- blocks ------------------------------------------------------------------------------
     @property
@@ -341,6 +350,7 @@ class Trainer:
                 fakes = G.run(self.fake_layout, noises, conds, 0, hi + 1, keep=True)
             if self.real_rand_conds is not None:
                 conds = self.critic_conditions(conds, self.fake_layout)
+                keep = self._critic_keep()  # (n_critic * B, L)
             alphas = torch.rand(c.n_critic, self.B, generator=self.rng).to(self.device)
             for j in range(c.n_critic):
                 self.opt_d.zero_grad(set_to_none=True)
@@ -351,8 +361,11 @@ class Trainer:
                     alpha = self.rand_layout.per_sample(alphas[j], i)[None, None]  # (1, 1, S)
                     cc = {}
                     if self.real_rand_conds is not None:
+                        # a real clip is shown without its label where its fake partner
+                        # (same sample slot) is: both sides see the same kind of condition
+                        k_j = self.rand_layout.per_sample(keep[j * self.B : (j + 1) * self.B, i], i)
                         cc = dict(
-                            cond_real=self.real_rand_conds[i],
+                            cond_real=self.real_rand_conds[i] * k_j[None, :, None],
                             cond_fake=conds[i][:, j * S : (j + 1) * S],
                         )
                     wl, gp = wgan_gp_critic_loss(

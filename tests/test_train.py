@@ -319,3 +319,27 @@ def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
     assert not g.model.critic_condition and g.mix_prob == 0.0
     assert dataclasses.replace(g.model, critic_condition=True) == t.model
     assert g.replace(mix_prob=0.9, model=t.model) == t
+
+
+def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(
+    data, body, tmp_path, monkeypatch
+):
+    import mrlib.train as mt
+
+    cfg = tiny(
+        model=dataclasses.replace(TINY_MODEL, critic_condition=True), mix_prob=1.0, n_critic=2
+    )
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    tr.start_block()
+    seen = []
+    real_loss = mt.wgan_gp_critic_loss
+
+    def spy(*args, **kw):
+        seen.append((kw["cond_real"].sum(-1), kw["cond_fake"].sum(-1)))
+        return real_loss(*args, **kw)
+
+    monkeypatch.setattr(mt, "wgan_gp_critic_loss", spy)
+    tr.step()
+    assert len(seen) == 2 * 2  # n_critic steps x two levels in block 1
+    assert all(torch.equal(r, f) for r, f in seen)  # labelled on exactly the same frames
+    assert any((f == 0).any() and (f == 1).any() for _, f in seen)  # some mixed, some not
