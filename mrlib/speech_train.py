@@ -930,6 +930,17 @@ class SyncResult:
         vals = [r[key] for r in self.rows if key in r]
         return float(np.std(vals)) if vals else float("nan")
 
+    def paired(self, key: str) -> tuple[float, float, int, int]:
+        """Own audio against the other utterance's, row by row (same utterance and
+        noise): ``(mean difference, its standard error, rows where own > other, rows)``."""
+        d = np.array(
+            [r[f"{key}_model"] - r[f"{key}_shuffled"] for r in self.rows if f"{key}_model" in r]
+        )
+        if len(d) == 0:
+            return float("nan"), float("nan"), 0, 0
+        se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan")
+        return float(d.mean()), se, int((d > 0).sum()), len(d)
+
     def summary(self) -> dict[str, float]:
         """Means over the rows: ``{"r_model": ..., "r_shuffled": ..., ...}``."""
         keys = [f"{k}_{w}" for w in ("model", "shuffled", "data") for k in self.KEYS]
@@ -948,6 +959,11 @@ class SyncResult:
             ("shuffled", "model, other utterance's audio"),
         ):
             lines.append(f"| {name} | " + " | ".join(cell(f"{k}_{who}") for k in self.KEYS) + " |")
+        diffs = []
+        for k in self.KEYS:
+            m, se, wins, n = self.paired(k)
+            diffs.append(f"{m:+.3f} +- {se:.3f} s.e. ({wins}/{n} higher)")
+        lines.append("| own - other audio, paired | " + " | ".join(diffs) + " |")
         if any("r_data" in r for r in self.rows):
             lines.append(
                 "| reference motion | " + " | ".join(cell(f"{k}_data") for k in self.KEYS) + " |"

@@ -331,7 +331,11 @@ def test_audio_drives_the_motion_and_the_control_is_computed(trained, body):
     keys = {f"{k}_{w}" for k in ("r", "beat", "lift") for w in ("model", "shuffled")}
     assert len(res.rows) == 2 and set(res.summary()) == keys
     assert all(-1 <= r["lift_model"] <= 1 and 0 <= r["beat_shuffled"] <= 1 for r in res.rows)
-    assert "other utterance" in res.to_markdown()
+    assert "other utterance" in res.to_markdown() and "paired" in res.to_markdown()
+    mean, se, wins, n = res.paired("r")
+    d = [r["r_model"] - r["r_shuffled"] for r in res.rows]
+    assert n == 2 and wins == sum(x > 0 for x in d) and mean == pytest.approx(np.mean(d))
+    assert se == pytest.approx(np.std(d, ddof=1) / np.sqrt(2))
 
 
 def test_phrase_loudness_and_wrist_lift(body):
