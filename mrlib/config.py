@@ -207,8 +207,8 @@ def tutorial() -> TrainConfig:
     a 2-core CPU shared with other jobs, one torch thread: condition fidelity 95.7 %
     (paper-style unconditional critics: 71.9 % at 400 and 85.5 % at 800 iterations per
     block; conditional critics at 400: 82.2 %), coverage 100 % at eps 2 and 1, the
-    crossover's low-pass band from the coarse label in 24 of 24 cases; 15 minutes of wall
-    time. ``bench/time_to_quality.py`` reports when a model first meets the quality
+    crossover's low-pass band from the coarse label in 24 of 24 cases; 716 s of training
+    (12 minutes wall, the other core busy with another job). ``bench/time_to_quality.py`` reports when a model first meets the quality
     target."""
     return TrainConfig(
         model=ModelConfig(
