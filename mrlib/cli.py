@@ -133,6 +133,14 @@ def _add_train(sub):
     p.set_defaults(func=_cmd_train)
 
 
+def _block_iterations(iterations, n: int) -> tuple[int, ...]:
+    """``--iterations`` for a model of ``n`` blocks: one value for all, or one per block."""
+    its = tuple(iterations) * n if len(iterations) == 1 else tuple(iterations)
+    if len(its) != n:
+        raise MrlibError(f"--iterations has {len(its)} values but the model has {n} blocks")
+    return its
+
+
 def training_config(preset: str, iterations=None, levels=None, seed=None, device=None):
     """A preset with the CLI's overrides applied. Changing ``levels`` keeps the preset's
     first-block budget for block 1 and its last block's budget for every other block."""
@@ -145,9 +153,7 @@ def training_config(preset: str, iterations=None, levels=None, seed=None, device
     model = cfg.model if levels is None else dataclasses.replace(cfg.model, num_levels=levels)
     n = math.ceil(model.num_levels / cfg.block_size)
     if iterations is not None:
-        its = tuple(iterations) * n if len(iterations) == 1 else tuple(iterations)
-        if len(its) != n:
-            raise MrlibError(f"--iterations has {len(its)} values but the model has {n} blocks")
+        its = _block_iterations(iterations, n)
     else:
         base = cfg.block_iterations
         its = tuple(base[0] if b == 0 else base[min(b, len(base) - 1)] for b in range(n))
@@ -234,7 +240,7 @@ def _add_train_speech(sub):
         "--preset",
         default="tutorial",
         choices=["tutorial", "paper"],
-        help="'tutorial' (CPU, ~30 min for a dozen 10 s clips) or 'paper' (the paper's "
+        help="'tutorial' (CPU, ~20 min for a dozen 10 s clips) or 'paper' (the paper's "
         "schedule; use a GPU) [default: tutorial]",
     )
     p.add_argument(
@@ -263,13 +269,7 @@ def _cmd_train_speech(args) -> int:
             raise MrlibError("give a folder of paired clips, or --resume a checkpoint")
         cfg = speech_paper() if args.preset == "paper" else speech_tutorial()
         if args.iterations is not None:
-            its = args.iterations
-            its = tuple(its) * cfg.num_blocks if len(its) == 1 else tuple(its)
-            if len(its) != cfg.num_blocks:
-                raise MrlibError(
-                    f"--iterations has {len(its)} values but the model has {cfg.num_blocks} blocks"
-                )
-            cfg = cfg.replace(block_iterations=its)
+            cfg = cfg.replace(block_iterations=_block_iterations(args.iterations, cfg.num_blocks))
         if args.seed is not None:
             cfg = cfg.replace(seed=args.seed)
         cfg = cfg.replace(device=args.device)

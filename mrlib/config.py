@@ -208,8 +208,8 @@ def tutorial() -> TrainConfig:
     (paper-style unconditional critics: 71.9 % at 400 and 85.5 % at 800 iterations per
     block; conditional critics at 400: 82.2 %), coverage 100 % at eps 2 and 1, the
     crossover's low-pass band from the coarse label in 24 of 24 cases; 716 s of training
-    (12 minutes wall, the other core busy with another job). ``bench/time_to_quality.py`` reports when a model first meets the quality
-    target."""
+    (12 minutes wall, the other core busy with another job). ``bench/time_to_quality.py``
+    reports when a model first meets the quality target."""
     return TrainConfig(
         model=ModelConfig(
             num_levels=8,
