@@ -30,7 +30,7 @@ demo: $(READY)
 ## Lint, unit and real-data tests, and every notebook executed headless.
 test: $(READY)
 	$(BIN)/ruff check mrlib tests bench tools
-	MRLIB_QUICK=1 $(BIN)/python -m pytest --nbmake --nbmake-timeout=900 -p no:cacheprovider tests notebooks
+	MRLIB_QUICK=1 $(BIN)/python -m pytest --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
 
 lint: $(READY)
 	$(BIN)/ruff check mrlib tests bench tools
