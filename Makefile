@@ -29,12 +29,12 @@ demo: $(READY)
 
 ## Lint, unit and real-data tests, and every notebook executed headless.
 test: $(READY)
-	$(BIN)/ruff check mrlib tests bench tools
+	$(BIN)/ruff check mrlib tests bench tools notebooks/conftest.py
 	MRLIB_QUICK=1 $(BIN)/python -m pytest --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
 
 lint: $(READY)
-	$(BIN)/ruff check mrlib tests bench tools
-	$(BIN)/ruff format --check mrlib tests bench tools
+	$(BIN)/ruff check mrlib tests bench tools notebooks/conftest.py
+	$(BIN)/ruff format --check mrlib tests bench tools notebooks/conftest.py
 
 format: $(READY)
 	$(BIN)/ruff format mrlib tests bench tools

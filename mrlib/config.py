@@ -30,10 +30,13 @@ Beyond the paper (on in ``tutorial``, off in ``paper``): conditional critics
 2018). With unconditional critics a label reaches random generations only through the
 reconstruction loss, and single-label samples drift to other labels' motion (condition
 fidelity 72 % on four Bandai walks at 400 iterations per block); conditional critics
-hold them to their label (82 % at 400, 96 % at 800). Style-mixed samples are scored
-without a label from their crossover level on (``critic_mixed="none"``): scoring them
-with each level's label made the crossover a switch between the two labels (see
-``mrlib.control``).
+hold them to their label (82 % at 400, 96 % at 800). Whether a crossover also takes its
+fine detail from the fine label depends on what the label term looks at: judging the
+whole signal made the crossover a switch between the two labels, and judging only
+single-label samples left the detail with the coarse label (2 of 24 cases). The
+``tutorial`` preset judges the label on the detail band only (``critic_band="detail"``)
+and scores every level with the label that drove it (``critic_mixed="label"``): the
+detail then follows the fine label in 11 of 24 cases (see ``mrlib.control``).
 """
 
 from __future__ import annotations
@@ -81,6 +84,10 @@ class ModelConfig:
     # paper's critics are unconditional: random generations are then judged only on
     # realism, and the label reaches them only through the reconstruction loss.
     critic_condition: bool = False
+    # What the condition term of a conditional critic looks at: "full" = the critic's own
+    # features of the whole signal; "detail" = features of a separate branch that sees only
+    # the detail band ``x - box_K(x)`` (K = kernel_size), so the label is judged on detail.
+    critic_band: str = "full"
 
     def __post_init__(self):
         if self.num_levels < 1:
@@ -91,6 +98,8 @@ class ModelConfig:
             raise ConfigError(f"kernel_size must be odd, got {self.kernel_size}")
         if not self.gen_hidden or not self.disc_hidden:
             raise ConfigError("gen_hidden and disc_hidden need at least one layer")
+        if self.critic_band not in ("full", "detail"):
+            raise ConfigError(f"critic_band must be 'full' or 'detail', got {self.critic_band!r}")
         if self.film_joints is not None:
             object.__setattr__(self, "film_joints", tuple(int(j) for j in self.film_joints))
             if any(not 0 <= j < 24 for j in self.film_joints):
@@ -201,15 +210,17 @@ def tutorial() -> TrainConfig:
     """A CPU budget: the paper's 8 levels and losses, narrower networks (72/144/144 hidden
     channels in the generators, 48/96/96 in the critics), 2 critic steps per generator
     step, a larger learning rate (5e-4), 800 iterations per block, and conditional
-    critics that score style-mixed samples without a label (``critic_mixed="none"``).
+    critics whose label term sees the detail band (``critic_band="detail"``), each level
+    scored with the label that drove it (``critic_mixed="label"``).
 
     Measured on four Bandai walks (normal/happy/sad/angry_001, ~900 frames at 30 fps) on
-    a 2-core CPU shared with other jobs, one torch thread: condition fidelity 95.7 %
+    a 2-core CPU shared with other jobs, one torch thread: condition fidelity 96.5 %
     (paper-style unconditional critics: 71.9 % at 400 and 85.5 % at 800 iterations per
-    block; conditional critics at 400: 82.2 %), coverage 100 % at eps 2 and 1, the
-    crossover's low-pass band from the coarse label in 24 of 24 cases; 716 s of training
-    (12 minutes wall, the other core busy with another job). ``bench/time_to_quality.py``
-    reports when a model first meets the quality target."""
+    block), coverage 100 % at eps 2 and 1, crossovers at levels 2 and 4 of all 12 label
+    pairs: low-pass band from the coarse label in 21 of 24 cases, detail from the fine
+    label in 11 of 24, both in 8 (the previous preset, full-band label term on
+    single-label samples only: 24, 2 and 2); 1059 s of training (the other core busy).
+    ``bench/time_to_quality.py`` reports when a model first meets the quality target."""
     return TrainConfig(
         model=ModelConfig(
             num_levels=8,
@@ -217,11 +228,13 @@ def tutorial() -> TrainConfig:
             gen_hidden=(72, 144, 144),
             disc_hidden=(48, 96, 96),
             critic_condition=True,
+            critic_band="detail",
         ),
         block_size=2,
         block_iterations=(800, 800, 800, 800),
         lr=5e-4,
         n_critic=2,
+        critic_mixed="label",
         checkpoint_every=200,
         log_every=10,
     )

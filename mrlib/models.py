@@ -213,6 +213,11 @@ class PatchCritic(nn.Module):
     ICLR 2018): ``D(x, c)_t = w * h(x)_t + <P c_t, h(x)_t>``, ``h`` the last hidden
     activation ``(C_h, T)``, ``P`` a linear map of the per-frame condition. The paper's
     critics are unconditional (``cond_dim = 0``); see ``ModelConfig.critic_condition``.
+
+    With ``ModelConfig.critic_band == "detail"`` the projection takes ``h`` from a branch
+    of its own (the critic's layers less its last hidden one) fed with the detail band
+    ``x - box_K(x)`` (a K-frame moving average, reflect-padded per sample), so the label
+    is judged on detail while ``w * h(x)`` still judges realism of the whole signal.
     """
 
     def __init__(self, config: ModelConfig, cond_dim: int = 0):
@@ -223,9 +228,16 @@ class PatchCritic(nn.Module):
             joints, config.kernel_size, config.neighbour_radius, config.leaky_slope, dense_last=True
         )
         self.cond_dim = int(cond_dim)
-        self.project = (
-            nn.Linear(self.cond_dim, len(joints[-2]), bias=False) if self.cond_dim > 0 else None
-        )
+        self.detail = None
+        if self.cond_dim > 0 and config.critic_band == "detail":
+            # the critic's layers less its last hidden one: cheaper, and the detail band
+            # needs a short temporal reach only
+            d_joints = joints[: max(2, len(joints) - 2)]
+            self.detail = ConvStack(
+                d_joints, config.kernel_size, config.neighbour_radius, config.leaky_slope
+            )
+        width = len(joints[-2] if self.detail is None else d_joints[-1])
+        self.project = nn.Linear(self.cond_dim, width, bias=False) if self.cond_dim > 0 else None
 
     @property
     def receptive_field(self) -> int:
@@ -250,6 +262,11 @@ class PatchCritic(nn.Module):
         for layer in layers[:-1]:
             h = F.leaky_relu(layer(h, pad_index), self.body.slope)
         score = layers[-1](h, pad_index)[:, 0]  # (B, T)
+        if self.detail is not None:
+            B, C, _ = x.shape
+            xp = x.gather(2, pad_index.expand(B, C, -1))  # reflect-padded per sample
+            band = x - F.avg_pool1d(xp, self.body.pad * 2 + 1, stride=1)
+            h = F.leaky_relu(self.detail(band, pad_index), self.body.slope)
         return score + (self.project(cond).transpose(1, 2) * h).sum(1)
 
 

@@ -1,8 +1,10 @@
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 
-from mrlib.config import ModelConfig
+from mrlib.config import ConfigError, ModelConfig
 from mrlib.features import NUM_FEATURES, channel_joint
 from mrlib.models import (
     FiLM,
@@ -208,3 +210,30 @@ def test_conditional_critic_is_a_projection_of_the_last_hidden_layer():
     with pytest.raises(ValueError, match="unconditional"):
         plain(x, pad, a)
     assert len(build_critics(TINY, cond_dim=3)) == 3
+
+
+def test_detail_band_critic_judges_the_label_on_detail_only():
+    torch.manual_seed(0)
+    cfg = dataclasses.replace(TINY, critic_band="detail")
+    critic = PatchCritic(cfg, cond_dim=3)
+    assert critic.detail is not None and critic.project.in_features == 3
+    x = torch.randn(1, C, 40)
+    pad = _pad(40)
+    a, b = torch.eye(3)[0].expand(1, 40, 3), torch.eye(3)[2].expand(1, 40, 3)
+    sa, sb = critic(x, pad, a), critic(x, pad, b)
+    assert not torch.allclose(sa, sb)
+    assert torch.allclose(critic(x, pad, (a + b) / 2), (sa + sb) / 2, atol=1e-5)
+    # an offset of every channel moves only the unconditional score: the label term
+    # sees x - box(x), which an offset leaves unchanged
+    y = x + 3 * torch.randn(1, C, 1)
+    assert not torch.allclose(critic(y, pad, a), sa, atol=1e-3)
+    assert torch.allclose(critic(y, pad, a) - critic(y, pad, b), sa - sb, atol=1e-4)
+    # a full-band conditional critic's label term does see the offset
+    full = PatchCritic(TINY, cond_dim=3)
+    assert full.detail is None
+    d_x = full(x, pad, a) - full(x, pad, b)
+    assert not torch.allclose(full(y, pad, a) - full(y, pad, b), d_x, atol=1e-3)
+    # no branch without a condition; bad values are refused
+    assert PatchCritic(cfg).detail is None
+    with pytest.raises(ConfigError, match="critic_band"):
+        ModelConfig(critic_band="high")

@@ -313,6 +313,22 @@ def test_conditional_critics_train_resume_and_see_each_samples_label(data, body,
     assert again.config.model.critic_condition and again.critics[0].project is not None
 
 
+def test_detail_band_critics_train_and_resume(data, body, tmp_path):
+    model = dataclasses.replace(TINY_MODEL, critic_condition=True, critic_band="detail")
+    cfg = tiny(model=model, mix_prob=1.0, critic_mixed="label")
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    assert all(c.detail is not None for c in tr.critics)
+    tr.start_block()
+    before = [p.detach().clone() for p in tr.critics[0].detail.parameters()]
+    tr.step()
+    after = list(tr.critics[0].detail.parameters())
+    assert all(not torch.equal(a, b) for a, b in zip(before, after, strict=True))
+    res = train(data, cfg, tmp_path / "run", body=body, progress=False)
+    assert any(".detail." in k for k in load_checkpoint(res.checkpoint)["critics"])
+    again = Trainer.from_checkpoint(res.checkpoint)
+    assert again.config.model.critic_band == "detail" and again.critics[0].detail is not None
+
+
 def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
     from mrlib.config import ganimator_mode
 
