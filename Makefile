@@ -37,8 +37,8 @@ lint: $(READY)
 	$(BIN)/ruff format --check mrlib tests bench tools notebooks/conftest.py
 
 format: $(READY)
-	$(BIN)/ruff format mrlib tests bench tools
-	$(BIN)/ruff check --fix mrlib tests bench tools
+	$(BIN)/ruff format mrlib tests bench tools notebooks/conftest.py
+	$(BIN)/ruff check --fix mrlib tests bench tools notebooks/conftest.py
 
 ## JupyterLab on the notebooks.
 lab: $(READY)

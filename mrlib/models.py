@@ -229,6 +229,7 @@ class PatchCritic(nn.Module):
         )
         self.cond_dim = int(cond_dim)
         self.detail = None
+        features = joints[-2]  # channels of the h that the projection reads
         if self.cond_dim > 0 and config.critic_band == "detail":
             # the critic's layers less its last hidden one: cheaper, and the detail band
             # needs a short temporal reach only
@@ -236,8 +237,10 @@ class PatchCritic(nn.Module):
             self.detail = ConvStack(
                 d_joints, config.kernel_size, config.neighbour_radius, config.leaky_slope
             )
-        width = len(joints[-2] if self.detail is None else d_joints[-1])
-        self.project = nn.Linear(self.cond_dim, width, bias=False) if self.cond_dim > 0 else None
+            features = d_joints[-1]
+        self.project = (
+            nn.Linear(self.cond_dim, len(features), bias=False) if self.cond_dim > 0 else None
+        )
 
     @property
     def receptive_field(self) -> int:

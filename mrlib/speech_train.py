@@ -122,8 +122,8 @@ def speech_paper() -> TrainConfig:
 
 def speech_tutorial() -> TrainConfig:
     """A CPU budget for a dozen ~10 s clips at 25 fps (16-20 minutes of training measured
-    on a 2-core CPU shared with other jobs): L = 10 as in the paper, narrower networks, one critic step per generator
-    step, 3900 iterations in all.
+    on a 2-core CPU shared with other jobs): L = 10 as in the paper, narrower networks,
+    one critic step per generator step, 3900 iterations in all.
 
     The learning rate is 2e-3, not the paper's 1e-4: with a few thousand iterations
     instead of 115000 the steps must be larger. Measured on the synthetic set (12 paired
