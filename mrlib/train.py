@@ -38,7 +38,7 @@ import torch
 import torch.nn.functional as F
 
 from mrlib.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from mrlib.config import TrainConfig, config_from_json, config_to_json
+from mrlib.config import ConfigError, TrainConfig, config_from_json, config_to_json
 from mrlib.data import TrainingSet
 from mrlib.features import NUM_FEATURES, FeatureNormalizer
 from mrlib.losses import (
@@ -56,7 +56,7 @@ from mrlib.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid
 
 __all__ = ["train", "Trainer", "TrainResult", "LOSS_NAMES", "wgan_gp_critic_loss"]
 
-LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth")
+LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth", "mis")
 CSV_FIELDS = ["time_s", "block", "iteration", "level", *LOSS_NAMES]
 
 
@@ -195,6 +195,11 @@ class Trainer:
         self.generator: MultiResGenerator = build_generator(mc, self.cond_dim).to(self.device)
         critic_cond = self.cond_dim if mc.critic_condition else 0
         self.critics = build_critics(mc, critic_cond).to(self.device)
+        labels_mismatch = (
+            type(self).mismatched_real_conditions is Trainer.mismatched_real_conditions
+        )
+        if config.loss.mismatch and labels_mismatch and data.num_labels < 2:
+            raise ConfigError("loss.mismatch needs at least two labels (a wrong one to show)")
         self.block = 0
         self.iteration = 0
         self.done = False
@@ -290,10 +295,21 @@ class Trainer:
         sample's slot is then scored without its label too: were only fakes ever
         unlabelled, the critic could tell them apart by the missing label alone (the
         projection term is outside the gradient penalty's reach), which we saw diverge."""
-        if self.config.critic_mixed == "label":
-            return conds
         keep = self._critic_keep()
+        if bool(keep.all()):
+            return conds
         return [c * layout.per_sample(keep[:, i], i)[None, :, None] for i, c in enumerate(conds)]
+
+    def mismatched_real_conditions(self, level: int) -> torch.Tensor:
+        """Conditions ``(1, S_i, D)`` that do *not* go with the real clips of the random
+        layout at ``level`` (``loss.mismatch``): each clip with another label, uniform
+        over the others."""
+        K, B = self.cond_dim, self.B
+        own = self.clip_labels[self.rand_clip]
+        wrong = (own + torch.randint(1, K, (B,), generator=self.rng)) % K
+        return self.label_conditions(
+            wrong[:, None].expand(B, level + 1), self.rand_layout, level + 1
+        )[level].to(self.device)
 
     def _critic_keep(self) -> torch.Tensor:
         """``(B, L)`` 1 where the latest draw's sample is scored with its label, else 0."""
@@ -380,6 +396,18 @@ class Trainer:
                     )
                     total = total + wl + w.gp * gp
                     losses[i]["D"], losses[i]["gp"] = wl.detach(), gp.detach()
+                    if w.mismatch:
+                        # the real clips once more, with conditions that are not theirs
+                        wrong = self.mismatched_real_conditions(i) * k_j[None, :, None]
+                        scores = self.critics[i](
+                            torch.cat([self.real_rand[i], self.real_rand[i]], -1),
+                            self.critic_layout.pad_index(i, G.pad),
+                            torch.cat([cc["cond_real"], wrong], 1),
+                        )
+                        w_r = self.w_rand[i]
+                        mis = critic_loss(scores[:, :S], scores[:, S:], w_r, w_r)
+                        total = total + w.mismatch * mis
+                        losses[i]["mis"] = mis.detach()
                 total.backward()
                 self.opt_d.step()
 

@@ -362,3 +362,31 @@ def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(
     assert len(seen) == 2 * 2  # n_critic steps x two levels in block 1
     assert all(torch.equal(r, f) for r, f in seen)  # labelled on exactly the same frames
     assert any((f == 0).any() and (f == 1).any() for _, f in seen)  # some mixed, some not
+
+
+def test_mismatch_term_shows_real_clips_with_a_wrong_label(data, body, tmp_path):
+    model = dataclasses.replace(TINY_MODEL, critic_condition=True)
+    with pytest.raises(ConfigError, match="conditional critics"):
+        tiny(loss=LossWeights(mismatch=1.0))
+    with pytest.raises(ConfigError, match=">= 0"):
+        LossWeights(mismatch=-1.0)
+    cfg = tiny(model=model, loss=LossWeights(mismatch=1.0), mix_prob=0.0, critic_mixed="label")
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    for i in range(3):
+        wrong = tr.mismatched_real_conditions(i)[0]
+        own = tr.real_rand_conds[i][0]
+        assert torch.equal(wrong.sum(-1), own.sum(-1))  # one-hot on every frame
+        assert not (wrong.argmax(-1) == own.argmax(-1)).any()  # never the clip's own label
+    tr.start_block()
+    losses = tr.step()
+    assert all(torch.isfinite(losses[i]["mis"]) for i in (0, 1))
+    # the term enters the critic update: without it the critics end up elsewhere
+    plain = Trainer(
+        data, tiny(model=model, mix_prob=0.0, critic_mixed="label"), tmp_path, body=body
+    )
+    plain.start_block()
+    assert "mis" not in plain.step()[0]
+    assert not torch.equal(plain.critics[0].project.weight, tr.critics[0].project.weight)
+    one = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
+    with pytest.raises(ConfigError, match="two labels"):
+        Trainer(one, cfg, tmp_path, body=body)
