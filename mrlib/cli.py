@@ -240,7 +240,7 @@ def _add_train_speech(sub):
         "--preset",
         default="tutorial",
         choices=["tutorial", "paper"],
-        help="'tutorial' (CPU, ~20 min for a dozen 10 s clips) or 'paper' (the paper's "
+        help="'tutorial' (CPU, 20-30 min for a dozen 10 s clips) or 'paper' (the paper's "
         "schedule; use a GPU) [default: tutorial]",
     )
     p.add_argument(
@@ -249,6 +249,13 @@ def _add_train_speech(sub):
         default=None,
         metavar="N[,N...]",
         help="iterations per block, overriding the preset (one value, or one per block)",
+    )
+    p.add_argument(
+        "--random-audio",
+        choices=["paired", "unpaired", "all"],
+        default=None,
+        help="audio of the random generations [default: 'paired' for the tutorial preset, "
+        "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
     )
     p.add_argument("--fps", type=float, default=25.0, help="motion frame rate [default: 25]")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
@@ -282,7 +289,7 @@ def _cmd_train_speech(args) -> int:
         cfg,
         args.out,
         resume=args.resume,
-        random_audio="unpaired" if (args.resume is not None or args.unpaired) else "paired",
+        random_audio=args.random_audio,
         progress=not args.no_progress,
     )
     state = "interrupted; resume with --resume" if res.interrupted else "done"

@@ -19,6 +19,19 @@ What differs from label training, all in :class:`SpeechTrainer`:
   pyramid of paired clip ``b mod N`` (so the critic compares it with that clip, as in
   label training); its speech is a random window of that many motion frames from a
   random audio clip (played back and forth when the clip is shorter);
+* **conditional critics** (beyond the paper; ``ModelConfig.critic_condition``, on in
+  ``speech_tutorial``): the projection term of every level's critic reads that level's
+  speech features frame by frame, next to the motion's detail band
+  (``critic_band="detail"``). A real clip is scored with its own speech; a fake with the
+  speech that drove it, but only where that is paired audio (a real clip never comes
+  with unpaired audio, so the critic would tell fakes apart by their audio alone: its
+  loss ran away to -1e5 within 1,400 iterations when we let it). With
+  ``LossWeights.mismatch`` the critic also sees every real clip with its own speech
+  shifted out of step (:meth:`SpeechTrainer.mismatched_real_conditions`) as a fake, so it
+  learns whether motion and speech go *together*, not only whether each looks real;
+  that is what ties the hand speed to the loudness at the syllable level (figures in
+  :func:`speech_tutorial`). With conditional critics the random generations take paired
+  audio by default;
 * the paper alternates reconstruction and random generation; here both run in every
   generator step (the Trainer sums ``L_rec`` of the reconstruction half of its batch and
   the other terms of the random half, see ``mrlib.config``), so every iteration visits
@@ -57,7 +70,7 @@ import numpy as np
 import torch
 
 from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig, config_from_json
+from mrlib.config import LossWeights, ModelConfig, TrainConfig, config_from_json
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
@@ -121,9 +134,10 @@ def speech_paper() -> TrainConfig:
 
 
 def speech_tutorial() -> TrainConfig:
-    """A CPU budget for a dozen ~10 s clips at 25 fps (16-20 minutes of training measured
+    """A CPU budget for a dozen ~10 s clips at 25 fps (19-28 minutes of training measured
     on a 2-core CPU shared with other jobs): L = 10 as in the paper, narrower networks,
-    one critic step per generator step, 3900 iterations in all.
+    one critic step per generator step, 3900 iterations in all, and conditional critics
+    that learn whether motion and speech go together.
 
     The learning rate is 2e-3, not the paper's 1e-4: with a few thousand iterations
     instead of 115000 the steps must be larger. Measured on the synthetic set (12 paired
@@ -132,13 +146,32 @@ def speech_tutorial() -> TrainConfig:
     error is still above it after 300.
 
     The smoothness weight is 0.5, not the paper's 5: the smoothness term penalises the
-    fast beat strokes that carry the syllable-level coupling. Measured on the synthetic
-    set (12 paired + 12 unpaired clips, 4 held-out utterances x 3 seeds): the
-    loudness / hand-speed correlation was 0.125 +- 0.123 with weight 5 (driving the same
-    model with another utterance's audio: 0.155) and 0.236 +- 0.093 with 0.5 (other
-    audio: 0.157); the phrase-level loudness / wrist-height correlation was 0.81 and 0.77
-    (other audio 0.24 and 0.23). On 12 further held-out utterances x 3 seeds, own minus
-    other audio, paired: +0.057 +- 0.022 s.e. (weight 0.5) and +0.036 +- 0.033 (weight 5).
+    fast beat strokes that carry the syllable-level coupling (loudness / hand-speed r on
+    4 held-out utterances x 3 seeds: 0.125 with weight 5, 0.236 with 0.5).
+
+    The critics (beyond the paper) are conditional on the speech, judged on the motion's
+    detail band, with the mismatch term (``critic_condition=True``,
+    ``critic_band="detail"``, ``LossWeights(mismatch=1)``); their random generations take
+    paired audio (see :class:`SpeechTrainer`). Measured on the synthetic set (12 paired +
+    12 unpaired clips; 12 further held-out utterances x 3 seeds; loudness / hand-speed r,
+    own audio vs another utterance's, and the paired difference):
+
+    ============================================  ===============  ========================
+    critics (random generations' audio), seed      r own / other    own - other (s.e.)
+    ============================================  ===============  ========================
+    paper's, unconditional (unpaired), 0           0.216 / 0.158    +0.057 +- 0.022, 24/36
+    paper's, unconditional (paired), 0 / 1         0.230 / 0.153    +0.077 +- 0.018, 27/36
+                                                   0.153 / 0.163    -0.010 +- 0.018, 15/36
+    conditional, no mismatch (paired), 0           0.242 / 0.158    +0.084 +- 0.026, 25/36
+    conditional + mismatch (paired), 0 / 1         0.278 / 0.134    +0.144 +- 0.029, 26/36
+                                                   0.259 / 0.137    +0.122 +- 0.029, 26/36
+    conditional + mismatch (paired + unpaired), 0  0.172 / 0.192    -0.020 +- 0.024, 14/36
+    ============================================  ===============  ========================
+
+    Beat alignment (speech onsets vs motion beats) stays level with the other-audio
+    control in every row (differences -0.006 to +0.025); the phrase-level lift follows
+    the speech in all of them (loudness / wrist-height r 0.69-0.77 vs 0.17-0.26). The
+    mismatch term makes training ~1.5x slower (1689 s vs 1141 s, same machine and load).
     """
     return TrainConfig(
         model=ModelConfig(
@@ -147,9 +180,11 @@ def speech_tutorial() -> TrainConfig:
             gen_hidden=(48, 96, 96),
             disc_hidden=(48, 96, 96),
             film_joints=UPPER_BODY_JOINTS,
+            critic_condition=True,
+            critic_band="detail",
         ),
         block_size=2,
-        loss=LossWeights(smooth=0.5),
+        loss=LossWeights(smooth=0.5, mismatch=1.0),
         block_iterations=(1500, 800, 600, 500, 500),
         lr=2e-3,
         n_critic=1,
@@ -462,7 +497,10 @@ class SpeechTrainer(Trainer):
         data: a :class:`SpeechTrainingSet`.
         config: a ``TrainConfig`` (``speech_tutorial()``, ``speech_paper()``).
         random_audio: where random generations take their speech: ``"unpaired"`` (paper),
-            ``"all"`` (paired and unpaired) or ``"paired"``.
+            ``"all"`` (paired and unpaired) or ``"paired"``; None (default): ``"paired"``
+            with conditional critics (they hear paired audio only, see
+            :meth:`_critic_keep`), else ``"unpaired"`` (``"paired"`` when there is no
+            unpaired audio).
     """
 
     def __init__(
@@ -472,12 +510,15 @@ class SpeechTrainer(Trainer):
         out_dir: str | Path,
         body=None,
         *,
-        random_audio: str = "unpaired",
+        random_audio: str | None = None,
     ):
         if not isinstance(data, SpeechTrainingSet):
             raise MotionValueError(
                 f"SpeechTrainer needs a SpeechTrainingSet, got {type(data).__name__}"
             )
+        if random_audio is None:
+            conditional = config.model.critic_condition
+            random_audio = "paired" if conditional or data.num_unpaired == 0 else "unpaired"
         if random_audio not in RANDOM_AUDIO:
             raise MotionValueError(
                 f"random_audio must be one of {RANDOM_AUDIO}, got {random_audio!r}"
@@ -487,10 +528,11 @@ class SpeechTrainer(Trainer):
                 "random_audio='unpaired' needs unpaired audio clips; add some or pass "
                 "random_audio='paired'"
             )
-        if config.model.critic_condition:
-            raise ConfigError(
-                "critic_condition is implemented for label conditions only; speech "
-                "models use the paper's unconditional critics (critic_condition=False)"
+        if config.model.critic_condition and random_audio == "unpaired":
+            warnings.warn(
+                "conditional critics hear the speech of paired audio only; with "
+                "random_audio='unpaired' they judge realism alone (use 'paired')",
+                stacklevel=2,
             )
         if config.model.film_joints is None:
             warnings.warn(
@@ -506,7 +548,8 @@ class SpeechTrainer(Trainer):
         torch.manual_seed(config.seed)
         self.cond_dim = data.dim
         self.generator = build_generator(config.model, self.cond_dim).to(self.device)
-        self.critics = build_critics(config.model).to(self.device)
+        critic_cond = self.cond_dim if config.model.critic_condition else 0
+        self.critics = build_critics(config.model, critic_cond).to(self.device)
 
         # 2. the audio bank: every clip's normalised features at the motion frame rate ---------
         finest, kinds = data.finest()
@@ -535,6 +578,16 @@ class SpeechTrainer(Trainer):
         self.rec_conds = [
             self.rec_layout.pack([c[i].T for c in per_clip], i).transpose(1, 2) for i in range(L)
         ]  # (1, S_i, D)
+        self._per_clip = per_clip
+        # a conditional critic sees every real clip with its own speech
+        self.real_rand_conds = (
+            [
+                self.rand_layout.pack([per_clip[k][i].T for k in self.rand_clip], i).transpose(1, 2)
+                for i in range(L)
+            ]
+            if config.model.critic_condition
+            else None
+        )
         self._ops: dict[int, tuple[PackedLevels, list[torch.Tensor], torch.Tensor]] = {}
 
     # -- conditions ----------------------------------------------------------------------------
@@ -612,11 +665,35 @@ class SpeechTrainer(Trainer):
         Noise ``z_i ~ N(0, sigma_i)`` (sigma averaged over the paired clips), shared by all
         channels."""
         draw = self.draw_speech(layout)
+        L = self.config.model.num_levels
+        second = torch.arange(L)[None] >= draw.cross[:, None]  # (B, L) levels on window b
+        P = self.speech.num_paired  # bank: paired clips first
+        paired = torch.where(second, draw.source_b[:, None] < P, draw.source[:, None] < P)
+        self._last_mixed, self._last_paired = second, paired  # read by the critics
         noises = []
         for i in range(stop):
             z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
             noises.append(z * self.sigma[0, i].to(self.device))
         return self.draw_conditions(draw, layout, stop), noises
+
+    def _critic_keep(self) -> torch.Tensor:
+        """A conditional critic hears the speech of a fake only where it is paired audio:
+        a real clip always comes with paired audio, so a fake driven by unpaired audio
+        would be told apart by its audio alone. Such fakes, and the real clips that share
+        their slots, are judged on realism only (their conditions zeroed)."""
+        return super()._critic_keep() * self._last_paired.float()
+
+    def mismatched_real_conditions(self, level: int) -> torch.Tensor:
+        """Speech that does not go with the real clips (``loss.mismatch``): each clip's own
+        speech, circularly shifted by a random 25-75 % of its length, so the critic sees
+        the same frames of speech, out of step with the motion."""
+        ks = self.rand_clip.tolist()
+        frac = 0.25 + 0.5 * torch.rand(len(ks), generator=self.rng)
+        shifted = []
+        for f, k in zip(frac.tolist(), ks, strict=True):
+            c = self._per_clip[k][level]
+            shifted.append(c.roll(max(1, round(f * len(c))), 0).T)
+        return self.rand_layout.pack(shifted, level).transpose(1, 2).to(self.device)
 
     # -- checkpoints ---------------------------------------------------------------------------
     def state_dict(self) -> dict:
@@ -659,7 +736,7 @@ def speech_train(
     out_dir: str | Path,
     *,
     resume: str | Path | None = None,
-    random_audio: str = "unpaired",
+    random_audio: str | None = None,
     body=None,
     progress: bool = True,
     callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,

@@ -155,15 +155,99 @@ def test_presets_follow_the_paper():
     p = speech_paper()
     assert p.block_iterations == (15000, 25000, 25000, 25000, 25000) and p.lr == 1e-4
     assert (p.loss.adv, p.loss.con, p.loss.rec, p.loss.smooth) == (1.0, 5.0, 50.0, 5.0)
+    assert not p.model.critic_condition and p.loss.mismatch == 0.0  # the paper's critics
+    t = speech_tutorial()
+    assert t.model.critic_condition and t.model.critic_band == "detail" and t.loss.mismatch > 0
 
 
-def test_conditional_critics_are_refused_for_speech(data, body, tmp_path):
-    from mrlib.config import ConfigError
+@pytest.mark.parametrize("band", ["full", "detail"])
+def test_conditional_critics_see_each_real_clip_with_its_own_speech(data, body, band, tmp_path):
+    mc = dataclasses.replace(TINY, critic_condition=True, critic_band=band)
+    tr = SpeechTrainer(data, tiny(model=mc), tmp_path, body=body, random_audio="paired")
+    assert all(c.project.in_features == data.dim for c in tr.critics)
+    assert all((c.detail is not None) == (band == "detail") for c in tr.critics)
+    # the real clip in slot b is paired clip b mod N, scored with that clip's own speech
+    for i in range(3):
+        got = tr.rand_layout.unpack(tr.real_rand_conds[i].transpose(1, 2), i)
+        for b, k in enumerate(tr.rand_clip.tolist()):
+            own = speech_conditions(
+                data.paired_features[k],
+                50.0,
+                FPS,
+                tr.lengths[k].tolist(),
+                normalizer=data.normalizer,
+                offset_s=0.0125,
+            )
+            assert torch.allclose(got[b].T, own[i])
+    # a fake is scored with the speech that drove it where that speech is paired audio,
+    # below its crossover level (critic_mixed="none") or at every level ("label"); never
+    # with unpaired audio, which no real clip comes with
+    for mixed in ("none", "label"):
+        cfg = tiny(model=mc, mix_prob=0.5, critic_mixed=mixed)
+        t = SpeechTrainer(data, cfg, tmp_path, body=body, random_audio="all")
+        draws = []
+        draw_speech = t.draw_speech
+        t.draw_speech = lambda layout: draws.append(draw_speech(layout)) or draws[-1]  # noqa: B023
+        kinds = set()
+        for _ in range(4):
+            conds, _ = t.draw_random(t.fake_layout, 3)
+            seen = t.critic_conditions(conds, t.fake_layout)
+            d = draws[-1]
+            for i in range(3):
+                got = t.fake_layout.unpack(seen[i].transpose(1, 2), i)
+                full = t.fake_layout.unpack(conds[i].transpose(1, 2), i)
+                for b in range(t.fake_layout.batch_size):
+                    second = i >= int(d.cross[b])
+                    src = d.source_b[b] if second else d.source[b]
+                    heard = bool(src < data.num_paired) and (mixed == "label" or not second)
+                    kinds.add(heard)
+                    assert torch.equal(got[b], full[b] if heard else torch.zeros_like(full[b]))
+        assert kinds == {True, False}
+    # the speech term is trained, and the real clips' pairing enters the critic loss
+    tr.start_block()
+    before = [c.project.weight.clone() for c in tr.critics[:2]]
+    swapped = SpeechTrainer(data, tiny(model=mc), tmp_path, body=body, random_audio="paired")
+    swapped.real_rand_conds = [c.flip(1) for c in swapped.real_rand_conds]
+    swapped.start_block()
+    la, lb = tr.step(), swapped.step()
+    assert all(
+        not torch.equal(b, c.project.weight) for b, c in zip(before, tr.critics[:2], strict=True)
+    )
+    assert not torch.equal(la[0]["D"], lb[0]["D"])
+    # the critics' speech projection survives a checkpoint round trip
+    res = speech_train(
+        data, tiny(model=mc), tmp_path / "run", body=body, progress=False, random_audio="all"
+    )
+    again = SpeechTrainer.from_checkpoint(res.checkpoint)
+    saved = load_checkpoint(res.checkpoint)["critics"]
+    assert torch.equal(again.critics[1].project.weight, saved["1.project.weight"])
 
-    cfg = tiny()
-    cfg = cfg.replace(model=dataclasses.replace(cfg.model, critic_condition=True))
-    with pytest.raises(ConfigError, match="label conditions only"):
-        SpeechTrainer(data, cfg, tmp_path, body=body)
+
+def test_random_audio_default_follows_the_critics(data, body, tmp_path):
+    assert SpeechTrainer(data, tiny(), tmp_path, body=body).random_audio == "unpaired"
+    mc = dataclasses.replace(TINY, critic_condition=True)
+    assert SpeechTrainer(data, tiny(model=mc), tmp_path, body=body).random_audio == "paired"
+    with pytest.warns(UserWarning, match="paired audio only"):
+        SpeechTrainer(data, tiny(model=mc), tmp_path, body=body, random_audio="unpaired")
+    alone = dataclasses.replace(data, unpaired_features=[], unpaired_frames=[], unpaired_names=[])
+    assert SpeechTrainer(alone, tiny(), tmp_path, body=body).random_audio == "paired"
+
+
+def test_speech_mismatch_is_each_clips_own_speech_out_of_step(data, body, tmp_path):
+    from mrlib.config import LossWeights
+
+    mc = dataclasses.replace(TINY, critic_condition=True, critic_band="detail")
+    cfg = tiny(model=mc, loss=LossWeights(mismatch=1.0))
+    tr = SpeechTrainer(data, cfg, tmp_path, body=body, random_audio="paired")
+    for i in range(3):
+        own = tr.rand_layout.unpack(tr.real_rand_conds[i].transpose(1, 2), i)
+        wrong = tr.rand_layout.unpack(tr.mismatched_real_conditions(i).transpose(1, 2), i)
+        for o, w in zip(own, wrong, strict=True):
+            T = o.shape[1]
+            shifts = [s for s in range(1, T) if torch.equal(o.roll(s, 1), w)]
+            assert len(shifts) == 1 and T / 4 - 1 <= shifts[0] <= 3 * T / 4 + 1
+    tr.start_block()
+    assert all(torch.isfinite(tr.step()[i]["mis"]) for i in (0, 1))
 
 
 def test_training_set_holds_paired_and_unpaired_audio(data, pairs, body):
@@ -180,7 +264,10 @@ def test_training_set_holds_paired_and_unpaired_audio(data, pairs, body):
         SpeechTrainingSet.from_clips([bad, pairs[1]], [], LOGMEL.config, body=body)
     with pytest.raises(MotionValueError, match="needs unpaired audio"):
         SpeechTrainer(
-            dataclasses.replace(data, unpaired_features=[], unpaired_frames=[]), tiny(), "."
+            dataclasses.replace(data, unpaired_features=[], unpaired_frames=[]),
+            tiny(),
+            ".",
+            random_audio="unpaired",
         )
     with pytest.raises(MotionValueError, match="random_audio"):
         SpeechTrainer(data, tiny(), ".", random_audio="some")
@@ -475,8 +562,11 @@ def test_cli_train_speech_from_folders(tmp_path, capsys):
     args = ["train-speech", str(paired), "--unpaired", str(unpaired), "--iterations", "1"]
     assert main(args + ["--out", str(out), "--no-progress"]) == 0
     state = load_checkpoint(out / "checkpoint.pt")
-    assert state["speech"]["random_audio"] == "unpaired"
+    assert state["speech"]["random_audio"] == "paired"  # the tutorial's critics hear speech
     assert json.loads(state["speech"]["feature_config"])["kind"] == "logmel"
     assert "done" in capsys.readouterr().out
+    more = ["--random-audio", "all", "--out", str(tmp_path / "all"), "--no-progress"]
+    assert main(args + more) == 0
+    assert load_checkpoint(tmp_path / "all" / "checkpoint.pt")["speech"]["random_audio"] == "all"
     assert main(["train-speech", "--out", str(out)]) == 1  # neither folder nor --resume
     assert main(args[:2] + ["--iterations", "1,2", "--out", str(out)]) == 1  # 5 blocks
