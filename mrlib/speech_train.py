@@ -163,13 +163,14 @@ def speech_tutorial() -> TrainConfig:
     paper's, unconditional (paired), 0 / 1         0.230 / 0.153    +0.077 +- 0.018, 27/36
                                                    0.153 / 0.163    -0.010 +- 0.018, 15/36
     conditional, no mismatch (paired), 0           0.242 / 0.158    +0.084 +- 0.026, 25/36
-    conditional + mismatch (paired), 0 / 1         0.278 / 0.134    +0.144 +- 0.029, 26/36
+    conditional + mismatch (paired), 0 / 1 / 2     0.278 / 0.134    +0.144 +- 0.029, 26/36
                                                    0.259 / 0.137    +0.122 +- 0.029, 26/36
+                                                   0.267 / 0.142    +0.126 +- 0.022, 28/36
     conditional + mismatch (paired + unpaired), 0  0.172 / 0.192    -0.020 +- 0.024, 14/36
     ============================================  ===============  ========================
 
-    Beat alignment (speech onsets vs motion beats) stays level with the other-audio
-    control in every row (differences -0.006 to +0.025); the phrase-level lift follows
+    Beat alignment (speech onsets vs motion beats) stays close to the other-audio
+    control in every row (differences -0.006 to +0.035); the phrase-level lift follows
     the speech in all of them (loudness / wrist-height r 0.69-0.77 vs 0.17-0.26). The
     mismatch term makes training ~1.5x slower (1689 s vs 1141 s, same machine and load).
     """
