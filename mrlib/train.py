@@ -307,9 +307,8 @@ class Trainer:
         K, B = self.cond_dim, self.B
         own = self.clip_labels[self.rand_clip]
         wrong = (own + torch.randint(1, K, (B,), generator=self.rng)) % K
-        return self.label_conditions(
-            wrong[:, None].expand(B, level + 1), self.rand_layout, level + 1
-        )[level].to(self.device)
+        onehot = F.one_hot(wrong, K).float()
+        return self.rand_layout.per_sample(onehot, level)[None].to(self.device)
 
     def _critic_keep(self) -> torch.Tensor:
         """``(B, L)`` 1 where the latest draw's sample is scored with its label, else 0."""
