@@ -199,6 +199,15 @@ class PackedLevels:
         """Spread per-sample values ``(B, ...)`` over frames: ``(S_i, ...)``."""
         return values.to(self.device)[self.owner[level]]
 
+    def per_sample_rms(self, x: torch.Tensor, level: int) -> torch.Tensor:
+        """Per-sample, per-channel root mean square over a sample's own frames:
+        ``(1, C, S_i) -> (B, C)``."""
+        m = self.valid[level][0].to(x.dtype)  # (S_i,)
+        sq = (x[0] * x[0] * m).T  # (S_i, C)
+        total = sq.new_zeros(self.batch_size, x.shape[1]).index_add_(0, self.owner[level], sq)
+        count = self.table[:, level].to(device=x.device, dtype=x.dtype)[:, None]
+        return (total / count + 1e-12).sqrt()
+
     def split(self, level: int, n: int) -> int:
         """Packed size of the first ``n`` samples at ``level`` (where sample n starts)."""
         return self.sizes[level] if n >= self.batch_size else int(self.offsets[level][n])
@@ -249,28 +258,51 @@ class PackedLevels:
         self._cache[key] = idx
         return idx
 
-    def upsample(self, x: torch.Tensor, level: int) -> torch.Tensor:
-        """Linear resampling of every sample from level ``level - 1`` to ``level``
-        (``F.interpolate(mode="linear", align_corners=False)`` per sample):
-        ``(1, C, S_{i-1}) -> (1, C, S_i)``."""
-        key = ("up", level)
+    def _lerp_index(self, src: int, dst: int):
+        """Gather indices and weights of a per-sample linear resampling from level ``src``
+        to level ``dst`` (``F.interpolate(mode="linear", align_corners=False)``)."""
+        key = ("lerp", src, dst)
         if key not in self._cache:
-            n_in, n_out = self.table[:, level - 1], self.table[:, level]
-            own = self.owner[level].cpu()
-            loc = self.local[level].cpu().clamp_max(n_out[own] - 1)  # gap frames copy the last
+            n_in, n_out = self.table[:, src], self.table[:, dst]
+            own = self.owner[dst].cpu()
+            loc = self.local[dst].cpu().clamp_max(n_out[own] - 1)  # gap frames copy the last
             scale = n_in.double()[own] / n_out.double()[own]
-            src = ((loc.double() + 0.5) * scale - 0.5).clamp_min(0)
-            i0 = torch.minimum(src.floor().long(), n_in[own] - 1)
+            pos = ((loc.double() + 0.5) * scale - 0.5).clamp_min(0)
+            i0 = torch.minimum(pos.floor().long(), n_in[own] - 1)
             i1 = torch.minimum(i0 + 1, n_in[own] - 1)
-            w = (src - i0).clamp(0, 1).float()
-            base = self.offsets[level - 1].cpu()[own]
+            w = (pos - i0).clamp(0, 1).float()
+            base = self.offsets[src].cpu()[own]
             self._cache[key] = (
                 (base + i0)[None, None].to(self.device),
                 (base + i1)[None, None].to(self.device),
                 w[None, None].to(self.device),
             )
-        i0, i1, w = self._cache[key]
+        return self._cache[key]
+
+    def _resample(self, x: torch.Tensor, src: int, dst: int) -> torch.Tensor:
+        i0, i1, w = self._lerp_index(src, dst)
         C = x.shape[1]
         a = x.gather(2, i0.expand(1, C, -1))
         b = x.gather(2, i1.expand(1, C, -1))
         return torch.lerp(a, b, w.to(x.dtype))
+
+    def upsample(self, x: torch.Tensor, level: int) -> torch.Tensor:
+        """Linear resampling of every sample from level ``level - 1`` to ``level``
+        (``F.interpolate(mode="linear", align_corners=False)`` per sample):
+        ``(1, C, S_{i-1}) -> (1, C, S_i)``."""
+        return self._resample(x, level - 1, level)
+
+    def downsample(self, x: torch.Tensor, level: int) -> torch.Tensor:
+        """Linear resampling of every sample from level ``level`` to ``level - 1``, as the
+        data pyramid is made (:func:`build_pyramid`): ``(1, C, S_i) -> (1, C, S_{i-1})``."""
+        return self._resample(x, level, level - 1)
+
+    def level_band(self, x: torch.Tensor, level: int) -> torch.Tensor:
+        """The detail of ``x (1, C, S_i)`` that level ``i`` adds over level ``i - 1``:
+        ``x - up(down(x))`` with the pyramid's own resampling, i.e. what level ``i - 1``
+        cannot hold (on the data its RMS is the noise amplitude sigma_i,
+        :func:`noise_amplitudes`, up to the downsampling of ``x`` itself). At the coarsest
+        level (``level == 0``) everything is its own: ``x``."""
+        if level == 0:
+            return x
+        return x - self.upsample(self.downsample(x, level), level)

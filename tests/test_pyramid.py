@@ -75,6 +75,38 @@ def test_packed_upsampling_equals_per_sample_interpolate():
         assert torch.allclose(out, ref, atol=1e-6)
 
 
+def test_packed_downsampling_and_level_band_equal_per_sample_interpolate():
+    lay = _layout([[7, 10], [12, 16], [9, 30]])
+    clips = [torch.randn(4, n, generator=g) for n in (10, 16, 30)]
+    x = lay.pack(clips, 1)
+    down, band = lay.downsample(x, 1), lay.level_band(x, 1)
+    assert down.shape == (1, 4, lay.sizes[0]) and band.shape == x.shape
+    for c, d, h in zip(clips, lay.unpack(down, 0), lay.unpack(band, 1), strict=True):
+        ref = F.interpolate(c[None], size=d.shape[-1], mode="linear", align_corners=False)
+        assert torch.allclose(d, ref[0], atol=1e-6)
+        up = F.interpolate(ref, size=c.shape[-1], mode="linear", align_corners=False)[0]
+        assert torch.allclose(h, c - up, atol=1e-6)
+    # a constant and a straight line survive the round trip in the interior, so their
+    # level band is (close to) zero there; fast detail is kept
+    t = torch.arange(30.0)
+    slow = lay.pack([torch.ones(1, 10), torch.ones(1, 16), (0.1 * t)[None]], 1)
+    inner = lay.unpack(lay.level_band(slow, 1), 1)[2][0, 3:-3]
+    assert inner.abs().max() < 1e-5
+    fast = lay.pack([torch.zeros(1, 10), torch.zeros(1, 16), torch.cos(torch.pi * t)[None]], 1)
+    assert lay.unpack(lay.level_band(fast, 1), 1)[2].abs().mean() > 0.5
+    coarse = lay.pack([c[:, :n] for c, n in zip(clips, (7, 12, 9), strict=True)], 0)
+    assert torch.equal(lay.level_band(coarse, 0), coarse)  # level 1 owns all of it
+
+
+def test_per_sample_rms_ignores_gap_frames():
+    lay = _layout([[5], [8]])
+    clips = [torch.randn(3, n, generator=g) for n in (5, 8)]
+    x = lay.pack(clips, 0)
+    x[..., lay.valid[0][0] == 0] = 100.0  # junk in the gaps
+    ref = torch.stack([c.pow(2).mean(-1).sqrt() for c in clips])
+    assert torch.allclose(lay.per_sample_rms(x, 0), ref, atol=1e-6)
+
+
 def test_packed_reflect_padding_equals_per_sample_f_pad():
     lay = _layout([[6], [9], [4]])
     clips = [torch.randn(3, n, generator=g) for n in (6, 9, 4)]
