@@ -68,8 +68,17 @@ coarse label is the more energetic one (angry as A: 5 of 6 cases with both halve
 least when it is the calmest (sad as A: 0 of 6): the fine detail of these walks scales
 with the coarse motion it rides on. On the small synthetic models of the tests it
 depends on the training seed (residual from B in 8, 2 and 9 of 18 cases for seeds 0-2;
-4 of 18 with the paper's critics), so ``tests/test_control.py`` checks only the
-low-band direction.
+4 of 18 with the paper's critics).
+
+The detail-statistics term (``LossWeights.detail``, off in ``tutorial``) pulls the
+per-channel RMS of the detail each level adds to that of its label's training clips.
+With ``tutorial`` plus ``detail=200`` on the four walks, both halves hold in 24, 23 and
+23 of 24 cases (training seeds 0-2), coverage stays at 100 % (eps = 2), and condition
+fidelity falls to 93.1, 87.5 and 85.8 %. Independent checks on seed 0 (vs the
+``tutorial`` model): the residual is nearer B by its log-RMS profile in 23 of 24 (9),
+by its RMS profile scaled to unit norm in 16 (12), and with the training clips as
+references in 19 (13). ``tests/test_control.py`` trains a small model on two Bandai
+walks with the term and checks both directions.
 
 Dimension letters: T frames, D feature channels, S samples, N windows, L levels.
 """

@@ -217,7 +217,11 @@ class PatchCritic(nn.Module):
     With ``ModelConfig.critic_band == "detail"`` the projection takes ``h`` from a branch
     of its own (the critic's layers less its last hidden one) fed with the detail band
     ``x - box_K(x)`` (a K-frame moving average, reflect-padded per sample), so the label
-    is judged on detail while ``w * h(x)`` still judges realism of the whole signal.
+    is judged on detail while ``w * h(x)`` still judges realism of the whole signal. With
+    ``"level"`` the branch reads the band the caller passes: the detail its level adds
+    over the level below (``PackedLevels.level_band``, ``x - up(down(x))``). A box of 5
+    frames keeps everything above about a tenth of the frame rate, where a walk's gait
+    still lies; the level band keeps what the coarser level cannot hold.
     """
 
     def __init__(self, config: ModelConfig, cond_dim: int = 0):
@@ -229,8 +233,9 @@ class PatchCritic(nn.Module):
         )
         self.cond_dim = int(cond_dim)
         self.detail = None
+        self.band = config.critic_band if self.cond_dim > 0 else "full"
         features = joints[-2]  # channels of the h that the projection reads
-        if self.cond_dim > 0 and config.critic_band == "detail":
+        if self.band != "full":
             # the critic's layers less its last hidden one: cheaper, and the detail band
             # needs a short temporal reach only
             d_joints = joints[: max(2, len(joints) - 2)]
@@ -247,10 +252,15 @@ class PatchCritic(nn.Module):
         return len(self.body.layers) * (self.body.pad * 2) + 1
 
     def forward(
-        self, x: torch.Tensor, pad_index: torch.Tensor, cond: torch.Tensor | None = None
+        self,
+        x: torch.Tensor,
+        pad_index: torch.Tensor,
+        cond: torch.Tensor | None = None,
+        band: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """``x (B, C, T)``, ``cond (B, T, D)`` (conditional critics only) -> per-frame
-        patch scores ``(B, T)``."""
+        patch scores ``(B, T)``. ``band (B, C, T)``: the level band of ``x``, needed (and
+        only read) with ``critic_band="level"``."""
         if self.project is None:
             if cond is not None:
                 raise ValueError("this critic is unconditional; do not pass a condition")
@@ -265,10 +275,14 @@ class PatchCritic(nn.Module):
         for layer in layers[:-1]:
             h = F.leaky_relu(layer(h, pad_index), self.body.slope)
         score = layers[-1](h, pad_index)[:, 0]  # (B, T)
-        if self.detail is not None:
+        if self.band == "detail":
             B, C, _ = x.shape
             xp = x.gather(2, pad_index.expand(B, C, -1))  # reflect-padded per sample
             band = x - F.avg_pool1d(xp, self.body.pad * 2 + 1, stride=1)
+        elif self.band == "level" and (band is None or band.shape != x.shape):
+            got = None if band is None else tuple(band.shape)
+            raise ValueError(f"critic_band='level' needs band {tuple(x.shape)}, got {got}")
+        if self.detail is not None:
             h = F.leaky_relu(self.detail(band, pad_index), self.body.slope)
         return score + (self.project(cond).transpose(1, 2) * h).sum(1)
 

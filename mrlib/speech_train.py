@@ -70,7 +70,7 @@ import numpy as np
 import torch
 
 from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import LossWeights, ModelConfig, TrainConfig, config_from_json
+from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig, config_from_json
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
@@ -516,6 +516,11 @@ class SpeechTrainer(Trainer):
         if not isinstance(data, SpeechTrainingSet):
             raise MotionValueError(
                 f"SpeechTrainer needs a SpeechTrainingSet, got {type(data).__name__}"
+            )
+        if config.loss.detail:
+            raise ConfigError(
+                "loss.detail pulls each level to its label's detail statistics; speech has "
+                "no labels (set LossWeights(detail=0))"
             )
         if random_audio is None:
             conditional = config.model.critic_condition

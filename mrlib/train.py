@@ -56,7 +56,7 @@ from mrlib.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid
 
 __all__ = ["train", "Trainer", "TrainResult", "LOSS_NAMES", "wgan_gp_critic_loss"]
 
-LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth", "mis")
+LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth", "mis", "detail")
 CSV_FIELDS = ["time_s", "block", "iteration", "level", *LOSS_NAMES]
 
 
@@ -81,6 +81,8 @@ def wgan_gp_critic_loss(
     pad_index_pair: torch.Tensor,
     cond_real: torch.Tensor | None = None,
     cond_fake: torch.Tensor | None = None,
+    band_of: Callable[[torch.Tensor], torch.Tensor] | None = None,
+    band_of_pair: Callable[[torch.Tensor], torch.Tensor] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Critic loss ``E[D(fake)] - E[D(real)]`` and gradient penalty of packed batches.
 
@@ -98,15 +100,25 @@ def wgan_gp_critic_loss(
         cond_real, cond_fake: ``(1, S, D)`` conditions of a conditional critic (the real
             clips' own, and those the fakes were generated with; the penalty's
             interpolates take the fakes'); None for an unconditional critic.
+        band_of, band_of_pair: ``x -> level band of x`` in the layout and in the pair
+            layout, for critics with ``critic_band="level"`` (``PackedLevels.level_band``).
     """
     S = real.shape[-1]
+    pair = torch.cat([real, fake], -1)
+    extra, extra_pair = {}, {}
+    if band_of is not None:
+        extra_pair = {"band": band_of_pair(pair)}
     if cond_fake is None:
-        scores = critic(torch.cat([real, fake], -1), pad_index_pair)  # (1, 2S)
-        gp = gradient_penalty(lambda x: critic(x, pad_index), real, fake, weights, alpha)
+        scores = critic(pair, pad_index_pair, **extra_pair)  # (1, 2S)
     else:
-        both = torch.cat([cond_real, cond_fake], 1)
-        scores = critic(torch.cat([real, fake], -1), pad_index_pair, both)
-        gp = gradient_penalty(lambda x: critic(x, pad_index, cond_fake), real, fake, weights, alpha)
+        scores = critic(pair, pad_index_pair, torch.cat([cond_real, cond_fake], 1), **extra_pair)
+
+    def one(x: torch.Tensor) -> torch.Tensor:
+        if band_of is not None:
+            extra["band"] = band_of(x)
+        return critic(x, pad_index, cond_fake, **extra)
+
+    gp = gradient_penalty(one, real, fake, weights, alpha)
     return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
 
 
@@ -243,6 +255,15 @@ class Trainer:
         self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
         self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, 1 or C, S_1)
         self._rec_cache: tuple[int, torch.Tensor] | None = None
+        # per label and level, the per-channel RMS of the detail the level adds (mean over
+        # the label's clips): the targets of loss.detail, (K, C) per level
+        rms = [
+            self.rec_layout.per_sample_rms(self.rec_layout.level_band(r, i), i)
+            for i, r in enumerate(self.real)
+        ]
+        self.detail_rms = [
+            torch.stack([r[lab == k].mean(0) for k in range(data.num_labels)]) for r in rms
+        ]
 
     # -- conditions and noise --------------------------------------------------------------
     # The networks take any control signal (B, T_i, D) per level. These two methods are the
@@ -280,6 +301,7 @@ class Trainer:
         mixed = mix[:, None] & (levels >= cross[:, None])  # (B, L) levels driven by b
         table = torch.where(mixed, b[:, None], a[:, None])
         self._last_mixed = mixed  # read by the conditional critics (critic_conditions)
+        self._last_table = table  # read by the detail-statistics term
         noises = []
         for i in range(stop):
             z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
@@ -315,6 +337,27 @@ class Trainer:
         if self.config.critic_mixed == "label":
             return torch.ones_like(self._last_mixed, dtype=torch.float32)
         return (~self._last_mixed).float()
+
+    def detail_loss(self, out_rand: torch.Tensor, level: int) -> torch.Tensor:
+        """``loss.detail`` of the random generations ``(1, C, S_i)`` of the latest draw on
+        the random layout: mean over samples and channels of ``|rms(band) - target|``,
+        the band the level adds (``PackedLevels.level_band``) and the target the mean RMS
+        of that band over the training clips of the label driving the sample's level."""
+        lay = self.rand_layout
+        rms = lay.per_sample_rms(lay.level_band(out_rand, level), level)  # (B, C)
+        target = self.detail_rms[level].to(rms.device)[self._last_table[:, level]]
+        return (rms - target).abs().mean()
+
+    def _band_of(self, layout, level: int) -> Callable[[torch.Tensor], torch.Tensor] | None:
+        """``x -> layout.level_band(x, level)`` for a critic that reads the level band."""
+        if self.critics[level].band != "level":
+            return None
+        return lambda x: layout.level_band(x, level)
+
+    def _band(self, layout, level: int, x: torch.Tensor) -> dict[str, torch.Tensor]:
+        """The ``band`` keyword of a critic call: ``{}`` unless the critic reads it."""
+        f = self._band_of(layout, level)
+        return {} if f is None else {"band": f(x)}
 
     # -- blocks ------------------------------------------------------------------------------
     @property
@@ -392,16 +435,20 @@ class Trainer:
                         self.rand_layout.pad_index(i, G.pad),
                         self.critic_layout.pad_index(i, G.pad),
                         **cc,
+                        band_of=self._band_of(self.rand_layout, i),
+                        band_of_pair=self._band_of(self.critic_layout, i),
                     )
                     total = total + wl + w.gp * gp
                     losses[i]["D"], losses[i]["gp"] = wl.detach(), gp.detach()
                     if w.mismatch:
                         # the real clips once more, with conditions that are not theirs
                         wrong = self.mismatched_real_conditions(i) * k_j[None, :, None]
+                        twice = torch.cat([self.real_rand[i], self.real_rand[i]], -1)
                         scores = self.critics[i](
-                            torch.cat([self.real_rand[i], self.real_rand[i]], -1),
+                            twice,
                             self.critic_layout.pad_index(i, G.pad),
                             torch.cat([cc["cond_real"], wrong], 1),
+                            **self._band(self.critic_layout, i, twice),
                         )
                         w_r = self.w_rand[i]
                         mis = critic_loss(scores[:, :S], scores[:, S:], w_r, w_r)
@@ -439,8 +486,15 @@ class Trainer:
             terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
             if c.n_critic > 0 and w.adv:
                 cond = None if critic_conds is None else critic_conds[i]
-                score = self.critics[i](out_rand, self.rand_layout.pad_index(i, G.pad), cond)
+                score = self.critics[i](
+                    out_rand,
+                    self.rand_layout.pad_index(i, G.pad),
+                    cond,
+                    **self._band(self.rand_layout, i, out_rand),
+                )
                 terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
+            if w.detail and i > 0:
+                terms["detail"] = self.detail_loss(out_rand, i)
             need_con = w.con and i + 1 >= c.contact_from_level
             need_smooth = w.smooth and i + 1 >= c.smooth_start
             if need_con or need_smooth:

@@ -237,3 +237,25 @@ def test_detail_band_critic_judges_the_label_on_detail_only():
     assert PatchCritic(cfg).detail is None
     with pytest.raises(ConfigError, match="critic_band"):
         ModelConfig(critic_band="high")
+
+
+def test_level_band_critic_reads_the_band_it_is_given():
+    torch.manual_seed(0)
+    critic = PatchCritic(dataclasses.replace(TINY, critic_band="level"), cond_dim=3)
+    assert critic.detail is not None and critic.band == "level"
+    x, band = torch.randn(1, C, 40), 0.1 * torch.randn(1, C, 40)
+    pad = _pad(40)
+    a, b = torch.eye(3)[0].expand(1, 40, 3), torch.eye(3)[2].expand(1, 40, 3)
+    d = critic(x, pad, a, band) - critic(x, pad, b, band)
+    assert d.abs().max() > 1e-4
+    # the label term reads the band only: a new x with the same band moves the
+    # unconditional score, not the difference between labels
+    y = torch.randn(1, C, 40)
+    assert not torch.allclose(critic(y, pad, a, band), critic(x, pad, a, band), atol=1e-3)
+    assert torch.allclose(critic(y, pad, a, band) - critic(y, pad, b, band), d, atol=1e-5)
+    assert not torch.allclose(critic(x, pad, a, 2 * band) - critic(x, pad, b, 2 * band), d)
+    with pytest.raises(ValueError, match="needs band"):
+        critic(x, pad, a)
+    with pytest.raises(ValueError, match="needs band"):
+        critic(x, pad, a, band[..., :30])
+    assert PatchCritic(dataclasses.replace(TINY, critic_band="level")).band == "full"

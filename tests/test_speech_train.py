@@ -14,7 +14,7 @@ import soundfile
 import torch
 
 from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import ModelConfig, TrainConfig
+from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.features import channel_joint
 from mrlib.models import LevelGenerator
@@ -271,6 +271,8 @@ def test_training_set_holds_paired_and_unpaired_audio(data, pairs, body):
         )
     with pytest.raises(MotionValueError, match="random_audio"):
         SpeechTrainer(data, tiny(), ".", random_audio="some")
+    with pytest.raises(ConfigError, match="no labels"):
+        SpeechTrainer(data, tiny(loss=LossWeights(detail=1.0)), ".")
 
 
 # -- conditions --------------------------------------------------------------------------------

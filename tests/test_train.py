@@ -329,6 +329,69 @@ def test_detail_band_critics_train_and_resume(data, body, tmp_path):
     assert again.config.model.critic_band == "detail" and again.critics[0].detail is not None
 
 
+def test_level_band_critics_see_the_pyramid_band_and_resume(data, body, tmp_path, monkeypatch):
+    model = dataclasses.replace(TINY_MODEL, critic_condition=True, critic_band="level")
+    cfg = tiny(model=model, mix_prob=1.0, critic_mixed="label", loss=LossWeights(mismatch=1.0))
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    tr.start_block()
+    seen = []
+    forward = type(tr.critics[0]).forward
+
+    def spy(self, x, pad_index, cond=None, band=None):
+        seen.append((x.detach(), band.detach()))
+        return forward(self, x, pad_index, cond, band)
+
+    monkeypatch.setattr(type(tr.critics[0]), "forward", spy)
+    before = [p.detach().clone() for p in tr.critics[1].detail.parameters()]
+    tr.step()
+    monkeypatch.undo()
+    assert all(
+        not torch.equal(a, b)
+        for a, b in zip(before, tr.critics[1].detail.parameters(), strict=True)
+    )
+    # every critic call got the band of what it scored: the whole x at level 1, and
+    # x - up(down(x)) at level 2 (pair, penalty, mismatch and generator layouts alike)
+    sizes = {tr.critic_layout.sizes[1]: tr.critic_layout, tr.rand_layout.sizes[1]: tr.rand_layout}
+    for x, band in seen:
+        if band.shape[-1] in (tr.critic_layout.sizes[0], tr.rand_layout.sizes[0]):
+            assert torch.equal(band, x)
+        else:
+            assert torch.allclose(band, sizes[x.shape[-1]].level_band(x, 1), atol=1e-6)
+            assert not torch.allclose(band, x, atol=1e-3)
+    assert {x.shape[-1] for x, _ in seen} == {
+        tr.critic_layout.sizes[0],
+        tr.critic_layout.sizes[1],
+        tr.rand_layout.sizes[0],
+        tr.rand_layout.sizes[1],
+    }
+    res = train(data, cfg, tmp_path / "run", body=body, progress=False)
+    again = Trainer.from_checkpoint(res.checkpoint)
+    assert again.config.model.critic_band == "level" and again.critics[0].band == "level"
+
+
+def test_detail_term_pulls_each_level_to_its_labels_detail_statistics(data, body, tmp_path):
+    cfg = tiny(loss=LossWeights(detail=10.0), mix_prob=1.0)
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    K, L = data.num_labels, TINY_MODEL.num_levels
+    assert len(tr.detail_rms) == L and tr.detail_rms[1].shape == (K, tr.real[1].shape[1])
+    # the real clips, each driven by its own label, meet their targets exactly (one clip
+    # per label); shown as another label's, they do not
+    own = tr.clip_labels[tr.rand_clip]
+    tr._last_table = own[:, None].expand(-1, L)
+    assert tr.detail_loss(tr.real_rand[1], 1).item() < 1e-6
+    tr._last_table = ((own + 1) % K)[:, None].expand(-1, L)
+    assert tr.detail_loss(tr.real_rand[1], 1).item() > 1e-3
+    # it enters the generator step from level 2 on and is logged
+    tr.start_block()
+    losses = tr.step()
+    assert "detail" in losses[1] and "detail" not in losses[0]
+    tr2 = Trainer(data, tiny(mix_prob=1.0), tmp_path / "off", body=body)
+    tr2.start_block()
+    assert "detail" not in tr2.step()[1]
+    with pytest.raises(ConfigError, match="detail"):
+        LossWeights(detail=-1.0)
+
+
 def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
     from mrlib.config import ganimator_mode
 
