@@ -105,18 +105,12 @@ def wgan_gp_critic_loss(
     """
     S = real.shape[-1]
     pair = torch.cat([real, fake], -1)
-    extra, extra_pair = {}, {}
-    if band_of is not None:
-        extra_pair = {"band": band_of_pair(pair)}
-    if cond_fake is None:
-        scores = critic(pair, pad_index_pair, **extra_pair)  # (1, 2S)
-    else:
-        scores = critic(pair, pad_index_pair, torch.cat([cond_real, cond_fake], 1), **extra_pair)
+    both = None if cond_fake is None else torch.cat([cond_real, cond_fake], 1)
+    band = None if band_of is None else band_of_pair(pair)
+    scores = critic(pair, pad_index_pair, both, band)  # (1, 2S)
 
     def one(x: torch.Tensor) -> torch.Tensor:
-        if band_of is not None:
-            extra["band"] = band_of(x)
-        return critic(x, pad_index, cond_fake, **extra)
+        return critic(x, pad_index, cond_fake, None if band_of is None else band_of(x))
 
     gp = gradient_penalty(one, real, fake, weights, alpha)
     return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
@@ -255,15 +249,15 @@ class Trainer:
         self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
         self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, 1 or C, S_1)
         self._rec_cache: tuple[int, torch.Tensor] | None = None
-        # per label and level, the per-channel RMS of the detail the level adds (mean over
-        # the label's clips): the targets of loss.detail, (K, C) per level
-        rms = [
-            self.rec_layout.per_sample_rms(self.rec_layout.level_band(r, i), i)
-            for i, r in enumerate(self.real)
-        ]
-        self.detail_rms = [
-            torch.stack([r[lab == k].mean(0) for k in range(data.num_labels)]) for r in rms
-        ]
+        # loss.detail only: per label and level, the per-channel RMS of the detail the level
+        # adds (mean over the label's clips), the targets of the term, (K, C) per level
+        self.detail_rms: list[torch.Tensor] = []
+        if config.loss.detail:
+            lay = self.rec_layout
+            rms = [lay.per_sample_rms(lay.level_band(r, i), i) for i, r in enumerate(self.real)]
+            self.detail_rms = [
+                torch.stack([r[lab == k].mean(0) for k in range(data.num_labels)]) for r in rms
+            ]
 
     # -- conditions and noise --------------------------------------------------------------
     # The networks take any control signal (B, T_i, D) per level. These two methods are the
