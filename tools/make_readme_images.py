@@ -4,7 +4,7 @@
     python tools/make_readme_images.py --no-crossover   # only the contact render (seconds)
 
 The crossover picture trains the ``tutorial`` preset on the four clips of
-``data_samples/`` (26 minutes on a 2-core CPU running two other trainings; the run is kept in
+``data_samples/`` (19-26 minutes on a 2-core CPU running two other jobs; the run is kept in
 ``outputs/readme_model`` and reused), then renders a coarse-A / fine-B sample next to
 pure A and pure B samples with the same noise.
 
