@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import os
 import time
 from pathlib import Path
 
@@ -44,6 +43,7 @@ import mrlib
 from mrlib import control
 from mrlib.config import get_preset
 from mrlib.data import TrainingSet
+from mrlib.evaluate import default_data_dir
 
 ROOT = Path(__file__).resolve().parents[1]
 CLIPS = ("walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001")
@@ -67,10 +67,7 @@ def main(argv=None) -> int:
     a = p.parse_args(argv)
     torch.set_num_threads(a.threads)
 
-    data_dir = Path(
-        os.environ.get("MRLIB_DATA_DIR", ROOT.parent / "shared" / "data" / "bandai-namco-motion-1")
-    )
-    paths = [data_dir / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
+    paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
     missing = [str(q) for q in paths if not q.is_file()]
     if missing:
         p.error(f"Bandai Namco clips not found (set MRLIB_DATA_DIR): {missing[0]}")

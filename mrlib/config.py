@@ -269,13 +269,13 @@ def tutorial() -> TrainConfig:
     2 and 4 of all 12 label pairs with the low-pass band from the coarse label and the
     detail from the fine label in 23 / 23 / 22 / 22 / 24 of 24 cases; coverage 100 % at
     eps 2 (>= 95.6 % at eps 1); 1765-1932 s of training with three or four such runs on
-    the two cores (~1090 s with two).
-    Without the detail term (the previous preset, seed 0):
-    fidelity 96.5 %, both halves in 8 of 24 (the detail from the fine label in 11);
-    with weight 200: 23-24 of 24 but fidelity 93.1 / 87.5 / 85.8 %. Paper-style
-    unconditional critics: fidelity 71.9 % at 400 and 85.5 % at 800 iterations per
-    block. ``bench/time_to_quality.py`` reports when a model first meets the quality
-    target."""
+    the two cores (1088 s with two, at weight 200). Without the detail term (the
+    previous preset, seed 0): fidelity 96.5 %, both halves in 8 of 24 (the detail from
+    the fine label in 11); with weight 200: 23-24 of 24 but fidelity 93.1 / 87.5 /
+    85.8 %. Paper-style unconditional critics: fidelity 71.9 % at 400 and 85.5 % at
+    800 iterations per block. ``python bench/condition_control.py --seed N`` measures
+    these figures; ``bench/time_to_quality.py`` reports when a model first meets the
+    quality target."""
     return TrainConfig(
         model=ModelConfig(
             num_levels=8,

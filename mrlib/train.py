@@ -348,10 +348,10 @@ class Trainer:
             return None
         return lambda x: layout.level_band(x, level)
 
-    def _band(self, layout, level: int, x: torch.Tensor) -> dict[str, torch.Tensor]:
-        """The ``band`` keyword of a critic call: ``{}`` unless the critic reads it."""
+    def _band(self, layout, level: int, x: torch.Tensor) -> torch.Tensor | None:
+        """The ``band`` argument of a critic call: None unless the critic reads it."""
         f = self._band_of(layout, level)
-        return {} if f is None else {"band": f(x)}
+        return None if f is None else f(x)
 
     # -- blocks ------------------------------------------------------------------------------
     @property
@@ -442,7 +442,7 @@ class Trainer:
                             twice,
                             self.critic_layout.pad_index(i, G.pad),
                             torch.cat([cc["cond_real"], wrong], 1),
-                            **self._band(self.critic_layout, i, twice),
+                            self._band(self.critic_layout, i, twice),
                         )
                         w_r = self.w_rand[i]
                         mis = critic_loss(scores[:, :S], scores[:, S:], w_r, w_r)
@@ -484,7 +484,7 @@ class Trainer:
                     out_rand,
                     self.rand_layout.pad_index(i, G.pad),
                     cond,
-                    **self._band(self.rand_layout, i, out_rand),
+                    self._band(self.rand_layout, i, out_rand),
                 )
                 terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
             if w.detail and i > 0:

@@ -1,6 +1,4 @@
 import json
-import os
-from pathlib import Path
 
 import matplotlib
 
@@ -33,6 +31,7 @@ from mrlib.control import (
 )
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
+from mrlib.evaluate import default_data_dir
 from mrlib.metrics import condition_fidelity, local_diversity, metric_features
 from mrlib.pyramid import level_fps, pyramid_lengths
 from mrlib.sample import generate, label_weights, load_model
@@ -397,19 +396,14 @@ def test_coarse_levels_decide_the_low_pass_content_of_a_crossover(trained_model,
     assert e.low_holds and e.low_to_coarse < 0.5 * e.low_to_fine
 
 
-BANDAI = Path(
-    os.environ.get(
-        "MRLIB_DATA_DIR",
-        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
-    )
-)
+BANDAI = default_data_dir()
 
 
 @pytest.fixture(scope="module")
 def detail_model(tmp_path_factory):
     """Two Bandai walks (angry, sad) at 15 fps, the ``tutorial`` preset (its losses
     include the detail-statistics term, weight 100) at 6 levels and 300 iterations per
-    block (~2-4 min on 2 cores). Measured on this setting: residual from B at levels 1-5
+    block (2-5 min on 2 cores). Measured on this setting: residual from B at levels 1-5
     of both orders in 10 of 10 cases for training seeds 0, 1 and 2, low band from A in
     8, 10 and 10 (the misses at level 1); without the term residual from B in 2 and 5 of
     10 (seeds 0, 1)."""
