@@ -48,9 +48,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import subprocess
-import tempfile
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -59,7 +56,7 @@ import numpy as np
 import torch
 from scipy.ndimage import gaussian_filter1d
 
-from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError, MrlibError
+from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError
 from mrlib.motion import Motion
 from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from mrlib.skeleton import JOINT_NAMES
@@ -72,6 +69,7 @@ from mrlib.speech.audio import (
     onset_strength,
     resample_audio,
 )
+from mrlib.speech.espeak import SpeechSynthesisError, espeak_backend, espeak_speak
 
 __all__ = [
     "SENTENCES",
@@ -153,14 +151,11 @@ BASE_CLIPS: tuple[str, ...] = (
 )
 
 
-class SpeechSynthesisError(MrlibError, RuntimeError):
-    """espeak-ng is missing or failed."""
-
-
 # -- speech --------------------------------------------------------------------------------
 def espeak_available() -> bool:
-    """Whether the ``espeak-ng`` program is on ``PATH``."""
-    return shutil.which("espeak-ng") is not None
+    """Whether eSpeak NG can speak here: the ``espeakng-loader`` wheel of the speech
+    extra, or an ``espeak-ng`` program on ``PATH`` (``mrlib.speech.espeak``)."""
+    return espeak_backend() is not None
 
 
 def with_pauses(
@@ -189,40 +184,20 @@ def synthesize_speech(
     sr: int = SAMPLE_RATE,
     *,
     ssml: bool = False,
+    backend: str = "auto",
 ) -> np.ndarray:
-    """Speak ``text`` with espeak-ng: ``(N,)`` float32 mono at ``sr``.
+    """Speak ``text`` with eSpeak NG: ``(N,)`` float32 mono at ``sr``.
 
     Args:
-        voice: an espeak-ng voice, e.g. ``"en-us"``, ``"en-gb+m3"`` (``espeak-ng --voices``).
+        voice: an eSpeak NG voice, e.g. ``"en-us"``, ``"en-gb+m3"``.
         speed: words per minute (80-450); pitch: 0-99.
-        ssml: ``text`` is SSML (``with_pauses``; espeak-ng's ``-m``).
+        ssml: ``text`` is SSML (``with_pauses``).
+        backend: ``"auto"`` (the bundled library, else the program), ``"library"`` or
+            ``"program"``; see ``mrlib.speech.espeak``.
     Raises:
-        SpeechSynthesisError: espeak-ng not installed, unknown voice, or no audio.
+        SpeechSynthesisError: eSpeak NG not installed, unknown voice, or no audio.
     """
-    exe = shutil.which("espeak-ng")
-    if exe is None:
-        raise SpeechSynthesisError(
-            "espeak-ng is not installed (it synthesises mrlib's speech samples): install it "
-            "with 'apt-get install espeak-ng' (Debian/Ubuntu), 'brew install espeak-ng' "
-            "(macOS) or 'conda install -c conda-forge espeak-ng'"
-        )
-    if not text.strip():
-        raise SpeechSynthesisError("nothing to say: the text is empty")
-    import soundfile
-
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "speech.wav"
-        cmd = [exe, "-v", voice, "-s", str(int(speed)), "-p", str(int(pitch)), "-w", str(out)]
-        cmd += ["-m"] if ssml else []
-        proc = subprocess.run(cmd + ["--", text], capture_output=True, text=True, timeout=60)
-        if proc.returncode != 0 or not out.is_file():
-            msg = (proc.stderr or proc.stdout).strip()
-            raise SpeechSynthesisError(f"espeak-ng failed for voice {voice!r}: {msg}")
-        wav, sr_in = soundfile.read(str(out), dtype="float32")
-    if wav.ndim == 2:
-        wav = wav.mean(1)
-    if len(wav) == 0:
-        raise SpeechSynthesisError(f"espeak-ng produced no audio for {text!r}")
+    wav, sr_in = espeak_speak(text, voice, speed, pitch, ssml=ssml, backend=backend)
     return resample_audio(wav, sr_in, sr)
 
 

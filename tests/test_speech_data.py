@@ -1,7 +1,6 @@
 """The synthetic co-speech set (espeak-ng + rule-based gestures) and the paired loaders."""
 
 import os
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -45,8 +44,8 @@ DATA = Path(
     )
 )
 needs_espeak = pytest.mark.skipif(
-    shutil.which("espeak-ng") is None,
-    reason="espeak-ng is not installed (apt-get install espeak-ng)",
+    not sd.espeak_available(),
+    reason="eSpeak NG is not installed (pip install espeakng-loader, part of mrlib[speech])",
 )
 needs_data = pytest.mark.skipif(
     not (DATA / "data").is_dir(), reason=f"Bandai Namco data not found at {DATA}"
@@ -77,11 +76,26 @@ def test_espeak_speech_has_a_plausible_duration():
         synthesize_speech("hello", "xx-none")
 
 
+@needs_espeak
+def test_the_same_text_gives_the_same_samples():
+    text = sd.with_pauses("Hello there, how are you today?", np.random.default_rng(0))
+    a = synthesize_speech(text, "en-gb+m3", 160, ssml=True)
+    b = synthesize_speech(text, "en-gb+m3", 160, ssml=True)
+    assert np.array_equal(a, b)
+    # the variant changes the voice; a language code picks its voice file
+    assert not np.array_equal(a, synthesize_speech(text, "en-gb", 160, ssml=True))
+
+
 def test_missing_espeak_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(sd.shutil, "which", lambda name: None)
+    from mrlib.speech import espeak
+
+    monkeypatch.setattr(espeak, "_library_available", lambda: False)
+    monkeypatch.setattr(espeak.shutil, "which", lambda name: None)
     assert not sd.espeak_available()
-    with pytest.raises(SpeechSynthesisError, match="apt-get install espeak-ng"):
+    with pytest.raises(SpeechSynthesisError, match="espeakng-loader"):
         synthesize_speech("hello")
+    with pytest.raises(SpeechSynthesisError, match="backend"):
+        synthesize_speech("hello", backend="festival")
 
 
 # -- base motion ---------------------------------------------------------------------------
