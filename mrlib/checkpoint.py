@@ -22,11 +22,15 @@ Keys (``FORMAT_VERSION`` 1)::
     progress                 {"block": int, "iteration": int, "done": bool}
     optim_g, optim_d         optimizer state dicts of the running block (or None)
     rng                      {"torch", "numpy", "python", "trainer"} RNG states
+    checksum                 SHA-256 of everything above (``state_checksum``), checked
+                             on load: a flipped byte is reported, not loaded
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -34,7 +38,14 @@ import torch
 
 from mrlib.errors import MotionFileError
 
-__all__ = ["FORMAT", "FORMAT_VERSION", "save_checkpoint", "load_checkpoint", "CheckpointError"]
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "save_checkpoint",
+    "load_checkpoint",
+    "state_checksum",
+    "CheckpointError",
+]
 
 FORMAT = "mrlib-checkpoint"
 FORMAT_VERSION = 1
@@ -44,14 +55,53 @@ class CheckpointError(MotionFileError):
     """A checkpoint file is missing, unreadable, or not an mrlib checkpoint."""
 
 
+def _digest(h: Any, value: Any) -> None:
+    if isinstance(value, torch.Tensor):
+        t = value.detach().cpu().contiguous()
+        h.update(f"T{t.dtype}{tuple(t.shape)}".encode())
+        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes())
+    elif isinstance(value, dict):
+        h.update(f"D{len(value)}".encode())
+        for k in sorted(value, key=repr):
+            h.update(repr(k).encode())
+            _digest(h, value[k])
+    elif isinstance(value, (list, tuple)):
+        h.update(f"L{len(value)}".encode())
+        for v in value:
+            _digest(h, v)
+    else:
+        h.update(f"V{value!r}".encode())
+
+
+def state_checksum(state: dict[str, Any]) -> str:
+    """SHA-256 (hex) of a checkpoint's content: keys, tensor dtypes, shapes and bytes,
+    and every other value; the ``checksum`` entry itself is left out."""
+    h = hashlib.sha256()
+    _digest(h, {k: v for k, v in state.items() if k != "checksum"})
+    return h.hexdigest()
+
+
 def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
-    """Write ``state`` atomically to ``path`` (and its config to ``path.json``)."""
+    """Write ``state`` atomically to ``path`` (and its config to ``path.json``), with a
+    checksum of its content. A failed write (full disk, interruption) leaves the previous
+    file as it was and removes the temporary file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     state = {"format": FORMAT, "version": FORMAT_VERSION, **state}
+    state["checksum"] = state_checksum(state)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    torch.save(state, tmp)
-    os.replace(tmp, path)
+    try:
+        torch.save(state, tmp)
+        with open(tmp, "rb+") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, (OSError, RuntimeError)):
+            raise CheckpointError(
+                path, f"could not write the checkpoint ({exc}); the previous one is kept"
+            ) from exc
+        raise
     if "config" in state:
         jtmp = path.with_name(f".{path.name}.json.tmp{os.getpid()}")
         jtmp.write_text(state["config"])
@@ -66,10 +116,20 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         raise CheckpointError(path, "no such checkpoint file")
     try:
         state = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as exc:  # torch raises several types for corrupt or unsafe files
-        raise CheckpointError(path, f"cannot read checkpoint: {exc}") from exc
+    except pickle.UnpicklingError as exc:  # what weights_only refuses: classes, code
+        raise CheckpointError(
+            path,
+            "refused: the file holds Python objects other than tensors and plain values "
+            "(mrlib checkpoints never do); it is not loaded, since unpickling it could run code",
+        ) from exc
+    except Exception as exc:  # torch raises several types for corrupt files
+        raise CheckpointError(path, f"cannot read checkpoint: {str(exc).splitlines()[0]}") from exc
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise CheckpointError(path, "not an mrlib checkpoint (missing 'format' key)")
+    if "checksum" in state and state["checksum"] != state_checksum(state):
+        raise CheckpointError(
+            path, "checksum mismatch: the file is corrupt (changed after it was written)"
+        )
     if state.get("version") != FORMAT_VERSION:
         raise CheckpointError(
             path,

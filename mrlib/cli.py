@@ -6,6 +6,7 @@ Run ``mrlib COMMAND --help`` for the options of each command.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -68,6 +69,25 @@ def _cmd_export(args) -> int:
     return 0
 
 
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and 0 < v <= 24 * 3600):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds in (0, 86400], got {text!r}")
+    return v
+
+
+def _device(text: str) -> str:
+    from mrlib.config import ConfigError, check_device
+
+    try:
+        return check_device(text)
+    except ConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
 # -- train ---------------------------------------------------------------------------------
 def _parse_iterations(text: str | None) -> tuple[int, ...] | None:
     if text is None:
@@ -118,7 +138,7 @@ def _add_train(sub):
     )
     p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
-    p.add_argument("--device", default="cpu", help="cpu or cuda [default: cpu]")
+    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument(
         "--out", type=Path, default=Path("runs/model"), help="output folder [default: runs/model]"
     )
@@ -195,9 +215,14 @@ def _cmd_train(args) -> int:
     if args.per_clip:
         if data is None:
             raise MrlibError("--per-clip trains from clips; resume each clip's folder separately")
+        from mrlib.io.paths import inside, unique_components
+
+        # one folder per clip, named after the clip but never a path of its own: the name
+        # comes from the file, so it is sanitised, and repeated names get distinct folders
+        folders = unique_components(data.names, fallback="clip")
         for k in range(data.num_clips):
             one = _single_clip(data, k)
-            out = args.out / data.names[k]
+            out = inside(args.out, args.out / folders[k])
             print(f"[{k + 1}/{data.num_clips}] {data.names[k]} -> {out}")
             res = train(one, ganimator_mode(cfg), out, progress=not args.no_progress)
             if res.interrupted:
@@ -259,7 +284,7 @@ def _add_train_speech(sub):
     )
     p.add_argument("--fps", type=float, default=25.0, help="motion frame rate [default: 25]")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
-    p.add_argument("--device", default="cpu", help="cpu or cuda [default: cpu]")
+    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("runs/speech"), help="output folder")
     p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -345,7 +370,10 @@ def _add_sample(sub):
         help="speech-conditioned models: gestures for this audio file (.wav/.flac), as long as it",
     )
     p.add_argument(
-        "--seconds", type=float, default=None, help="length in seconds (default: a training clip's)"
+        "--seconds",
+        type=_seconds,
+        default=None,
+        help="length in seconds (default: a training clip's)",
     )
     p.add_argument("--num", type=int, default=1, help="number of samples [default: 1]")
     p.add_argument("--seed", type=int, default=0, help="random seed [default: 0]")
@@ -355,7 +383,7 @@ def _add_sample(sub):
     p.add_argument(
         "--render", action="store_true", help="also write a mesh render (PNG) per sample"
     )
-    p.add_argument("--device", default="cpu")
+    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("outputs/samples"))
     p.set_defaults(func=_cmd_sample)
 
@@ -376,7 +404,13 @@ def _cmd_sample(args) -> int:
         tag = "+".join(f"{lab}{a}-{b}" for lab, (a, b) in args.crossover)
     elif args.blend:
         a, b, w = args.blend
-        kw["blend"] = (a, b, float(w))
+        try:
+            w = float(w)
+        except ValueError:
+            raise MrlibError(f"--blend weight must be a number in [0, 1], got {w!r}") from None
+        if not 0 <= w <= 1:
+            raise MrlibError(f"--blend weight must be in [0, 1], got {w:g}")
+        kw["blend"] = (a, b, w)
         tag = f"{a}-{b}-{float(w):g}"
     else:
         kw["condition"] = args.label if args.label is not None else model.labels[0]
@@ -408,11 +442,13 @@ def _audio_samples(args):
 
 def _write_samples(motions, tag: str, args) -> int:
     from mrlib.io import save_motion
+    from mrlib.io.paths import inside, safe_component
 
     motions = motions if isinstance(motions, list) else [motions]
     args.out.mkdir(parents=True, exist_ok=True)
+    tag = safe_component(tag, fallback="sample")  # labels come from files
     for i, m in enumerate(motions):
-        stem = args.out / f"{tag}_seed{args.seed}_{i}"
+        stem = inside(args.out, args.out / f"{tag}_seed{args.seed}_{i}")
         save_motion(m, stem.with_suffix(".npz"))
         save_motion(m, stem.with_suffix(".bvh"))
         if args.render:
@@ -454,7 +490,7 @@ def _add_evaluate(sub):
     )
     p.add_argument("--baseline-name", default="GANimator-mode")
     p.add_argument("--no-calibration", action="store_true", help="leave out the calibration rows")
-    p.add_argument("--device", default="cpu")
+    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
     p.set_defaults(func=_cmd_evaluate)
 
@@ -498,10 +534,18 @@ def _add_demo(sub):
         "demo",
         help="end-to-end demo on the bundled data (train, sample, crossover, evaluate)",
         description="Load the synthetic clips in data_samples/, retarget a Bandai Namco BVH if "
-        "MRLIB_DATA_DIR points at the dataset, train with the tutorial preset, sample every label "
-        "and a coarse/fine crossover, evaluate, and write renders, exports and summary.md to --out.",
+        "MRLIB_DATA_DIR points at the dataset, train (the 'demo' preset: a few minutes on two CPU "
+        "cores), sample every label and a coarse/fine crossover, evaluate, and write renders, "
+        "animated previews, exports and summary.md to --out.",
     )
     p.add_argument("--out", type=Path, default=Path("outputs"))
+    p.add_argument(
+        "--preset",
+        default="demo",
+        choices=["demo", "tutorial", "paper"],
+        help="training schedule: 'demo' (minutes, clips at 15 fps), 'tutorial' (the tutorial "
+        "budget, ~20 min on 2 cores) or 'paper' [default: demo]",
+    )
     p.add_argument(
         "--quick", action="store_true", help="smoke-test budget (seconds; results not meaningful)"
     )
@@ -519,7 +563,12 @@ def _cmd_demo(args) -> int:
     from mrlib.demo import run_demo
 
     run_demo(
-        args.out, quick=args.quick, iterations=args.iterations, samples=args.samples, seed=args.seed
+        args.out,
+        preset=args.preset,
+        quick=args.quick,
+        iterations=args.iterations,
+        samples=args.samples,
+        seed=args.seed,
     )
     return 0
 
@@ -531,6 +580,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     _add_demo(sub)
     _add_train(sub)
@@ -542,7 +592,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _describe(e: BaseException) -> str:
+    """One line for an error: the file, the problem, and for OS errors what failed."""
+    if isinstance(e, OSError) and not isinstance(e, MrlibError):
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        return f"{where}{e.strerror or e}"
+    if isinstance(e, MemoryError):
+        return "out of memory (try a shorter clip, fewer samples or a lower --fps)"
+    return f"{type(e).__name__}: {e}"
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one command. Errors print one line (``error: ...``) and exit 1 (usage errors
+    exit 2); ``--debug`` shows the full traceback instead."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
@@ -550,12 +612,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except MrlibError as e:
-        print(f"error: {type(e).__name__}: {e}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except (MrlibError, OSError, MemoryError) as e:
+        if args.debug:
+            raise
+        print(f"error: {_describe(e)}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

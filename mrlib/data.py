@@ -16,7 +16,7 @@ import torch
 
 from mrlib.errors import MotionValueError
 from mrlib.features import NUM_FEATURES, FeatureNormalizer, motion_to_features
-from mrlib.motion import Motion
+from mrlib.motion import MAX_FPS, Motion
 
 __all__ = ["TrainingSet"]
 
@@ -55,6 +55,11 @@ class TrainingSet:
             raise MotionValueError("features, clip_labels and names must have one entry per clip")
         if any(not 0 <= c < len(self.labels) for c in self.clip_labels):
             raise MotionValueError(f"clip_labels must index labels ({len(self.labels)} of them)")
+        if not (np.isfinite(self.fps) and 0 < self.fps <= MAX_FPS):
+            raise MotionValueError(f"fps must be a number in (0, {MAX_FPS:g}], got {self.fps}")
+        for k, f in enumerate(self.features):
+            if not np.isfinite(np.asarray(f)).all():
+                raise MotionValueError(f"clip {k} ({self.names[k]}): features contain NaN or inf")
 
     # -- construction ----------------------------------------------------------------------
     @classmethod
@@ -74,6 +79,8 @@ class TrainingSet:
         if labels is not None and len(labels) != len(motions):
             raise MotionValueError(f"got {len(labels)} labels for {len(motions)} motions")
         fps = float(motions[0].fps if fps is None else fps)
+        if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
+            raise MotionValueError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps}")
         names, clip_label_names, feats = [], [], []
         for k, m in enumerate(motions):
             if not isinstance(m, Motion):

@@ -23,8 +23,18 @@ __all__ = ["Motion", "NUM_BETAS"]
 NUM_BETAS = 10
 
 
+# Plausibility bounds: a frame rate or a root translation beyond these is a unit or
+# parsing error (a BVH "Frame Time: 1e-300", centimetres read as kilometres), not motion.
+MAX_FPS = 1000.0
+MAX_TRANSLATION_M = 1000.0
+
+
 def _as_array(name: str, value: Any, shape_tail: tuple[int, ...], what: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float32)
+    raw = np.asarray(value)
+    if raw.dtype.kind not in "biuf":
+        raise MotionValueError(f"Motion.{name} must hold real numbers, got dtype {raw.dtype}")
+    with np.errstate(over="ignore"):
+        arr = raw.astype(np.float32)
     if arr.ndim != 1 + len(shape_tail) or tuple(arr.shape[1:]) != shape_tail:
         want = "(T, " + ", ".join(map(str, shape_tail)) + ")"
         raise MotionValueError(f"Motion.{name} must have shape {want} ({what}), got {arr.shape}")
@@ -63,7 +73,11 @@ class Motion:
     def __post_init__(self) -> None:
         if isinstance(self.poses, torch.Tensor):
             self.poses = self.poses.detach().cpu().numpy()
-        poses = np.asarray(self.poses, dtype=np.float32)
+        poses = np.asarray(self.poses)
+        if poses.dtype.kind not in "biuf":
+            raise MotionValueError(f"Motion.poses must hold real numbers, got dtype {poses.dtype}")
+        with np.errstate(over="ignore"):
+            poses = poses.astype(np.float32)
         if poses.ndim == 2 and poses.shape[1] == NUM_JOINTS * 3:
             poses = poses.reshape(len(poses), NUM_JOINTS, 3)
         self.poses = _as_array("poses", poses, (NUM_JOINTS, 3), "axis-angle per SMPL joint")
@@ -75,12 +89,20 @@ class Motion:
         self.trans = _as_array("trans", self.trans, (3,), "root translation in metres")
         if len(self.trans) != T:
             raise MotionValueError(f"Motion.trans has {len(self.trans)} frames, poses has {T}")
+        far = np.abs(self.trans).max()
+        if far > MAX_TRANSLATION_M:
+            raise MotionValueError(
+                f"Motion.trans reaches {far:.3g} m from the origin (more than "
+                f"{MAX_TRANSLATION_M:g} m): wrong units? (BVH: pass scale=...)"
+            )
         betas = np.asarray(self.betas, dtype=np.float32).reshape(-1)
         if not np.isfinite(betas).all():
             raise MotionValueError("Motion.betas has NaN or inf values")
         self.betas = betas
-        if not (np.isfinite(self.fps) and self.fps > 0):
-            raise MotionValueError(f"Motion.fps must be a positive number, got {self.fps}")
+        if not (np.isfinite(self.fps) and 0 < self.fps <= MAX_FPS):
+            raise MotionValueError(
+                f"Motion.fps must be a number in (0, {MAX_FPS:g}], got {self.fps}"
+            )
         self.fps = float(self.fps)
         if self.contacts is not None:
             c = _as_array("contacts", self.contacts, (NUM_CONTACTS,), "foot contact labels")
@@ -126,8 +148,8 @@ class Motion:
         """Resample to ``fps``: rotations by slerp, translation linearly, contact labels
         by nearest frame. The first frame is kept; the last output frame is the last
         one not after the input's end."""
-        if not (np.isfinite(fps) and fps > 0):
-            raise MotionValueError(f"target fps must be positive, got {fps}")
+        if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
+            raise MotionValueError(f"target fps must be in (0, {MAX_FPS:g}], got {fps}")
         if abs(fps - self.fps) < 1e-9:
             return self.replace()
         T = self.num_frames

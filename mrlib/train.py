@@ -40,6 +40,7 @@ import torch.nn.functional as F
 from mrlib.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from mrlib.config import ConfigError, TrainConfig, config_from_json, config_to_json
 from mrlib.data import TrainingSet
+from mrlib.errors import MrlibError
 from mrlib.features import NUM_FEATURES, FeatureNormalizer
 from mrlib.losses import (
     backward_velocity,
@@ -54,7 +55,19 @@ from mrlib.losses import (
 from mrlib.models import MultiResGenerator, build_critics, build_generator
 from mrlib.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid_lengths
 
-__all__ = ["train", "Trainer", "TrainResult", "LOSS_NAMES", "wgan_gp_critic_loss"]
+__all__ = [
+    "train",
+    "Trainer",
+    "TrainResult",
+    "TrainingDivergedError",
+    "LOSS_NAMES",
+    "wgan_gp_critic_loss",
+]
+
+
+class TrainingDivergedError(MrlibError, FloatingPointError):
+    """A loss or a weight became NaN or infinite during training."""
+
 
 LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth", "mis", "detail")
 CSV_FIELDS = ["time_s", "block", "iteration", "level", *LOSS_NAMES]
@@ -587,7 +600,30 @@ class Trainer:
         self.rng.set_state(state["rng"]["trainer"])
 
     def save(self, path: Path | None = None) -> Path:
+        """Write the checkpoint; refuses (keeping the previous file) when a network holds
+        a non-finite weight."""
+        for name, net in (("generator", self.generator), ("critics", self.critics)):
+            if not all(bool(torch.isfinite(p).all()) for p in net.parameters()):
+                raise TrainingDivergedError(
+                    f"the {name} has non-finite weights at block {self.block + 1}, iteration "
+                    f"{self.iteration}; the checkpoint was not overwritten"
+                )
         return save_checkpoint(path or self.out_dir / "checkpoint.pt", self.state_dict())
+
+    def _check_finite(self, losses: dict[int, dict[str, torch.Tensor]]) -> None:
+        """Stop at the first non-finite loss, naming the level and the term."""
+        values = [v.detach().reshape(()) for d in losses.values() for v in d.values()]
+        if not values or bool(torch.isfinite(torch.stack(values)).all()):
+            return
+        bad = next(
+            (i + 1, k) for i, d in losses.items() for k, v in d.items() if not torch.isfinite(v)
+        )
+        raise TrainingDivergedError(
+            f"loss '{bad[1]}' of level {bad[0]} is not finite at block {self.block + 1}, "
+            f"iteration {self.iteration + 1}; training stopped and the last checkpoint in "
+            f"{self.out_dir} was kept. Check the clips (frame rate, units, NaN values) or "
+            "lower the learning rate"
+        )
 
     # -- the loop ----------------------------------------------------------------------------
     def fit(
@@ -637,6 +673,7 @@ class Trainer:
                         while self.iteration < n_iter:
                             stop["in_step"] = True
                             losses = self.step()
+                            self._check_finite(losses)
                             self.iteration += 1
                             stop["in_step"] = False
                             if self.iteration % c.log_every == 0 or self.iteration == n_iter:

@@ -175,7 +175,9 @@ def _lines(text):
         (lambda t: t[: t.index("MOTION")], 20, "expected a 'MOTION' section"),
         # bad Frames header
         (lambda t: t.replace("Frames: 2", "Frame: 2"), 22, "expected 'Frames: <number>'"),
-        (lambda t: t.replace("Frame Time: 0.04", "Frame Time: 0"), 23, "must be a positive number"),
+        (lambda t: t.replace("Frame Time: 0.04", "Frame Time: 0"), 23, "must be seconds per frame"),
+        (lambda t: t.replace("Frame Time: 0.04", "Frame Time: 1e-300"), 23, "between 0.001"),
+        (lambda t: t.replace("Frame Time: 0.04", "Frame Time: 1e300"), 23, "and 100"),
         # no HIERARCHY keyword
         (lambda t: t.replace("HIERARCHY", "HIERARCHIE"), 1, "expected 'HIERARCHY'"),
         (lambda t: "", 1, "empty"),

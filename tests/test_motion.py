@@ -29,7 +29,11 @@ def test_shapes_and_defaults():
     [
         ({"poses": np.zeros((5, 23, 3))}, "poses must have shape"),
         ({"trans": np.zeros((4, 3))}, "trans has 4 frames"),
-        ({"fps": 0}, "fps must be a positive"),
+        ({"fps": 0}, r"fps must be a number in \(0, 1000\]"),
+        ({"fps": 1e300}, "fps must be a number"),
+        ({"fps": float("nan")}, "fps must be a number"),
+        ({"trans": np.full((5, 3), 1e30)}, "wrong units"),
+        ({"poses": np.zeros((5, 24, 3), complex)}, "real numbers"),
         ({"poses": np.full((5, 24, 3), np.nan)}, "NaN or inf"),
         ({"contacts": np.zeros((5, 5))}, "contacts must have shape"),
     ],

@@ -453,3 +453,97 @@ def test_mismatch_term_shows_real_clips_with_a_wrong_label(data, body, tmp_path)
     one = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
     with pytest.raises(ConfigError, match="two labels"):
         Trainer(one, cfg, tmp_path, body=body)
+
+
+# -- non-finite losses ------------------------------------------------------------------------
+def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
+    tmp_path, data, body, monkeypatch
+):
+    """The 4th iteration's loss is NaN and its weights are poisoned: training raises,
+    names the term, and the checkpoint of iteration 2 stays as it was."""
+    from mrlib.train import TrainingDivergedError
+
+    real_step = Trainer.step
+    calls = {"n": 0}
+
+    def step(self):
+        losses = real_step(self)
+        calls["n"] += 1
+        if calls["n"] == 4:
+            with torch.no_grad():
+                next(self.generator.parameters()).fill_(float("nan"))
+            losses[self.block_levels[-1]]["rec"] = torch.tensor(float("nan"))
+        return losses
+
+    monkeypatch.setattr(Trainer, "step", step)
+    with pytest.raises(TrainingDivergedError, match="loss 'rec' of level 2 is not finite"):
+        train(data, tiny(), tmp_path, body=body, progress=False)
+    state = load_checkpoint(tmp_path / "checkpoint.pt")
+    assert state["progress"]["iteration"] == 2
+    assert all(torch.isfinite(v).all() for v in state["generator"].values())
+
+
+def test_a_trainer_refuses_to_save_non_finite_weights(tmp_path, data, body):
+    from mrlib.train import TrainingDivergedError
+
+    trainer = Trainer(data, tiny(), tmp_path, body=body)
+    trainer.save()
+    before = (tmp_path / "checkpoint.pt").read_bytes()
+    with torch.no_grad():
+        next(trainer.generator.parameters()).fill_(float("inf"))
+    with pytest.raises(TrainingDivergedError, match="non-finite weights"):
+        trainer.save()
+    assert (tmp_path / "checkpoint.pt").read_bytes() == before
+
+
+def test_cli_train_with_nan_fps_fails_with_a_clear_error(tmp_path, capsys):
+    from mrlib.cli import main
+    from mrlib.demo import DATA_SAMPLES
+
+    clip = str(DATA_SAMPLES / "walk_sad.npz")
+    assert main(["train", clip, "--fps", "nan", "--iterations", "1", "--out", str(tmp_path)]) == 1
+    assert "fps must be a number" in capsys.readouterr().err
+    assert not (tmp_path / "checkpoint.pt").exists()
+
+
+# -- checkpoint integrity ---------------------------------------------------------------------
+def test_a_flipped_byte_in_a_checkpoint_is_detected(tmp_path):
+    path = save_checkpoint(tmp_path / "c.pt", {"w": torch.arange(4096, dtype=torch.float32)})
+    raw = bytearray(path.read_bytes())
+    data_at = raw.find(torch.arange(4096, dtype=torch.float32).numpy().tobytes()[:64])
+    assert data_at > 0
+    raw[data_at + 1000] ^= 0xFF
+    path.write_bytes(bytes(raw))
+    with pytest.raises(CheckpointError, match="checksum mismatch"):
+        load_checkpoint(path)
+
+
+def test_a_pickle_payload_is_refused_with_mrlibs_own_sentence(tmp_path):
+    class Evil:
+        def __reduce__(self):
+            return (print, ("this must not run",))
+
+    path = tmp_path / "evil.pt"
+    torch.save({"format": "mrlib-checkpoint", "x": Evil()}, path)
+    with pytest.raises(CheckpointError, match="refused") as info:
+        load_checkpoint(path)
+    assert "weights_only=False" not in str(info.value)
+
+
+def test_a_failed_write_keeps_the_previous_checkpoint(tmp_path, monkeypatch):
+    """A full disk during the write: the old file stays, the temporary file goes."""
+    import errno
+
+    path = save_checkpoint(tmp_path / "c.pt", {"w": torch.ones(3)})
+    before = path.read_bytes()
+
+    def full_disk(obj, f, *a, **k):
+        with open(f, "wb") as fh:
+            fh.write(b"partial")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(torch, "save", full_disk)
+    with pytest.raises(CheckpointError, match="No space left on device.*previous one is kept"):
+        save_checkpoint(path, {"w": torch.zeros(3)})
+    assert path.read_bytes() == before
+    assert not any(".tmp" in p.name for p in tmp_path.iterdir())

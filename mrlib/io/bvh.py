@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from mrlib.errors import BVHFormatError
+from mrlib.motion import MAX_FPS
 
 __all__ = [
     "BVHSkeleton",
@@ -348,10 +349,11 @@ def parse_bvh(text: str, *, source: str | Path = "<string>") -> BVH:
         frame_time = float(header["Frame Time"])
     except ValueError:
         frame_time = float("nan")
-    if not (math.isfinite(frame_time) and frame_time > 0):
+    if not (math.isfinite(frame_time) and 1.0 / MAX_FPS <= frame_time <= 100.0):
         raise BVHFormatError(
             source,
-            f"line {i}: 'Frame Time:' must be a positive number, got '{header['Frame Time']}'",
+            f"line {i}: 'Frame Time:' must be seconds per frame between {1.0 / MAX_FPS:g} "
+            f"and 100, got '{header['Frame Time']}'",
         )
     motion = _parse_frames(lines, i, n_frames, skeleton.num_channels, source)
     return BVH(skeleton=skeleton, motion=motion, frame_time=frame_time, source=source)

@@ -1,0 +1,76 @@
+"""Output paths built from names that come from files.
+
+A clip's name and label come from its file (the npz ``name`` / ``label`` keys, a BVH's
+JSON sidecar, a file stem) and end up in output paths: ``<out>/<clip name>/`` for
+``mrlib train --per-clip``, ``<out>/<label>_seed0_0.npz`` for ``mrlib sample``. A name such
+as ``/etc/x``, ``../../x`` or ``a/b`` must not decide where a file is written, so every such
+name passes through :func:`safe_component` (the original stays in the metadata), and every
+output path through :func:`inside`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import unicodedata
+from collections.abc import Iterable
+from pathlib import Path
+
+from mrlib.errors import MrlibError
+
+__all__ = ["UnsafePathError", "safe_component", "unique_components", "inside"]
+
+MAX_COMPONENT = 80  # characters of a sanitised name, before its hash suffix
+_ALLOWED = re.compile(r"[^A-Za-z0-9._+=-]+")
+
+
+class UnsafePathError(MrlibError, ValueError):
+    """An output path would leave the output folder."""
+
+
+def safe_component(name: object, fallback: str = "unnamed") -> str:
+    """``name`` as one safe file-name component.
+
+    Letters, digits and ``. _ + = -`` are kept (after Unicode NFKD folding to ASCII);
+    every other run of characters, path separators, NUL and control characters among
+    them, becomes ``_``; leading dots are dropped (no ``..``, no hidden files). A name
+    that had to change, or is longer than ``MAX_COMPONENT``, gets a short hash of the
+    original appended, so distinct names stay distinct. Empty results become
+    ``fallback``.
+    """
+    text = str(name)
+    folded = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
+    out = _ALLOWED.sub("_", folded).lstrip("._").rstrip("_") or fallback
+    changed = out != text
+    if len(out) > MAX_COMPONENT:
+        out, changed = out[:MAX_COMPONENT].rstrip("._"), True
+    if changed:
+        digest = hashlib.sha1(text.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+        out = f"{out}-{digest}"
+    return out
+
+
+def unique_components(names: Iterable[object], fallback: str = "unnamed") -> list[str]:
+    """:func:`safe_component` of every name, with ``-2``, ``-3``, ... appended to repeats
+    (compared case-insensitively, for case-insensitive file systems)."""
+    out: list[str] = []
+    seen: set[str] = set()
+    for name in names:
+        base = safe_component(name, fallback)
+        cand, k = base, 1
+        while cand.lower() in seen:
+            k += 1
+            cand = f"{base}-{k}"
+        seen.add(cand.lower())
+        out.append(cand)
+    return out
+
+
+def inside(root: str | Path, path: str | Path) -> Path:
+    """``path`` if it lies in ``root`` (both resolved, symbolic links followed), else
+    :class:`UnsafePathError`."""
+    root_r = Path(root).resolve()
+    path_r = Path(path).resolve()
+    if path_r != root_r and root_r not in path_r.parents:
+        raise UnsafePathError(f"{path}: refusing to write outside the output folder {root}")
+    return Path(path)
