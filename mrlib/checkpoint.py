@@ -28,15 +28,17 @@ Keys (``FORMAT_VERSION`` 1)::
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import pickle
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import torch
 
-from mrlib.errors import MotionFileError
+from mrlib.errors import MotionFileError, MrlibError
 
 __all__ = [
     "FORMAT",
@@ -44,6 +46,7 @@ __all__ = [
     "save_checkpoint",
     "load_checkpoint",
     "state_checksum",
+    "reading",
     "CheckpointError",
 ]
 
@@ -81,6 +84,21 @@ def state_checksum(state: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
+def _remove_stale_temporaries(path: Path) -> None:
+    """Remove ``.<name>.tmp<PID>`` files left by writers that were killed mid-write
+    (their process is gone); a live writer's file is left alone."""
+    for tmp in path.parent.glob(f".{path.name}.tmp*"):
+        pid = tmp.name.rsplit(".tmp", 1)[-1]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass  # exists but not ours to signal: leave it
+
+
 def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
     """Write ``state`` atomically to ``path`` (and its config to ``path.json``), with a
     checksum of its content. A failed write (full disk, interruption) leaves the previous
@@ -89,6 +107,7 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     state = {"format": FORMAT, "version": FORMAT_VERSION, **state}
     state["checksum"] = state_checksum(state)
+    _remove_stale_temporaries(path)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
         torch.save(state, tmp)
@@ -107,6 +126,26 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
         jtmp.write_text(state["config"])
         os.replace(jtmp, path.with_suffix(path.suffix + ".json"))
     return path
+
+
+@contextlib.contextmanager
+def reading(path: str | Path) -> Iterator[None]:
+    """Report whatever goes wrong while building a model or trainer from a checkpoint's
+    content (a missing key, a bad config, tensors of the wrong shape) as a
+    :class:`CheckpointError` naming ``path``."""
+    try:
+        yield
+    except CheckpointError as e:
+        if e.path is None:
+            raise CheckpointError(Path(path), e.problem) from e
+        raise
+    except MrlibError as e:  # a config that does not validate, and the like
+        raise CheckpointError(Path(path), f"invalid checkpoint: {e}") from e
+    except KeyError as e:
+        raise CheckpointError(Path(path), f"incomplete checkpoint: missing {e}") from e
+    except (TypeError, ValueError, RuntimeError, AttributeError, IndexError) as e:
+        first = str(e).splitlines()[0] if str(e) else type(e).__name__
+        raise CheckpointError(Path(path), f"inconsistent checkpoint: {first}") from e
 
 
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:

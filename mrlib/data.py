@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.features import NUM_FEATURES, FeatureNormalizer, motion_to_features
 from mrlib.motion import MAX_FPS, Motion
 
@@ -89,7 +89,11 @@ class TrainingSet:
                 m = m.resample(fps)
             name = m.name or f"clip{k}"
             lab = labels[k] if labels is not None else (m.label or name)
-            feats.append(motion_to_features(m, body))
+            try:
+                feats.append(motion_to_features(m, body))
+            except (ClipTooShortError, MotionValueError) as e:
+                where = m.meta.get("source", name)
+                raise type(e)(f"{where}: {e}") from None
             names.append(name)
             clip_label_names.append(str(lab))
         label_names = sorted(set(clip_label_names))

@@ -27,6 +27,7 @@ NUM_BETAS = 10
 # parsing error (a BVH "Frame Time: 1e-300", centimetres read as kilometres), not motion.
 MAX_FPS = 1000.0
 MAX_TRANSLATION_M = 1000.0
+MAX_FRAMES = 5_000_000  # ~46 h at 30 fps: more is an fps typo, and would not fit in memory
 
 
 def _as_array(name: str, value: Any, shape_tail: tuple[int, ...], what: str) -> np.ndarray:
@@ -154,6 +155,11 @@ class Motion:
             return self.replace()
         T = self.num_frames
         n_out = int(np.floor((T - 1) * fps / self.fps + 1e-9)) + 1
+        if n_out > MAX_FRAMES:
+            raise MotionValueError(
+                f"resampling {T} frames from {self.fps:g} to {fps:g} fps would make {n_out} "
+                f"frames (more than {MAX_FRAMES}); choose a lower fps"
+            )
         t = np.arange(n_out) * (self.fps / fps)  # positions in input frames
         i0 = np.clip(np.floor(t).astype(np.int64), 0, T - 1)
         i1 = np.clip(i0 + 1, 0, T - 1)

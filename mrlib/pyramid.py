@@ -33,6 +33,14 @@ __all__ = [
 ]
 
 
+def _coarsest(length: int, num_levels: int, factor: float) -> int:
+    lengths = [max(1, round(length / factor ** (num_levels - 1 - k))) for k in range(num_levels)]
+    lengths[-1] = int(length)
+    for k in range(num_levels - 2, -1, -1):
+        lengths[k] = min(lengths[k], lengths[k + 1] - 1)
+    return lengths[0]
+
+
 def pyramid_lengths(
     length: int, num_levels: int, factor: float = 4 / 3, min_length: int = 3
 ) -> list[int]:
@@ -53,7 +61,9 @@ def pyramid_lengths(
     for k in range(num_levels - 2, -1, -1):  # strictly increasing from coarse to fine
         lengths[k] = min(lengths[k], lengths[k + 1] - 1)
     if lengths[0] < min_length:
-        need = math.ceil(min_length * factor ** (num_levels - 1))
+        need = math.ceil(min_length * factor ** (num_levels - 1) / 2)
+        while _coarsest(need, num_levels, factor) < min_length:
+            need += 1
         raise ClipTooShortError(
             f"a clip of {length} frames gives a coarsest level of {lengths[0]} frames with "
             f"{num_levels} levels and factor {factor:g}; need at least {min_length} "

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.checkpoint import load_checkpoint
+from mrlib.checkpoint import load_checkpoint, reading
 from mrlib.config import TrainConfig, config_from_json
 from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
@@ -109,7 +109,9 @@ def _model_from_state(state: dict, device: str | torch.device) -> GenerativeMode
 
 def load_model(path: str | Path, device: str | torch.device = "cpu") -> GenerativeModel:
     """Load a checkpoint written by ``mrlib.train`` for sampling."""
-    return _model_from_state(load_checkpoint(path), device)
+    state = load_checkpoint(path)
+    with reading(path):
+        return _model_from_state(state, device)
 
 
 def model_from_trainer(trainer) -> GenerativeModel:

@@ -69,7 +69,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint
+from mrlib.checkpoint import CheckpointError, load_checkpoint, reading
 from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig, config_from_json
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
@@ -822,12 +822,9 @@ def load_speech_model(
 ) -> SpeechModel:
     """Load a checkpoint written by :func:`speech_train` for generation from audio.
     ``wavlm_path`` replaces the WavLM folder recorded at training time."""
-    try:
-        return _speech_model_from_state(load_checkpoint(path), device, wavlm_path)
-    except CheckpointError as e:
-        if e.path is None:
-            raise CheckpointError(Path(path), e.problem) from None
-        raise
+    state = load_checkpoint(path)
+    with reading(path):
+        return _speech_model_from_state(state, device, wavlm_path)
 
 
 def speech_model_from_trainer(trainer: SpeechTrainer) -> SpeechModel:

@@ -37,10 +37,10 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from mrlib.checkpoint import CheckpointError, load_checkpoint, reading, save_checkpoint
 from mrlib.config import ConfigError, TrainConfig, config_from_json, config_to_json
 from mrlib.data import TrainingSet
-from mrlib.errors import MrlibError
+from mrlib.errors import ClipTooShortError, MrlibError
 from mrlib.features import NUM_FEATURES, FeatureNormalizer
 from mrlib.losses import (
     backward_velocity,
@@ -155,6 +155,13 @@ def _set_rng_state(state: dict) -> None:
         torch.cuda.set_rng_state_all(state["cuda"])
 
 
+def _clip_lengths(name: str, length: int, L: int, factor: float, min_length: int) -> list[int]:
+    try:
+        return pyramid_lengths(length, L, factor, min_length=min_length)
+    except ClipTooShortError as e:
+        raise ClipTooShortError(f"clip '{name}': {e}") from None
+
+
 class Trainer:
     """Holds the networks, data pyramids, layouts and optimizers of one training run.
 
@@ -191,7 +198,10 @@ class Trainer:
         # 1. pyramids, noise amplitudes, reconstruction noise --------------------------------
         pad = (mc.kernel_size - 1) // 2
         self.lengths = torch.tensor(
-            [pyramid_lengths(t, L, mc.scale_factor, min_length=pad + 1) for t in data.lengths]
+            [
+                _clip_lengths(name, t, L, mc.scale_factor, pad + 1)
+                for name, t in zip(data.names, data.lengths, strict=True)
+            ]
         )  # (N, L)
         clips = data.normalized()
         pyramids = [build_pyramid(x, self.lengths[k].tolist()) for k, x in enumerate(clips)]
@@ -560,20 +570,22 @@ class Trainer:
     ) -> Trainer:
         """Rebuild a trainer (data included) from a checkpoint to continue training."""
         state = load_checkpoint(path)
-        config = config_from_json(state["config"])
-        if device is not None:
-            config = config.replace(device=device)
-        data = TrainingSet(
-            features=list(state["features"]),
-            clip_labels=list(state["clip_labels"]),
-            labels=list(state["labels"]),
-            fps=float(state["fps"]),
-            names=list(state["clip_names"]),
-            normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
-            betas=state["betas"].numpy(),
-        )
-        trainer = cls(data, config, Path(path).parent if out_dir is None else out_dir, body=body)
-        trainer.load_state_dict(state)
+        with reading(path):
+            config = config_from_json(state["config"])
+            if device is not None:
+                config = config.replace(device=device)
+            data = TrainingSet(
+                features=list(state["features"]),
+                clip_labels=list(state["clip_labels"]),
+                labels=list(state["labels"]),
+                fps=float(state["fps"]),
+                names=list(state["clip_names"]),
+                normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
+                betas=state["betas"].numpy(),
+            )
+            out = Path(path).parent if out_dir is None else out_dir
+            trainer = cls(data, config, out, body=body)
+            trainer.load_state_dict(state)
         return trainer
 
     def load_state_dict(self, state: dict) -> None:

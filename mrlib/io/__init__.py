@@ -21,7 +21,7 @@ import json
 import re
 from pathlib import Path
 
-from mrlib.errors import MotionFileError, UnsupportedFormatError
+from mrlib.errors import MotionFileError, MotionValueError, MrlibError, UnsupportedFormatError
 from mrlib.io.bvh import BVH, BVHSkeleton, parse_bvh, read_bvh, write_bvh
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
 from mrlib.io.retarget import (
@@ -210,17 +210,30 @@ def load_motion(
         )
     if not path.is_file():
         raise MotionFileError(path, "no such file")
-    if ext == ".bvh":
-        return load_bvh(
-            path,
-            fps,
-            joint_map=joint_map,
-            body=body,
-            up_axis=up_axis or "auto",
-            unit=unit,
-            label=label,
-        )
-    return load_npz(path, fps, up_axis=up_axis, body=body)
+    try:
+        if ext == ".bvh":
+            return load_bvh(
+                path,
+                fps,
+                joint_map=joint_map,
+                body=body,
+                up_axis=up_axis or "auto",
+                unit=unit,
+                label=label,
+            )
+        return load_npz(path, fps, up_axis=up_axis, body=body)
+    except MotionFileError:
+        raise
+    except MotionValueError as e:  # the values read make no motion (bounds, NaN, shapes)
+        raise MotionFileError(path, str(e)) from e
+    except MrlibError:
+        raise
+    except (ArithmeticError, LookupError, TypeError, ValueError, OSError, RuntimeError) as e:
+        # the readers check what they expect; whatever else a damaged file trips over is
+        # still reported as this file's problem, never as numpy's or zlib's
+        raise MotionFileError(path, f"cannot read ({type(e).__name__}: {e})") from e
+    except MemoryError as e:
+        raise MotionFileError(path, "too large to read into memory") from e
 
 
 def save_motion(
@@ -234,8 +247,13 @@ def save_motion(
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if ext == ".npz":
-        return save_npz(motion, path)
-    if ext == ".bvh":
+    if ext not in (".npz", ".bvh"):
+        raise UnsupportedFormatError(
+            path, f"unsupported file type '{ext}'; mrlib writes .bvh and .npz"
+        )
+    try:
+        if ext == ".npz":
+            return save_npz(motion, path)
         return write_bvh(path, smpl_to_bvh(motion, body=body, unit=bvh_unit, order=euler_order))
-    raise UnsupportedFormatError(path, f"unsupported file type '{ext}'; mrlib writes .bvh and .npz")
+    except OSError as e:
+        raise MotionFileError(path, f"cannot write: {e.strerror or e}") from e

@@ -172,7 +172,12 @@ class _Tokens:
         return val
 
 
-def _parse_joint(tk: _Tokens, name: str, parent: int, out: dict) -> None:
+MAX_DEPTH = 256  # joints nested deeper than this are refused (humanoid rigs: < 40)
+
+
+def _parse_joint(tk: _Tokens, name: str, parent: int, out: dict, depth: int = 0) -> None:
+    if depth >= MAX_DEPTH:
+        raise tk.error(f"joints nested more than {MAX_DEPTH} deep (at '{name}'): not a skeleton")
     index = len(out["names"])
     out["names"].append(name)
     out["parents"].append(parent)
@@ -209,7 +214,7 @@ def _parse_joint(tk: _Tokens, name: str, parent: int, out: dict) -> None:
             child, _ = tk.next("a joint name")
             if child in out["names"]:
                 raise tk.error(f"duplicate joint name '{child}'", line)
-            _parse_joint(tk, child, index, out)
+            _parse_joint(tk, child, index, out, depth + 1)
         elif up == "END":
             tk.expect("Site")
             tk.expect("{")

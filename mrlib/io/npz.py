@@ -29,6 +29,8 @@ from __future__ import annotations
 
 import json
 import re
+import zipfile
+import zlib
 from pathlib import Path
 from typing import Any
 
@@ -64,19 +66,23 @@ def _finite(path, key: str, arr: np.ndarray) -> np.ndarray:
 def _array(path, data, key: str, ndim: int | None = None) -> np.ndarray:
     if key not in data:
         raise MotionFileError(path, f"missing key '{key}' (keys: {sorted(data.keys())})")
-    try:
-        arr = np.asarray(data[key], dtype=np.float64)
-    except (TypeError, ValueError):
-        raise MotionFileError(path, f"'{key}' is not numeric") from None
+    raw = np.asarray(data[key])
+    if raw.dtype.kind not in "biuf":
+        raise MotionFileError(path, f"'{key}' must hold real numbers, got dtype {raw.dtype}")
+    arr = raw.astype(np.float64)
     if ndim is not None and arr.ndim != ndim:
         raise MotionFileError(path, f"'{key}' must have {ndim} dimensions, got shape {arr.shape}")
     return _finite(path, key, arr)
 
 
-def _text_value(data, key: str) -> str | None:
+def _text_value(data, key: str, path=None) -> str | None:
     if key not in data:
         return None
     v = np.asarray(data[key])
+    if v.size == 0:
+        return None
+    if v.dtype.kind not in "USiuf":
+        raise MotionFileError(path, f"'{key}' must be text, got an array of {v.dtype}")
     return str(v.item() if v.ndim == 0 else v.reshape(-1)[0])
 
 
@@ -127,10 +133,27 @@ def load_npz(
     """
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as z:
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise MotionFileError(path, "not an .npz archive (a single .npy array?)")
+        with z:
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError) as e:
-        raise MotionFileError(path, f"cannot read npz: {e}") from None
+    except MotionFileError:
+        raise
+    except IsADirectoryError:
+        raise MotionFileError(path, "is a folder, not an .npz file") from None
+    except FileNotFoundError:
+        raise MotionFileError(path, "no such file") from None
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        zipfile.BadZipFile,
+        zlib.error,
+        KeyError,
+        RuntimeError,
+    ) as e:
+        raise MotionFileError(path, f"cannot read npz ({type(e).__name__}: {e})") from None
     poses = _array(path, data, "poses", ndim=2)
     T, width = poses.shape
     if width not in POSE_WIDTHS:
@@ -158,7 +181,10 @@ def load_npz(
         betas = b[:NUM_BETAS]
     file_fps = next((k for k in _FPS_KEYS if k in data), None)
     if file_fps is not None:
-        rate = float(_array(path, data, file_fps).reshape(-1)[0])
+        rates = _array(path, data, file_fps).reshape(-1)
+        if rates.size == 0:
+            raise MotionFileError(path, f"'{file_fps}' is empty")
+        rate = float(rates[0])
         if not rate > 0:
             raise MotionFileError(path, f"'{file_fps}' must be positive, got {rate}")
     elif fps is None:
@@ -181,9 +207,14 @@ def load_npz(
             )
     if "meta_json" in data:
         try:
-            meta = {**json.loads(_text_value(data, "meta_json") or "{}"), **meta}
-        except json.JSONDecodeError:
+            extra = json.loads(_text_value(data, "meta_json", path) or "{}")
+        except (json.JSONDecodeError, RecursionError):
             raise MotionFileError(path, "'meta_json' is not valid JSON") from None
+        if not isinstance(extra, dict):
+            raise MotionFileError(
+                path, f"'meta_json' must be a JSON object, got {type(extra).__name__}"
+            )
+        meta = {**extra, **meta}
     try:
         motion = Motion(
             poses=poses,
@@ -191,8 +222,8 @@ def load_npz(
             fps=rate,
             betas=betas,
             contacts=contacts,
-            label=_text_value(data, "label"),
-            name=_text_value(data, "name") or path.stem,
+            label=_text_value(data, "label", path),
+            name=_text_value(data, "name", path) or path.stem,
             meta=meta,
         )
     except MotionValueError as e:

@@ -1,0 +1,265 @@
+"""The bad-input sweep, one case per row: every file the API reads, every flag the CLI
+takes. The API raises an ``MrlibError`` naming the file (never a numpy, zlib or torch
+exception); the CLI prints one ``error:`` line (exit 1) or a usage error (exit 2),
+never a traceback."""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib.checkpoint import CheckpointError, load_checkpoint
+from mrlib.cli import main
+from mrlib.config import ModelConfig, TrainConfig
+from mrlib.data import TrainingSet
+from mrlib.errors import MrlibError
+from mrlib.io import load_motion, save_motion
+from mrlib.sample import load_model
+from mrlib.synthetic import synthetic_walk
+from mrlib.train import Trainer, train
+
+GOOD_BVH_HEAD = """HIERARCHY
+ROOT Hips
+{
+OFFSET 0 0 0
+CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
+End Site
+{
+OFFSET 0 10 0
+}
+}
+MOTION
+"""
+
+
+def _npz(path: Path, **overrides) -> Path:
+    m = synthetic_walk("walk_sad", seconds=3.0, fps=10.0)
+    path = save_motion(m.replace(label="walk_sad"), path)
+    if overrides:
+        with np.load(path) as z:
+            d = {k: z[k] for k in z.files}
+        d.update(overrides)
+        np.savez(path, **d)
+    return path
+
+
+def _deep_bvh(path: Path, depth: int = 1000) -> Path:
+    parts = ["HIERARCHY\nROOT r\n{\nOFFSET 0 0 0\nCHANNELS 3 Xrotation Yrotation Zrotation\n"]
+    for i in range(depth):
+        parts.append(f"JOINT j{i}\n{{\nOFFSET 0 1 0\nCHANNELS 3 Xrotation Yrotation Zrotation\n")
+    parts.append("}\n" * (depth + 1) + "MOTION\nFrames: 0\nFrame Time: 0.04\n")
+    path.write_text("".join(parts))
+    return path
+
+
+def _corrupt_deflate(path: Path) -> Path:
+    m = synthetic_walk("walk_sad", seconds=1.0, fps=10.0)
+    buf = io.BytesIO()
+    np.savez_compressed(buf, poses=m.poses.reshape(len(m), -1), trans=m.trans, mocap_framerate=10.0)
+    raw = bytearray(buf.getvalue())
+    start = raw.find(b"poses.npy") + 60  # inside the deflate stream of 'poses'
+    raw[start : start + 40] = bytes(40)
+    path.write_bytes(bytes(raw))
+    return path
+
+
+def _bvh_frame_time(path: Path, dt: str) -> Path:
+    path.write_text(GOOD_BVH_HEAD + f"Frames: 1\nFrame Time: {dt}\n0 0 0 0 0 0\n")
+    return path
+
+
+def _renamed_npy(path: Path) -> Path:
+    np.save(path.with_suffix(".npy"), np.zeros((3, 72)))
+    path.with_suffix(".npy").rename(path)
+    return path
+
+
+def _truncated(path: Path) -> Path:
+    raw = _npz(path).read_bytes()
+    path.write_bytes(raw[: len(raw) // 2])
+    return path
+
+
+LOAD_CASES = {
+    "bvh nested 1000 joints deep": (lambda p: _deep_bvh(p / "deep.bvh"), "nested more than"),
+    ".npy renamed .npz": (lambda p: _renamed_npy(p / "array.npz"), "not an .npz archive"),
+    "truncated .npz": (lambda p: _truncated(p / "half.npz"), "cannot read npz"),
+    "corrupt deflate stream": (lambda p: _corrupt_deflate(p / "deflate.npz"), "cannot read npz"),
+    "npz label is an empty array": (lambda p: _npz(p / "l.npz", label=np.array([])), None),
+    "npz label is numbers of a struct": (
+        lambda p: _npz(p / "l2.npz", label=np.zeros(2, dtype=[("a", "f4")])),
+        "'label' must be text",
+    ),
+    "npz meta_json is a JSON list": (
+        lambda p: _npz(p / "m.npz", meta_json=np.str_("[1, 2]")),
+        "must be a JSON object",
+    ),
+    "npz meta_json is not JSON": (
+        lambda p: _npz(p / "m2.npz", meta_json=np.str_("{oops")),
+        "not valid JSON",
+    ),
+    "npz translations of 1e30 m": (
+        lambda p: _npz(p / "far.npz", trans=np.full((30, 3), 1e30)),
+        "wrong units",
+    ),
+    "npz complex poses": (
+        lambda p: _npz(p / "c.npz", poses=np.zeros((30, 72), complex)),
+        "real numbers",
+    ),
+    "npz fps of 1e300": (lambda p: _npz(p / "f.npz", mocap_framerate=1e300), "fps must be"),
+    "npz fps is an empty array": (
+        lambda p: _npz(p / "f2.npz", mocap_framerate=np.array([])),
+        "is empty",
+    ),
+    "bvh Frame Time 1e-300": (lambda p: _bvh_frame_time(p / "t1.bvh", "1e-300"), "Frame Time"),
+    "bvh Frame Time 1e300": (lambda p: _bvh_frame_time(p / "t2.bvh", "1e300"), "Frame Time"),
+    "bvh Frame Time nan": (lambda p: _bvh_frame_time(p / "t3.bvh", "nan"), "Frame Time"),
+    "a folder named .npz": (lambda p: (p / "dir.npz").mkdir() or (p / "dir.npz"), None),
+    "a missing file": (lambda p: p / "missing.npz", "no such file"),
+    "an unknown extension": (lambda p: (p / "clip.fbx").write_text("x") and p / "clip.fbx", ".fbx"),
+}
+
+
+@pytest.mark.parametrize("case", list(LOAD_CASES))
+def test_load_motion_raises_an_mrlib_error_naming_the_file(case, tmp_path):
+    make, message = LOAD_CASES[case]
+    path = make(tmp_path)
+    try:
+        m = load_motion(path)
+    except MrlibError as e:
+        assert Path(path).name in str(e), str(e)
+        if message:
+            assert message in str(e), str(e)
+        return
+    assert message is None, f"{case}: loaded without error"
+    assert np.isfinite(m.poses).all() and np.isfinite(m.trans).all()
+
+
+def test_a_one_frame_clip_is_refused_naming_the_file(tmp_path):
+    m = synthetic_walk("walk_sad", seconds=1.0, fps=10.0)
+    path = save_motion(m.slice(0, 1), tmp_path / "one_frame.npz")
+    with pytest.raises(MrlibError, match="one_frame"):
+        TrainingSet.from_files([path])
+
+
+# -- checkpoints --------------------------------------------------------------------------
+TINY = TrainConfig(
+    model=ModelConfig(num_levels=2, gen_hidden=(24,), disc_hidden=(24,)),
+    block_iterations=(1,),
+    n_critic=1,
+    checkpoint_every=0,
+)
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
+    out = tmp_path_factory.mktemp("ckpt")
+    return train(data, TINY, out, progress=False).checkpoint
+
+
+def _rewrite(src: Path, dst: Path, change) -> Path:
+    state = torch.load(src, weights_only=True)
+    change(state)
+    state.pop("checksum", None)
+    torch.save(state, dst)
+    return dst
+
+
+CHECKPOINT_CASES = {
+    "missing config": (lambda s: s.pop("config"), "missing 'config'"),
+    "config is not JSON": (lambda s: s.update(config="{oops"), "inconsistent checkpoint"),
+    "config with unknown fields": (
+        lambda s: s.update(config=json.dumps({**json.loads(s["config"]), "bogus": 1})),
+        "invalid checkpoint",
+    ),
+    "generator weights of the wrong shape": (
+        lambda s: s["generator"].update({k: torch.zeros(1) for k in list(s["generator"])[:1]}),
+        "inconsistent checkpoint",
+    ),
+    "missing labels": (lambda s: s.pop("labels"), "missing 'labels'"),
+}
+
+
+@pytest.mark.parametrize("case", list(CHECKPOINT_CASES))
+def test_a_damaged_checkpoint_is_a_checkpoint_error(case, checkpoint, tmp_path):
+    change, message = CHECKPOINT_CASES[case]
+    path = _rewrite(checkpoint, tmp_path / "bad.pt", change)
+    for load in (load_model, Trainer.from_checkpoint):
+        with pytest.raises(CheckpointError, match=message) as info:
+            load(path)
+        assert "bad.pt" in str(info.value)
+
+
+def test_a_zip_that_is_not_a_checkpoint(tmp_path):
+    path = tmp_path / "zip.pt"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("x", "y")
+    with pytest.raises(CheckpointError, match="cannot read checkpoint"):
+        load_checkpoint(path)
+
+
+# -- the command line -----------------------------------------------------------------------
+def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], int, str]]:
+    (tmp / "a_file").write_text("x")
+    return {
+        "sample --seconds nan": (["sample", str(ckpt), "--seconds", "nan"], 2, "--seconds"),
+        "sample --seconds inf": (["sample", str(ckpt), "--seconds", "inf"], 2, "--seconds"),
+        "sample --seconds 0": (["sample", str(ckpt), "--seconds", "0"], 2, "--seconds"),
+        "sample --blend abc": (
+            ["sample", str(ckpt), "--blend", "walk_sad", "walk_sad", "abc", "--out", str(tmp)],
+            1,
+            "--blend",
+        ),
+        "sample --out under a file": (
+            ["sample", str(ckpt), "--out", str(tmp / "a_file" / "o")],
+            1,
+            "a_file",
+        ),
+        "sample --out under /proc": (["sample", str(ckpt), "--out", "/proc/mrlib-x"], 1, "/proc"),
+        "sample --device bogus": (["sample", str(ckpt), "--device", "bogus"], 2, "bogus"),
+        "export to a missing folder": (
+            ["export", str(clip), str(tmp / "no" / "dir" / "x.bvh")],
+            1,
+            "no/dir",
+        ),
+        "export under /sys": (["export", str(clip), "/sys/mrlib-x.npz"], 1, "/sys"),
+        "export --fps 1e9": (["export", str(clip), str(tmp / "x.npz"), "--fps", "1e9"], 1, "fps"),
+        "train --fps nan": (["train", str(clip), "--fps", "nan", "--out", str(tmp)], 1, "fps"),
+        "train a clip too short for the levels": (
+            ["train", str(clip), "--levels", "20", "--out", str(tmp)],
+            1,
+            "clip 'walk_sad_seed0': a clip of 30 frames",
+        ),
+        "train --out under a file": (
+            ["train", str(clip), "--iterations", "1", "--levels", "2", "--no-progress",
+             "--out", str(tmp / "a_file" / "o")],  # fmt: skip
+            1,
+            "a_file",
+        ),
+        "train --resume of a non-checkpoint": (
+            ["train", "--resume", str(clip), "--out", str(tmp)],
+            1,
+            "clip.npz",
+        ),
+        "info of a missing file": (["info", str(tmp / "nope.bvh")], 1, "nope.bvh"),
+    }
+
+
+def test_cli_sweep(checkpoint, tmp_path, capsys):
+    clip = _npz(tmp_path / "clip.npz")
+    for case, (argv, code, message) in _cli_cases(tmp_path, checkpoint, clip).items():
+        try:
+            got = main(argv)
+        except SystemExit as e:
+            got = e.code
+        err = capsys.readouterr().err
+        assert got == code, f"{case}: exit {got}, stderr {err!r}"
+        assert "Traceback" not in err, case
+        assert message in err, f"{case}: {err!r}"
