@@ -79,8 +79,10 @@ __all__ = [
     "TrainConfig",
     "paper",
     "tutorial",
+    "demo",
     "PRESETS",
     "get_preset",
+    "check_device",
     "ganimator_mode",
     "config_to_json",
     "config_from_json",
@@ -296,6 +298,16 @@ def tutorial() -> TrainConfig:
     )
 
 
+def demo() -> TrainConfig:
+    """The ``tutorial`` networks, losses and critics on a budget of minutes, for
+    ``mrlib demo``: one critic step per generator step and 800 / 600 / 400 / 300
+    iterations for the four blocks (the coarse blocks are cheap, the fine ones cost
+    most). The demo trains it on the four synthetic clips of ``data_samples/`` resampled
+    to 15 fps (``mrlib.demo.DEMO_FPS``); ``docs/results.md`` has its measured time and
+    quality next to other budgets."""
+    return tutorial().replace(block_iterations=(800, 600, 400, 300), n_critic=1, checkpoint_every=0)
+
+
 def ganimator_mode(config: TrainConfig) -> TrainConfig:
     """``config`` for a GANimator-style baseline (one model per clip, Li et al. 2022): no
     style mixing (one label, nothing to mix) and unconditional critics."""
@@ -303,14 +315,47 @@ def ganimator_mode(config: TrainConfig) -> TrainConfig:
     return config.replace(mix_prob=0.0, model=model)
 
 
-PRESETS = {"paper": paper, "tutorial": tutorial}
+PRESETS = {"paper": paper, "tutorial": tutorial, "demo": demo}
 
 
 def get_preset(name: str) -> TrainConfig:
-    """A named preset: ``"paper"`` or ``"tutorial"``."""
+    """A named preset: ``"paper"``, ``"tutorial"`` or ``"demo"``."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     return PRESETS[name]()
+
+
+def check_device(name: str) -> str:
+    """``name`` if PyTorch can run on that device here, else a :class:`ConfigError` that
+    says why and what to use instead (``"cpu"``, ``"cuda"``, ``"cuda:1"``, ``"mps"``)."""
+    import torch
+
+    try:
+        dev = torch.device(str(name))
+    except (RuntimeError, ValueError):
+        raise ConfigError(
+            f"unknown device {name!r}; use 'cpu', 'cuda', 'cuda:N' or 'mps'"
+        ) from None
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            why = (
+                "this PyTorch build has no CUDA support"
+                if torch.version.cuda is None
+                else "no CUDA GPU is visible"
+            )
+            raise ConfigError(
+                f"device {name!r}: {why} (torch {torch.__version__}); use --device cpu"
+            )
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise ConfigError(
+                f"device {name!r}: only {torch.cuda.device_count()} CUDA device(s) here"
+            )
+    elif dev.type == "mps":
+        if not torch.backends.mps.is_available():
+            raise ConfigError(f"device {name!r}: MPS is not available here; use --device cpu")
+    elif dev.type != "cpu":
+        raise ConfigError(f"device {name!r} is not supported; use 'cpu', 'cuda', 'cuda:N' or 'mps'")
+    return str(name)
 
 
 def config_to_json(config: TrainConfig) -> str:

@@ -22,6 +22,7 @@ Dimension letters: T frames, S samples, N windows.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -33,6 +34,7 @@ __all__ = [
     "plot_segmentation",
     "plot_coverage_strip",
     "plot_quality_curve",
+    "save_titled_image",
 ]
 
 # Colours of consecutive segments (tab10 without its grey, which reads as "missing").
@@ -279,3 +281,23 @@ def plot_quality_curve(
         ax.set_ylabel(ylabel)
     ax.grid(alpha=0.3)
     return ax
+
+
+def save_titled_image(img: np.ndarray, title: str, path: str | Path) -> Path:
+    """Save an ``(H, W, 3)`` image (a render) as a PNG with ``title`` above it."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.figure import Figure
+
+    img = np.asarray(img)
+    if img.ndim != 3:
+        raise MotionValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
+    h, w = img.shape[:2]
+    fig = Figure(figsize=(w / 100, h / 100 + 0.4), dpi=100)
+    ax = fig.add_axes((0, 0, 1, h / (h + 40)))
+    ax.imshow(img)
+    ax.axis("off")
+    fig.suptitle(title, fontsize=12, y=0.99)
+    fig.savefig(path)
+    return Path(path)

@@ -29,6 +29,7 @@ __all__ = [
     "plot_skeleton_strip",
     "animate_skeleton",
     "save_gif",
+    "render_mesh_animation",
     "evenly_spaced_frames",
 ]
 
@@ -149,6 +150,127 @@ def render_meshes(
     img = pl.screenshot(str(path) if path is not None else None, return_img=True)
     pl.close()
     return np.asarray(img)[..., :3].copy()
+
+
+def render_mesh_animation(
+    motions: Any,
+    path: str | Path,
+    body: Any = None,
+    *,
+    fps: float = 15.0,
+    seconds: float | None = None,
+    titles: Sequence[str] | None = None,
+    spacing: float = 1.0,
+    window_size: tuple[int, int] = (640, 400),
+    highlight_contacts: bool = True,
+    progress: bool = False,
+) -> Path:
+    """An animated GIF of the body mesh of one or more motions, side by side.
+
+    Each body walks in place (its root's ground position is held at its slot of a row
+    along X, ``spacing`` metres apart), so several clips of different speed stay in view.
+    Contact vertices are drawn as red dots while in contact.
+
+    Args:
+        motions: a ``mrlib.Motion`` or a sequence of them (same frame rate).
+        path: the ``.gif`` to write.
+        body: a ``BodyModel``; None loads the default body.
+        fps: frame rate of the GIF; the motions are sampled at that rate.
+        seconds: length of the GIF (default: the shortest motion).
+        titles: one caption per motion, written above it.
+        progress: show a progress bar over the frames.
+    Returns:
+        The path written.
+    """
+    _headless_defaults()
+    import pyvista as pv
+
+    motions = [motions] if hasattr(motions, "poses") else list(motions)
+    if not motions:
+        raise MotionValueError("render_mesh_animation needs at least one motion")
+    if titles is not None and len(titles) != len(motions):
+        raise MotionValueError(f"{len(titles)} titles for {len(motions)} motions")
+    if not (np.isfinite(fps) and fps > 0):
+        raise MotionValueError(f"fps must be positive, got {fps}")
+    if body is None:
+        from mrlib.body import load_body_model
+
+        body = load_body_model()
+    src_fps = motions[0].fps
+    duration = min(m.num_frames for m in motions) / src_fps
+    if seconds is not None:
+        duration = min(duration, float(seconds))
+    n_out = max(1, int(duration * fps))
+    idx = np.minimum(
+        (np.arange(n_out) * src_fps / fps).round().astype(int), min(len(m) for m in motions) - 1
+    )
+    verts, contacts = [], []
+    for k, m in enumerate(motions):
+        v = body.motion_vertices(m, idx)  # (F, V, 3)
+        v[..., 0] += (k - (len(motions) - 1) / 2) * spacing - np.asarray(m.trans)[idx, None, 0]
+        v[..., 2] -= np.asarray(m.trans)[idx, None, 2]
+        verts.append(v)
+        c = m.contacts if m.contacts is not None else None
+        if highlight_contacts and c is None and m.num_frames >= 2:
+            from mrlib.contacts import foot_contacts
+
+            c = foot_contacts(m, body)
+        contacts.append(None if c is None else np.asarray(c)[idx] > 0.5)
+    ground = float(min(v[..., 1].min() for v in verts))
+    faces = np.hstack([np.full((len(body.faces), 1), 3), body.faces]).ravel()
+    foot = np.asarray(body.foot_vertex_ids)
+
+    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    pl.set_background("white")
+    meshes, dots = [], []
+    for k, v in enumerate(verts):
+        mesh = pv.PolyData(v[0].copy(), faces)
+        pl.add_mesh(mesh, color=SKIN, smooth_shading=True)
+        meshes.append(mesh)
+        if contacts[k] is not None:
+            pts = pv.PolyData(v[0, foot].copy())
+            pl.add_mesh(pts, color=CONTACT_COLOUR, point_size=9, render_points_as_spheres=True)
+            dots.append(pts)
+        else:
+            dots.append(None)
+    # Camera: from the front-left and a little above, framing the bodies over the whole
+    # clip (not the floor), then the floor and the captions.
+    allv = np.concatenate([v.reshape(-1, 3) for v in verts])
+    lo, hi = allv.min(0), allv.max(0)
+    centre = (lo + hi) / 2
+    pl.camera_position = [tuple(centre + np.array([0.25, 0.2, 1.0])), tuple(centre), (0, 1, 0)]
+    pl.reset_camera(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
+    pl.camera.zoom(1.0 if len(motions) == 1 else 1.2)
+    pl.add_mesh(
+        pv.Plane(
+            center=(centre[0], ground, centre[2]),
+            direction=(0, 1, 0),
+            i_size=hi[0] - lo[0] + 1.0,
+            j_size=hi[2] - lo[2] + 1.5,
+        ),
+        color=(0.9, 0.9, 0.9),
+    )
+    pl.reset_camera_clipping_range()
+    for k, t in enumerate(titles or []):
+        x = (k + 0.5) / len(motions) * window_size[0] - 3.5 * len(str(t))
+        pl.add_text(str(t), position=(max(2.0, x), window_size[1] - 22), font_size=9, color="black")
+    images = []
+    steps = range(n_out)
+    if progress:
+        from tqdm.auto import tqdm
+
+        steps = tqdm(steps, desc=f"rendering {Path(path).name}", unit="frame", leave=False)
+    for t in steps:
+        for k, v in enumerate(verts):
+            meshes[k].points = v[t]
+            if dots[k] is not None:
+                p = v[t, foot].copy()
+                p[~contacts[k][t], 1] = ground - 10.0  # hidden below the floor
+                dots[k].points = p
+        pl.render()
+        images.append(np.asarray(pl.screenshot(return_img=True))[..., :3].copy())
+    pl.close()
+    return save_gif(images, path, fps=fps)
 
 
 # -- stick figures (matplotlib) --------------------------------------------------------------

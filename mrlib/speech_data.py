@@ -7,7 +7,8 @@ its audio, which is what a speech-conditioned model has to pick up.
 
 Recipe of one synthetic pair (``make_synthetic_pair``):
 
-1. **Speech**: ``espeak-ng`` (formant synthesis, Debian package ``espeak-ng``) reads a
+1. **Speech**: eSpeak NG (formant synthesis; ``mrlib.speech.espeak``: the library from the
+   ``espeakng-loader`` wheel, or an ``espeak-ng`` program) reads a
    text (one or more sentences of ``SENTENCES``) with a voice from ``VOICES`` at a rate
    from ``SPEEDS`` (words per minute) and a random pitch, with pauses of random length
    at punctuation (``with_pauses``: 0.2-0.6 s at commas, 0.5-1 s between sentences)
@@ -129,7 +130,7 @@ SENTENCES: tuple[str, ...] = (
     "At the end of the day, a good story needs a beginning, a middle and an end.",
 )
 
-# espeak-ng voices (language + optional "+variant"); all ship with the Debian package.
+# eSpeak NG voices (language + optional "+variant"); all ship with espeakng-loader's data.
 VOICES: tuple[str, ...] = (
     "en-us",
     "en-gb",

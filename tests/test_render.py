@@ -101,3 +101,27 @@ def test_skeleton_strip_and_animation(motion, body, tmp_path):
     assert len(imageio.mimread(out)) == 4
     frames = [np.full((20, 30, 3), v, np.uint8) for v in (0, 128, 255)]
     assert len(imageio.mimread(save_gif(frames, tmp_path / "flat.gif", fps=5))) == 3
+
+
+def test_mesh_animation_moves_and_shows_contacts(body, tmp_path):
+    """A walk animates (frames differ) with the bodies side by side; the frame count
+    follows the GIF rate; red contact dots appear."""
+    import imageio.v2 as imageio
+
+    from mrlib.render import render_mesh_animation
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
+    out = render_mesh_animation(
+        [walk, walk], tmp_path / "a.gif", body, fps=10.0, seconds=1.0, titles=["a", "b"],
+        window_size=(320, 200),
+    )  # fmt: skip
+    frames = np.asarray(imageio.mimread(out))[..., :3].astype(int)
+    assert frames.shape == (10, 200, 320, 3)
+    assert np.abs(frames[0] - frames[5]).mean() > 0.5  # it moves
+    red = (frames[..., 0] > 150) & (frames[..., 1] < 80) & (frames[..., 2] < 80)
+    assert red.any()
+    with pytest.raises(MotionValueError, match="titles"):
+        render_mesh_animation([walk], tmp_path / "b.gif", body, titles=["a", "b"])
+    with pytest.raises(MotionValueError, match="at least one"):
+        render_mesh_animation([], tmp_path / "c.gif", body)

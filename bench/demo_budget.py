@@ -1,0 +1,102 @@
+"""Quality and time of a training budget on the demo's data (the four synthetic clips of
+``data_samples/`` at 15 fps): how the ``demo`` preset was sized.
+
+Trains the ``tutorial`` networks and losses with the given iterations per block and
+critic steps, then prints the training time and the demo's headline figures (coverage,
+condition fidelity, foot skating) beside the calibration rows:
+
+    python bench/demo_budget.py                                   # the demo preset
+    python bench/demo_budget.py --iterations 600 --n-critic 1
+    python bench/demo_budget.py --iterations 400 --n-critic 2 --threads 2
+
+Prints a Markdown table and appends a JSON row to ``bench/results/demo_budget.jsonl``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "bench" / "results" / "demo_budget.jsonl"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--iterations", default=None, help="per block: N or N,N,N,N [demo preset]")
+    ap.add_argument("--n-critic", type=int, default=None, help="critic steps [demo preset]")
+    ap.add_argument("--gen-hidden", default=None, help="e.g. 48,96,96 [tutorial's]")
+    ap.add_argument("--fps", type=float, default=15.0)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--samples", type=int, default=10, help="evaluation samples per label")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+
+    import dataclasses
+
+    import torch
+
+    import mrlib
+    from mrlib.config import demo
+    from mrlib.data import TrainingSet
+    from mrlib.demo import DATA_SAMPLES, headline_table
+    from mrlib.evaluate import evaluate_model
+    from mrlib.sample import load_model
+    from mrlib.train import train
+
+    torch.set_num_threads(args.threads)
+    cfg = demo().replace(seed=args.seed)
+    if args.iterations:
+        its = tuple(int(v) for v in args.iterations.split(","))
+        cfg = cfg.replace(block_iterations=its * cfg.num_blocks if len(its) == 1 else its)
+    if args.n_critic is not None:
+        cfg = cfg.replace(n_critic=args.n_critic)
+    if args.gen_hidden:
+        hidden = tuple(int(v) for v in args.gen_hidden.split(","))
+        cfg = cfg.replace(model=dataclasses.replace(cfg.model, gen_hidden=hidden))
+    body = mrlib.load_body_model()
+    clips = [mrlib.load_motion(p, fps=args.fps) for p in sorted(DATA_SAMPLES.glob("*.npz"))]
+    data = TrainingSet.from_motions(clips, body=body)
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        res = train(data, cfg, tmp, body=body, progress=False)
+        train_s = time.perf_counter() - t0
+        model = load_model(res.checkpoint)
+    t0 = time.perf_counter()
+    result = evaluate_model(
+        model, num_samples=args.samples, seed=args.seed, body=body, progress=False
+    )
+    eval_s = time.perf_counter() - t0
+    summary = {d["method"]: d for d in result.summary()}["ours"]
+    row = {
+        "iterations": list(cfg.block_iterations),
+        "n_critic": cfg.n_critic,
+        "gen_hidden": list(cfg.model.gen_hidden),
+        "fps": args.fps,
+        "threads": args.threads,
+        "seed": args.seed,
+        "train_s": round(train_s, 1),
+        "eval_s": round(eval_s, 1),
+        **{
+            k: round(summary[f"{k}_mean"], 2)
+            for k in ("coverage_pct", "cond_fidelity_pct", "skate_pct", "skate_speed")
+        },
+    }
+    print(
+        f"iterations {cfg.block_iterations}, n_critic {cfg.n_critic}, gen_hidden "
+        f"{cfg.model.gen_hidden}, {args.fps:g} fps, {args.threads} thread(s): training "
+        f"{train_s:.0f} s, evaluation {eval_s:.0f} s\n"
+    )
+    print(headline_table(result))
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    with RESULTS.open("a") as f:
+        f.write(json.dumps(row) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
