@@ -378,8 +378,12 @@ def _add_sample(sub):
     p.add_argument("--num", type=int, default=1, help="number of samples [default: 1]")
     p.add_argument("--seed", type=int, default=0, help="random seed [default: 0]")
     p.add_argument(
-        "--fix-contacts", action="store_true", help="foot-contact clean-up by inverse kinematics"
+        "--raw",
+        action="store_true",
+        help="skip the foot-contact clean-up (analytic leg IK that plants the feet while "
+        "they are labelled in contact; on by default)",
     )
+    p.add_argument("--fix-contacts", action="store_true", help=argparse.SUPPRESS)  # the default now
     p.add_argument(
         "--render", action="store_true", help="also write a mesh render (PNG) per sample"
     )
@@ -420,7 +424,7 @@ def _cmd_sample(args) -> int:
         length=length,
         seed=args.seed,
         num_samples=args.num,
-        fix_contacts=args.fix_contacts,
+        fix_contacts=not args.raw,
         **kw,
     )
     return _write_samples(motions, tag, args)
@@ -435,7 +439,7 @@ def _audio_samples(args):
         )
     model = load_speech_model(args.checkpoint, device=args.device)
     motions = generate_from_audio(
-        model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=args.fix_contacts
+        model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=not args.raw
     )
     return motions, args.audio.stem
 
@@ -490,6 +494,12 @@ def _add_evaluate(sub):
     )
     p.add_argument("--baseline-name", default="GANimator-mode")
     p.add_argument("--no-calibration", action="store_true", help="leave out the calibration rows")
+    p.add_argument(
+        "--raw",
+        action="store_true",
+        help="score only the raw samples (default: the foot-contact cleaned ones, and the "
+        "raw ones beside them as 'ours (raw)')",
+    )
     p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
     p.set_defaults(func=_cmd_evaluate)
@@ -521,6 +531,7 @@ def _cmd_evaluate(args) -> int:
         eps=args.eps,
         seed=args.seed,
         calibration=not args.no_calibration,
+        contacts="raw" if args.raw else "both",
     )
     result.save(args.out)
     print(result.to_markdown())

@@ -913,15 +913,25 @@ def _clip_index(model: Any, key: str) -> int:
 
 
 def evaluate_model(
-    model: Any, baselines: Mapping[str, Any] | None = None, *, name: str = "ours", **kwargs: Any
+    model: Any,
+    baselines: Mapping[str, Any] | None = None,
+    *,
+    name: str = "ours",
+    contacts: str = "raw",
+    **kwargs: Any,
 ) -> EvaluationResult:
     """:func:`evaluate` a trained model on its own training clips, with reconstruction
     errors and calibration rows.
 
     ``baselines`` maps a method name to either one model or a dict key -> model trained on
     that sequence alone (GANimator-mode: one model per sequence); keys are those of
-    :func:`model_references`. Extra keyword arguments go to :func:`evaluate`.
+    :func:`model_references`. ``contacts``: ``"raw"`` scores the generator's output,
+    ``"clean"`` the output after the foot-contact clean-up
+    (``mrlib.sample.cleanup_foot_contacts``), ``"both"`` both, the raw one as
+    ``"<name> (raw)"``. Extra keyword arguments go to :func:`evaluate`.
     """
+    if contacts not in ("raw", "clean", "both"):
+        raise MotionValueError(f"contacts must be 'raw', 'clean' or 'both', got {contacts!r}")
     from mrlib.sample import generate, reconstruct
 
     refs = model_references(model)
@@ -939,8 +949,11 @@ def evaluate_model(
         extra_recon[bname] = {
             key: reconstruct(m, _clip_index(m, key)) for key, m in per_key.items()
         }
+    if contacts == "both":
+        extra = {f"{name} (raw)": model_sample_fn(model), **extra}
+        extra_recon = {f"{name} (raw)": recon, **extra_recon}
     return evaluate(
-        model_sample_fn(model),
+        model_sample_fn(model, fix_contacts=contacts != "raw"),
         refs,
         extra_models=extra or None,
         name=name,
