@@ -229,19 +229,17 @@ def test_seeded_runs_are_reproducible(data, body, tmp_path):
     assert not all(torch.equal(ga[k], gc[k]) for k in ga)
 
 
-def test_reconstruction_reaches_low_error_on_a_short_run(data, body, tmp_path):
+@pytest.mark.parametrize("iterations, learns", [(40, True), (2, False)])
+def test_reconstruction_reaches_low_error_on_a_short_run(data, body, tmp_path, iterations, learns):
     """With the reconstruction term alone and a large learning rate, 40 iterations per
-    block bring the finest level's L1 error (normalised features) from ~0.4 to ~0.05."""
+    block bring the finest level's L1 error (normalised features) from ~0.4 to ~0.06
+    (0.057-0.060 over training seeds 0-4 x 1 and 2 threads, bench/trained_test_matrix.py
+    --recipe reconstruction); 2 iterations do not."""
+    import trained_models as tm
+
     from mrlib.sample import load_model, reconstruction_error
 
-    cfg = tiny(
-        block_iterations=(40, 40),
-        n_critic=0,
-        lr=1e-2,
-        checkpoint_every=0,
-        log_every=20,
-        loss=LossWeights(adv=0.0, con=0.0, rec=50.0, smooth=0.0),
-    )
+    cfg = tm.reconstruction_config(seed=3, iterations=iterations)
     trainer = Trainer(data, cfg, tmp_path, body=body)
     from mrlib.sample import model_from_trainer
 
@@ -250,7 +248,8 @@ def test_reconstruction_reaches_low_error_on_a_short_run(data, body, tmp_path):
     model = load_model(res.checkpoint)
     after = [reconstruction_error(model, k) for k in range(data.num_clips)]
     assert min(before) > 0.2
-    assert max(after) < 0.08 and max(after) < min(before) / 5, after
+    reached = max(after) < 0.08 and max(after) < min(before) / 5
+    assert reached == learns, after
 
 
 def test_checkpoint_errors(tmp_path):

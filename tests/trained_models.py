@@ -1,0 +1,152 @@
+"""Recipes of the small trained models behind the tests of trained-model claims.
+
+The tests (``test_control.py``) train each recipe once per module with training seed 0
+and one torch thread; ``bench/trained_test_matrix.py`` trains the same recipes over
+training seeds x torch thread counts, and their untrained or ablated negatives, and
+prints the tested quantities, so an assertion is committed only where its margin holds
+over that matrix (``docs/results.md`` has it).
+
+Each claim is asserted on an aggregate over several crossover cases (both label orders,
+two crossover levels): one case of one model is a coin with a bias, a mean over cases
+is what holds on another machine's float kernels.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mrlib.config import ModelConfig, TrainConfig, tutorial
+from mrlib.control import crossover_evidence
+from mrlib.data import TrainingSet
+from mrlib.sample import load_model
+from mrlib.synthetic import synthetic_walk, synthetic_wave
+from mrlib.train import train
+
+# -- recipe 1: synthetic clips, coarse levels decide the low band ------------------------
+SYNTHETIC_PAIRS = (
+    ("walk_sad", "wave"),
+    ("wave", "walk_sad"),
+    ("walk_sad", "walk_happy"),
+    ("walk_happy", "walk_sad"),
+)
+SYNTHETIC_LEVEL = 2
+
+
+def synthetic_config(seed: int = 0, iterations: int = 300) -> TrainConfig:
+    """4 levels, 300 iterations per block at lr 1e-3 (~25 s on one thread)."""
+    return TrainConfig(
+        model=ModelConfig(num_levels=4, gen_hidden=(48, 48), disc_hidden=(24, 24)),
+        block_iterations=(iterations, iterations),
+        n_critic=1,
+        lr=1e-3,
+        checkpoint_every=0,
+        seed=seed,
+    )
+
+
+def synthetic_clips(body):
+    return [
+        synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=body),
+        synthetic_walk("walk_happy", seconds=4.0, fps=10.0, body=body),
+        synthetic_wave(seconds=3.6, fps=10.0, body=body),
+    ]
+
+
+def low_band_log_ratios(model, pairs=SYNTHETIC_PAIRS, level=SYNTHETIC_LEVEL) -> np.ndarray:
+    """``log(low_to_fine / low_to_coarse)`` per pair: > 0 where the crossover's low-pass
+    band is nearer the coarse label's samples."""
+    out = []
+    for a, b in pairs:
+        e = crossover_evidence(model, a, b, level, num_samples=4, seed=0)
+        out.append(np.log(e.low_to_fine / e.low_to_coarse))
+    return np.asarray(out)
+
+
+# -- recipe 2: two Bandai walks, the tutorial losses, both halves of the crossover ---------
+DETAIL_FILES = ("dataset-1_walk_angry_001.bvh", "dataset-1_walk_sad_001.bvh")
+DETAIL_CASES = tuple(
+    (a, b, level)
+    for a, b in (("walk_angry", "walk_sad"), ("walk_sad", "walk_angry"))
+    for level in (2, 3, 4)
+)
+
+
+def detail_config(seed: int = 0, iterations: int = 300, detail: float | None = None) -> TrainConfig:
+    """The ``tutorial`` preset (its losses include the detail-statistics term) at 6 levels
+    and ``iterations`` per block; ``detail`` overrides the term's weight (0: ablated)."""
+    t = tutorial()
+    loss = t.loss if detail is None else dataclasses.replace(t.loss, detail=float(detail))
+    return t.replace(
+        model=dataclasses.replace(t.model, num_levels=6),
+        block_iterations=(iterations,) * 3,
+        checkpoint_every=0,
+        seed=seed,
+        loss=loss,
+    )
+
+
+def detail_clips(data_dir: Path, body):
+    import mrlib
+
+    return [mrlib.load_motion(Path(data_dir) / "data" / f, fps=15.0) for f in DETAIL_FILES]
+
+
+def band_log_ratios(model, cases=DETAIL_CASES) -> np.ndarray:
+    """``(len(cases), 2)``: per case, ``log(low_to_fine / low_to_coarse)`` (> 0: the low
+    band is nearer A) and ``log(high_to_coarse / high_to_fine)`` (> 0: the residual is
+    nearer B)."""
+    out = []
+    for a, b, level in cases:
+        e = crossover_evidence(model, a, b, level, num_samples=4, seed=0)
+        out.append(
+            (np.log(e.low_to_fine / e.low_to_coarse), np.log(e.high_to_coarse / e.high_to_fine))
+        )
+    return np.asarray(out)
+
+
+# -- recipe 3: the reconstruction term alone ---------------------------------------------------
+def reconstruction_config(seed: int = 3, iterations: int = 40) -> TrainConfig:
+    """3 levels, reconstruction only, lr 1e-2, 40 iterations per block (seconds)."""
+    from mrlib.config import LossWeights
+
+    return TrainConfig(
+        model=ModelConfig(num_levels=3, gen_hidden=(24, 24), disc_hidden=(24, 24)),
+        block_iterations=(iterations, iterations),
+        n_critic=0,
+        lr=1e-2,
+        checkpoint_every=0,
+        log_every=20,
+        seed=seed,
+        loss=LossWeights(adv=0.0, con=0.0, rec=50.0, smooth=0.0),
+    )
+
+
+def reconstruction_clips():
+    return [
+        synthetic_walk(s, seconds=sec, fps=10.0, seed=k)
+        for k, (s, sec) in enumerate([("walk_normal", 2.0), ("walk_happy", 2.6), ("walk_sad", 2.3)])
+    ]
+
+
+def reconstruction_errors(model) -> np.ndarray:
+    from mrlib.sample import reconstruction_error
+
+    return np.asarray([reconstruction_error(model, k) for k in range(len(model.clip_names))])
+
+
+# -- training ---------------------------------------------------------------------------------
+def train_recipe(clips, cfg: TrainConfig, out: str | os.PathLike, body, threads: int = 1):
+    """Train ``cfg`` on ``clips`` with ``threads`` torch threads (restored afterwards)
+    and return the loaded model."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads)
+    try:
+        res = train(TrainingSet.from_motions(clips, body=body), cfg, out, body=body, progress=False)
+    finally:
+        torch.set_num_threads(before)
+    return load_model(res.checkpoint)
