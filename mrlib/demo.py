@@ -226,6 +226,7 @@ def run_demo(
         body,
         seconds=4.0,
         titles=[f"'{lab}'" for lab in pure],
+        spacing=1.2,
         window_size=(220 * len(pure), 360),
         progress=True,
     )

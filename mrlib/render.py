@@ -251,9 +251,19 @@ def render_mesh_animation(
         color=(0.9, 0.9, 0.9),
     )
     pl.reset_camera_clipping_range()
-    for k, t in enumerate(titles or []):
-        x = (k + 0.5) / len(motions) * window_size[0] - 3.5 * len(str(t))
-        pl.add_text(str(t), position=(max(2.0, x), window_size[1] - 22), font_size=9, color="black")
+    if titles:  # above each body's head, where it walks in place
+        slots = (np.arange(len(motions)) - (len(motions) - 1) / 2) * spacing
+        above = np.stack([slots, np.full(len(motions), hi[1] + 0.12), np.zeros(len(motions))], 1)
+        pl.add_point_labels(
+            above,
+            [str(t) for t in titles],
+            font_size=12,
+            text_color="black",
+            shape=None,
+            show_points=False,
+            always_visible=True,
+            justification_horizontal="center",
+        )
     images = []
     steps = range(n_out)
     if progress:
