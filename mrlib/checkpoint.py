@@ -116,11 +116,15 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
         os.replace(tmp, path)
     except BaseException as exc:
         tmp.unlink(missing_ok=True)
-        if isinstance(exc, (OSError, RuntimeError)):
-            raise CheckpointError(
-                path, f"could not write the checkpoint ({exc}); the previous one is kept"
-            ) from exc
-        raise
+        if isinstance(exc, OSError):
+            why = exc.strerror or str(exc)
+        elif isinstance(exc, RuntimeError):  # torch's zip writer: a short or failed write
+            why = "the write failed part-way (disk full, or a file size limit?)"
+        else:
+            raise
+        raise CheckpointError(
+            path, f"could not write the checkpoint: {why}; the previous one is kept"
+        ) from exc
     if "config" in state:
         jtmp = path.with_name(f".{path.name}.json.tmp{os.getpid()}")
         jtmp.write_text(state["config"])

@@ -137,6 +137,14 @@ def _add_train(sub):
         "--levels", type=int, default=None, help="number of pyramid levels (overrides the preset)"
     )
     p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
+    p.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=None,
+        metavar="N",
+        help="write the checkpoint every N iterations (default: the preset's; 0: at the end "
+        "of each block only)",
+    )
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
     p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument(
@@ -212,6 +220,10 @@ def _cmd_train(args) -> int:
             f"lengths {data.lengths}"
         )
     cfg = training_config(args.preset, args.iterations, args.levels, args.seed, args.device)
+    if args.checkpoint_every is not None:
+        if args.checkpoint_every < 0:
+            raise MrlibError(f"--checkpoint-every must be >= 0, got {args.checkpoint_every}")
+        cfg = cfg.replace(checkpoint_every=args.checkpoint_every)
     if args.per_clip:
         if data is None:
             raise MrlibError("--per-clip trains from clips; resume each clip's folder separately")

@@ -150,3 +150,80 @@ def test_blend_weight_is_checked(tmp_path, capsys):
     for w, msg in (("abc", "must be a number"), ("1.5", "must be in [0, 1]")):
         assert main(["sample", ckpt, "--blend", "walk", "run", w, "--out", str(tmp_path)]) == 1
         assert msg in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_kill_9_during_training_then_resume_gives_the_uninterrupted_result(tmp_path):
+    """One trial of bench/kill_resume.py (which runs 20): SIGKILL mid-training, the
+    checkpoint on disk loads, --resume finishes with the uninterrupted run's weights."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import torch
+
+    from mrlib.checkpoint import load_checkpoint
+
+    clip = _clip(tmp_path / "c.npz", "c", "walk")
+
+    def cmd(out, resume=False):
+        base = [sys.executable, "-m", "mrlib.cli", "train", "--no-progress", "--out", str(out)]
+        if resume:
+            return base + ["--resume", str(out / "checkpoint.pt")]
+        return base + [str(clip), "--levels", "2", "--iterations", "20", "--seed", "1",
+                       "--checkpoint-every", "1"]  # fmt: skip
+
+    t = time.perf_counter()
+    subprocess.run(cmd(tmp_path / "ref"), check=True, capture_output=True)
+    full = time.perf_counter() - t
+    proc = subprocess.Popen(
+        cmd(tmp_path / "run"), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
+    deadline = time.monotonic() + 4 * full
+    ckpt = tmp_path / "run" / "checkpoint.pt"
+    while not ckpt.exists() and time.monotonic() < deadline:  # wait for the first save
+        time.sleep(0.05)
+    time.sleep(0.1)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    state = load_checkpoint(ckpt)
+    if state["progress"]["done"]:
+        pytest.skip("the run finished before the kill; the machine is too fast for this timing")
+    subprocess.run(cmd(tmp_path / "run", resume=True), check=True, capture_output=True)
+    a = load_checkpoint(tmp_path / "ref" / "checkpoint.pt")
+    b = load_checkpoint(ckpt)
+    assert b["progress"]["done"]
+    assert all(torch.equal(a["generator"][k], b["generator"][k]) for k in a["generator"])
+
+
+def test_a_file_size_limit_during_a_checkpoint_write_keeps_the_previous_one(tmp_path):
+    """A real write failure from the OS (RLIMIT_FSIZE: writes past the limit fail with
+    EFBIG, as on a full disk): the old checkpoint stays, the error says so."""
+    import subprocess
+    import sys
+    import textwrap
+
+    script = textwrap.dedent(
+        f"""
+        import resource, signal, torch
+        from mrlib.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+        path = save_checkpoint({str(tmp_path / "c.pt")!r}, {{"w": torch.zeros(1000)}})
+        before = path.read_bytes()
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # fail the write instead of the process
+        resource.setrlimit(resource.RLIMIT_FSIZE, (len(before) + 4096, resource.RLIM_INFINITY))
+        try:
+            save_checkpoint(path, {{"w": torch.zeros(100_000)}})
+        except CheckpointError as e:
+            print("ERROR", e)
+        assert path.read_bytes() == before
+        assert load_checkpoint(path)["w"].shape == (1000,)
+        print("KEPT")
+        """
+    )
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert (
+        "ERROR" in out.stdout and "the previous one is kept" in out.stdout and "KEPT" in out.stdout
+    )
+    assert not any(".tmp" in p.name for p in tmp_path.iterdir())
