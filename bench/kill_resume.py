@@ -113,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
     print(
-        f"\n{same} of {args.trials} resumed runs identical to the uninterrupted one (uninterrupted run {full_s:.1f} s)"
+        f"\n{same} of {args.trials} resumed runs identical to the uninterrupted one, {writes} "
+        f"killed during a checkpoint write (uninterrupted run {full_s:.1f} s)"
     )
     return 0 if same == args.trials else 1
 
