@@ -382,7 +382,7 @@ def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
     print(
         f"   preset {args.preset}: {cfg.model.num_levels} levels, blocks "
         f"{list(cfg.block_iterations)}, n_critic {cfg.n_critic}; {args.samples} samples per "
-        f"clip at each evaluation{' after foot-contact IK' if args.fix_contacts else ''}; "
+        f"clip at each evaluation{f' after the foot-contact clean-up ({args.fix_contacts})' if args.fix_contacts else ''}; "
         f"data loaded in {load_s:.1f} s"
     )
     print(HEADER)
@@ -407,7 +407,7 @@ def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
         "train_s_total": total_train,
         "eval_s_total": cb.eval_s,
         "iterations_total": sum(cfg.block_iterations),
-        "fix_contacts": bool(args.fix_contacts),
+        "fix_contacts": args.fix_contacts or False,
         "stopped": "target" if reached is not None and not args.full_schedule
         else "max-minutes" if res.interrupted else "schedule end",
         "reached": None if reached is None else {
@@ -454,8 +454,10 @@ def main(argv=None) -> int:
         help="keep training (and evaluating) after the target is met",
     )  # fmt: skip
     p.add_argument(
-        "--fix-contacts", action="store_true",
-        help="score samples after the foot-contact IK clean-up (generate(fix_contacts=True))",
+        "--fix-contacts", nargs="?", const="optimise", default=False, metavar="METHOD",
+        help="score samples after the foot-contact clean-up: 'optimise' (the per-frame "
+        "optimisation, as the README's figures were measured; the default with no METHOD) "
+        "or 'ik' (mrlib.footik)",
     )  # fmt: skip
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [default: 1]")
     p.add_argument("--seed", type=int, default=0)

@@ -242,7 +242,7 @@ def generate(
     conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
     blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
     return_levels: bool = False,
-    fix_contacts: bool = False,
+    fix_contacts: bool | str = False,
     body=None,
 ):
     """Random motion under label conditions.
@@ -257,7 +257,8 @@ def generate(
         return_levels: also return every level's output as Motions at the level's frame
             rate (``fps * T_i / T_L``): ``(motion, [level 1, ..., level L])`` (lists per
             sample when ``num_samples > 1``).
-        fix_contacts: post-process with :func:`cleanup_foot_contacts`.
+        fix_contacts: post-process with :func:`cleanup_foot_contacts`: True (its
+            default method, ``"ik"``) or a method name (``"ik"``, ``"optimise"``).
     Returns:
         ``Motion`` or ``list[Motion]`` (SMPL parameters at the training fps).
     """
@@ -290,7 +291,8 @@ def generate(
         for b in range(num_samples)
     ]
     if fix_contacts:
-        motions = [cleanup_foot_contacts(m, body) for m in motions]
+        method = fix_contacts if isinstance(fix_contacts, str) else "ik"
+        motions = [cleanup_foot_contacts(m, body, method=method) for m in motions]
     single = num_samples == 1
     if not return_levels:
         return motions[0] if single else motions
