@@ -102,6 +102,19 @@ class TrainingSet:
         return cls(feats, clip_labels, label_names, fps, names, FeatureNormalizer.fit(feats), betas)
 
     @classmethod
+    def from_state(cls, state: dict) -> TrainingSet:
+        """The training set stored in a checkpoint's state dict (``mrlib.checkpoint``)."""
+        return cls(
+            features=list(state["features"]),
+            clip_labels=list(state["clip_labels"]),
+            labels=list(state["labels"]),
+            fps=float(state["fps"]),
+            names=list(state["clip_names"]),
+            normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
+            betas=state["betas"].numpy(),
+        )
+
+    @classmethod
     def from_files(
         cls,
         paths: Sequence[str | Path],

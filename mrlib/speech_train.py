@@ -73,7 +73,7 @@ from mrlib.checkpoint import CheckpointError, load_checkpoint, reading
 from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig, config_from_json
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
-from mrlib.features import FeatureNormalizer, features_to_motion
+from mrlib.features import features_to_motion
 from mrlib.models import build_critics, build_generator
 from mrlib.motion import Motion
 from mrlib.pyramid import PackedLevels, level_fps, pyramid_lengths
@@ -388,15 +388,7 @@ class SpeechTrainingSet:
     def from_state(cls, state: dict) -> SpeechTrainingSet:
         """Rebuild from a checkpoint's state dict (see :meth:`speech_state`)."""
         sp = state["speech"]
-        motion = TrainingSet(
-            features=list(state["features"]),
-            clip_labels=list(state["clip_labels"]),
-            labels=list(state["labels"]),
-            fps=float(state["fps"]),
-            names=list(state["clip_names"]),
-            normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
-            betas=state["betas"].numpy(),
-        )
+        motion = TrainingSet.from_state(state)
         return cls(
             motion=motion,
             paired_features=list(sp["paired_features"]),

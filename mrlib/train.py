@@ -574,15 +574,7 @@ class Trainer:
             config = config_from_json(state["config"])
             if device is not None:
                 config = config.replace(device=device)
-            data = TrainingSet(
-                features=list(state["features"]),
-                clip_labels=list(state["clip_labels"]),
-                labels=list(state["labels"]),
-                fps=float(state["fps"]),
-                names=list(state["clip_names"]),
-                normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
-                betas=state["betas"].numpy(),
-            )
+            data = TrainingSet.from_state(state)
             out = Path(path).parent if out_dir is None else out_dir
             trainer = cls(data, config, out, body=body)
             trainer.load_state_dict(state)
