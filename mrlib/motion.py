@@ -24,7 +24,8 @@ NUM_BETAS = 10
 
 
 # Plausibility bounds: a frame rate or a root translation beyond these is a unit or
-# parsing error (a BVH "Frame Time: 1e-300", centimetres read as kilometres), not motion.
+# parsing error (a BVH "Frame Time: 1e-300", millimetres read as metres), not motion.
+# Module constants, read at every check: raise them for a capture that really is longer.
 MAX_FPS = 1000.0
 MAX_TRANSLATION_M = 1000.0
 MAX_FRAMES = 5_000_000  # ~46 h at 30 fps: more is an fps typo, and would not fit in memory
@@ -94,7 +95,8 @@ class Motion:
         if far > MAX_TRANSLATION_M:
             raise MotionValueError(
                 f"Motion.trans reaches {far:.3g} m from the origin (more than "
-                f"{MAX_TRANSLATION_M:g} m): wrong units? (BVH: pass scale=...)"
+                f"{MAX_TRANSLATION_M:g} m): wrong units? (BVH: pass unit=...; for a real "
+                "capture that long, raise mrlib.motion.MAX_TRANSLATION_M)"
             )
         betas = np.asarray(self.betas, dtype=np.float32).reshape(-1)
         if not np.isfinite(betas).all():
