@@ -1,5 +1,5 @@
-"""Configuration of the networks and of training, with the named presets ``paper`` and
-``tutorial``.
+"""Configuration of the networks and of training, with the named presets ``paper``,
+``tutorial`` and ``demo``.
 
 Configs are frozen dataclasses; make variants with ``dataclasses.replace`` and save them
 as JSON next to every checkpoint (``config_to_json`` / ``config_from_json``).

@@ -35,12 +35,6 @@ DEMO_FPS = 15.0  # the demo preset trains on the samples resampled to this rate
 STAGES = ("load", "retarget", "train", "sample", "crossover", "evaluate")
 
 
-def _titled(img: np.ndarray, title: str, path: Path) -> Path:
-    from mrlib.plots import save_titled_image
-
-    return save_titled_image(img, title, path)
-
-
 class _Stages:
     """Prints ``[k/6] stage: ...`` lines with the time each stage took."""
 
@@ -127,6 +121,7 @@ def run_demo(
     from mrlib.config import get_preset
     from mrlib.data import TrainingSet
     from mrlib.evaluate import default_data_dir, evaluate_model
+    from mrlib.plots import save_titled_image
     from mrlib.render import evenly_spaced_frames, render_mesh_animation, render_meshes
     from mrlib.sample import generate, load_model
 
@@ -152,7 +147,7 @@ def run_demo(
         c = mrlib.load_motion(p, fps=fps)
         c = c.replace(contacts=mrlib.foot_contacts(c, body))
         img = render_meshes(c, body, frames=evenly_spaced_frames(len(c), 5))
-        _titled(
+        save_titled_image(
             img,
             f"training clip '{c.label}' (synthetic, contacts in red)",
             out / f"train_{c.label}.png",
@@ -174,7 +169,7 @@ def run_demo(
         dt = time.perf_counter() - t
         err = real.meta["retarget_error_mean_cm"]
         img = render_meshes(real, body, frames=evenly_spaced_frames(len(real), 6))
-        _titled(
+        save_titled_image(
             img,
             f"{bvh.name} retargeted onto SMPL ({err:.1f} cm mean joint error)",
             out / "retargeted_bvh.png",
@@ -218,7 +213,7 @@ def run_demo(
         mrlib.save_motion(m, out / "samples" / f"{lab}.npz")
         mrlib.save_motion(m, out / "samples" / f"{lab}.bvh")
         img = render_meshes(m, body, frames=evenly_spaced_frames(len(m), 6))
-        _titled(img, f"generated '{lab}' (seed {seed})", out / f"sample_{lab}.png")
+        save_titled_image(img, f"generated '{lab}' (seed {seed})", out / f"sample_{lab}.png")
         lines.append(f"- `{lab}`: `samples/{lab}.npz`, `samples/{lab}.bvh`, `sample_{lab}.png`")
     render_mesh_animation(
         list(pure.values()),
@@ -251,7 +246,7 @@ def run_demo(
     mrlib.save_motion(mix, out / "samples" / "crossover.npz")
     mrlib.save_motion(mix, out / "samples" / "crossover.bvh")
     img = render_meshes(mix, body, frames=evenly_spaced_frames(len(mix), 6))
-    _titled(
+    save_titled_image(
         img,
         f"crossover: '{coarse}' at levels 1-{split} (coarse), '{fine}' at levels {split + 1}-{L} (fine)",
         out / "crossover.png",

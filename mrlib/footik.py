@@ -19,8 +19,9 @@ labelled in contact, is reached in closed form:
    its global orientation, so a planted foot keeps its angle to the ground. Targets out
    of reach are clamped to the leg's length.
 
-Everything is numpy over all frames at once (the only loops are over the 24 joints
-and the two legs); a one-minute clip takes milliseconds (``bench/sample_speed.py``).
+Everything is numpy over all frames at once (the loops are over joints, legs, contact
+vertices and contact runs, never frames); a one-minute clip takes tens of milliseconds
+(``bench/sample_speed.py``).
 """
 
 from __future__ import annotations

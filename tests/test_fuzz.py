@@ -123,20 +123,13 @@ def test_the_unmutated_files_load(bvh_bytes, npz_bytes, tmp_path):
 
 
 @pytest.mark.slow
-def test_damaged_bvh_loads_or_raises_an_mrlib_error(bvh_bytes, tmp_path):
+@pytest.mark.parametrize("kind", ["bvh", "npz"])
+def test_a_damaged_file_loads_or_raises_an_mrlib_error(kind, request, tmp_path):
+    data = request.getfixturevalue(f"{kind}_bytes")
+
     @FUZZ
-    @given(mutations(bvh_bytes))
+    @given(mutations(data))
     def run(payload):
-        _check(tmp_path / "fuzz.bvh", payload)
-
-    run()
-
-
-@pytest.mark.slow
-def test_damaged_npz_loads_or_raises_an_mrlib_error(npz_bytes, tmp_path):
-    @FUZZ
-    @given(mutations(npz_bytes))
-    def run(payload):
-        _check(tmp_path / "fuzz.npz", payload)
+        _check(tmp_path / f"fuzz.{kind}", payload)
 
     run()
