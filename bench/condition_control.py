@@ -8,7 +8,7 @@ Run from the repository root (``$MRLIB_DATA_DIR`` points at the Bandai Namco dat
 
 Training set: ``dataset-1_walk_{normal,happy,sad,angry}_001`` at 30 fps, one label per
 clip read from the dataset's JSON files. The run goes to ``--out`` and a finished run of
-the same configuration and clips there is reused (``mrlib.control.train_or_reuse``).
+the same configuration and clips there is reused (``mrlib.train.train_or_reuse``).
 
 Printed, for the trained model:
 
@@ -40,10 +40,11 @@ from pathlib import Path
 import torch
 
 import mrlib
-from mrlib import control
+from mrlib import control, fidelity
 from mrlib.config import get_preset
 from mrlib.data import TrainingSet
-from mrlib.evaluate import default_data_dir
+from mrlib.io import default_data_dir
+from mrlib.train import train_or_reuse
 
 ROOT = Path(__file__).resolve().parents[1]
 CLIPS = ("walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001")
@@ -89,12 +90,12 @@ def main(argv=None) -> int:
     body = mrlib.load_body_model()
     data = TrainingSet.from_motions([mrlib.load_motion(q) for q in paths], body=body)
     print(f"{data}\npreset {a.preset}, seed {a.seed}, {loss}\nrun folder {out}", flush=True)
-    model, record = control.train_or_reuse(data, cfg, out, body=body)
+    model, record = train_or_reuse(data, cfg, out, body=body)
     how = "reused a finished run" if record.reused else "trained"
     print(f"{how}: {record.wall_time_s:.0f} s of training", flush=True)
 
     t = time.perf_counter()
-    fid = control.condition_fidelity_of_model(model, num_samples=10, seed=0)
+    fid = fidelity.condition_fidelity_of_model(model, num_samples=10, seed=0)
     print("\n" + fid.to_markdown() + "\n")
     cases = [
         control.crossover_evidence(model, ca, fi, lv, num_samples=6, seed=0)
@@ -108,7 +109,7 @@ def main(argv=None) -> int:
         sum(getattr(e, k) for e in cases) for k in ("low_holds", "high_holds", "holds")
     )
     cov = {
-        eps: control.coverage_per_sequence(
+        eps: fidelity.coverage_per_sequence(
             model, num_samples=20, length_factor=2.0, seed=0, eps=eps
         )
         for eps in (2.0, 1.0)

@@ -10,7 +10,7 @@ Training set: ``synthetic_corpus(16, 12)`` (the corpus of notebook 04, seed 0), 
 12 paired clips and all 12 unpaired clips, log-mel features, motion at 25 fps. Held out:
 clips 12-23 of ``synthetic_corpus(24, 0, seed=500)``, new texts, voices and gestures.
 Each held-out utterance drives the model with 3 sampling seeds, with its own audio and
-with another utterance's (``mrlib.speech_train.evaluate_speech_sync``); the table gives
+with another utterance's (``mrlib.speech.evaluate_speech_sync``); the table gives
 the loudness / hand-speed r, beat alignment and phrase lift, and their paired differences.
 """
 
@@ -23,14 +23,17 @@ from pathlib import Path
 import torch
 
 import mrlib
-from mrlib.speech import SpeechFeatureExtractor, load_audio
-from mrlib.speech_data import load_paired_folder, load_unpaired_folder, synthetic_corpus
-from mrlib.speech_train import (
+from mrlib.speech import (
+    SpeechFeatureExtractor,
     SpeechTrainingSet,
     evaluate_speech_sync,
+    load_audio,
+    load_paired_folder,
     load_speech_model,
+    load_unpaired_folder,
     speech_train,
     speech_tutorial,
+    synthetic_corpus,
 )
 
 

@@ -107,7 +107,7 @@ class Targets:
 
 # -- data and thresholds ---------------------------------------------------------------------
 def data_dir() -> Path:
-    from mrlib.evaluate import default_data_dir
+    from mrlib.io import default_data_dir
 
     return default_data_dir()
 
@@ -355,8 +355,7 @@ def git_commit() -> str:
 
 # -- one set ---------------------------------------------------------------------------------
 def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
-    from mrlib.cli import training_config
-    from mrlib.config import config_to_json
+    from mrlib.config import config_to_json, training_config
     from mrlib.data import TrainingSet
     from mrlib.evaluate import EvaluationSettings
     from mrlib.train import train

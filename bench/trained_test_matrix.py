@@ -54,7 +54,7 @@ def run_one(recipe: str, variant: str, seed: int, threads: int) -> dict:
     import trained_models as tm
 
     from mrlib.body import load_body_model
-    from mrlib.evaluate import default_data_dir
+    from mrlib.io import default_data_dir
 
     torch.set_num_threads(threads)
     body = load_body_model()

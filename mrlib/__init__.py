@@ -10,19 +10,31 @@ The public API, in the order data flows through it::
     model = mrlib.load_model(result.checkpoint)
     new = mrlib.generate(model, "walk_happy", length=600, seed=0)
 
-Conventions (metres, Y up, 6D = first two matrix columns) are stated in ``mrlib.skeleton``.
-Rendering helpers import pyvista / matplotlib only when called. Submodules keep
-their own names (``mrlib.train``, ``mrlib.evaluate``, ``mrlib.sample``, ...).
+Conventions (metres, Y up, 6D = first two matrix columns) are stated in ``mrlib.skeleton``;
+``docs/architecture.md`` maps the modules onto the paper. Rendering helpers import
+pyvista / matplotlib only when called. Submodules keep their own names (``mrlib.train``,
+``mrlib.evaluate``, ``mrlib.sample``, ``mrlib.speech``, ...).
+
+Shape letters, the same in every module's docstrings and comments:
+
+====  =====================================================================
+B     samples of a batch (generated clips, crossover samples, ...)
+N     training clips; also windows of a clip where a metric slides one
+T     frames of one clip (``T_i`` at pyramid level i, ``T_a`` speech frames)
+S     frames of a packed batch: B samples end to end (``mrlib.pyramid``)
+L     pyramid levels; i a level (1-based in the public API, 0-based inside)
+J     joints (24 for SMPL)
+C     feature channels of the model (153, ``mrlib.features``)
+D     channels of a condition or of metric features
+K     labels; also selected vertices in ``mrlib.body`` / ``mrlib.plausibility``
+V     mesh vertices
+E     FiLM embedding size
+====  =====================================================================
 """
 
 from mrlib.body import BodyModel, BodyOutput, load_body_model
 from mrlib.config import ModelConfig, TrainConfig, get_preset, paper, tutorial
-from mrlib.contacts import (
-    DEFAULT_CONTACT_THRESHOLD,
-    foot_contacts,
-    foot_vertex_velocity,
-    plot_contacts,
-)
+from mrlib.contacts import DEFAULT_CONTACT_THRESHOLD, foot_contacts, foot_vertex_velocity
 from mrlib.data import TrainingSet
 from mrlib.errors import (
     BodyModelError,
@@ -54,6 +66,7 @@ from mrlib.metrics import (
 )
 from mrlib.motion import Motion
 from mrlib.plausibility import plausibility_report
+from mrlib.plots import plot_contacts
 from mrlib.render import animate_skeleton, plot_skeleton_strip, render_meshes, save_gif
 from mrlib.sample import cleanup_foot_contacts, generate, load_model, reconstruct
 

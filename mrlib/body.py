@@ -19,11 +19,10 @@ J = 24 joints, V vertices, K selected vertices, NB = ``num_betas``. Units: metre
 
 from __future__ import annotations
 
-import codecs
 import contextlib
+import functools
 import io
 import os
-import pickle
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,262 +34,36 @@ import torch
 from smplx.lbs import batch_rigid_transform
 
 from mrlib.errors import BodyModelError
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS, SMPL_FOOT_VERTEX_IDS
+from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, SMPL_FOOT_VERTEX_IDS
+from mrlib.smpl_files import (
+    OFFICIAL_NAMES,
+    REQUIRED_KEYS,
+    find_model_file,
+    read_smpl_arrays,
+    validate_smpl_arrays,
+)
 
 __all__ = [
     "BodyModel",
     "BodyOutput",
     "load_body_model",
+    "resolve_body",
+    "fit_betas",
     "default_body_path",
     "read_smpl_arrays",
     "SMPL_PATH_ENV",
 ]
 
 SMPL_PATH_ENV = "MRLIB_SMPL_PATH"
-NUM_POSE_BASIS = (NUM_JOINTS - 1) * 9  # 207: SMPL's pose-corrective basis size
 SMPL_LICENSE = (
     "SMPL Model License (non-commercial scientific use; "
     "see https://smpl.is.tue.mpg.de/modellicense.html)"
 )
-_REQUIRED_KEYS = (
-    "v_template",
-    "f",
-    "shapedirs",
-    "posedirs",
-    "J_regressor",
-    "kintree_table",
-    "weights",
-)
-# File names the official SMPL downloads use, tried inside a folder.
-_OFFICIAL_NAMES = {
-    "neutral": ("basicModel_neutral_lbs_10_207_0_v1.0.0.pkl",),
-    "female": ("basicModel_f_lbs_10_207_0_v1.0.0.pkl",),
-    "male": ("basicmodel_m_lbs_10_207_0_v1.0.0.pkl", "basicModel_m_lbs_10_207_0_v1.0.0.pkl"),
-}
 
 
 def default_body_path() -> Path:
     """Path of the embedded default body (``mrlib/assets/default_body.npz``)."""
     return Path(__file__).resolve().parent / "assets" / "default_body.npz"
-
-
-# -- reading model files without chumpy ------------------------------------------------
-class _ChumpyArray:
-    """Stands in for any chumpy object while unpickling; keeps only its numpy value.
-
-    A pickled ``chumpy.Ch`` stores its value under ``"x"`` in its state dict. Pickles
-    may create the object without calling ``__init__``, hence the class defaults."""
-
-    value: np.ndarray | None = None
-    state_keys: tuple[str, ...] = ()
-
-    def __setstate__(self, state: Any) -> None:
-        if isinstance(state, tuple) and len(state) == 2:  # (dict, slots) form
-            state = state[0]
-        if isinstance(state, dict):
-            self.state_keys = tuple(sorted(map(str, state)))
-            if "x" in state:
-                self.value = np.asarray(_to_numpy(state["x"]))
-
-
-class _SparseMatrix:
-    """Stands in for a pickled scipy.sparse CSC/CSR/COO matrix; converted to dense."""
-
-    kind = "csc"
-    state: dict = {}
-
-    def __setstate__(self, state: Any) -> None:
-        self.state = state if isinstance(state, dict) else {}
-
-    def to_dense(self) -> np.ndarray:
-        s = self.state
-        shape = tuple(s.get("_shape", s.get("shape", ())))
-        fmt = s.get("format", self.kind)
-        if len(shape) != 2:
-            raise ValueError(f"sparse matrix without a 2-D shape (state keys {sorted(s)})")
-        out = np.zeros(shape, dtype=np.float64)
-        if fmt in ("csc", "csr"):
-            data, indices, indptr = (np.asarray(s[k]) for k in ("data", "indices", "indptr"))
-            for i in range(len(indptr) - 1):  # column (csc) or row (csr) i
-                sl = slice(indptr[i], indptr[i + 1])
-                if fmt == "csc":
-                    out[indices[sl], i] += data[sl]
-                else:
-                    out[i, indices[sl]] += data[sl]
-        elif fmt == "coo":
-            row, col, data = (np.asarray(s[k]) for k in ("row", "col", "data"))
-            np.add.at(out, (row, col), data)
-        else:
-            raise ValueError(f"unsupported sparse format {fmt!r}")
-        return out
-
-
-_SPARSE = {k: type(f"_{k}_matrix", (_SparseMatrix,), {"kind": k}) for k in ("csc", "csr", "coo")}
-
-
-def _safe_reconstructor(cls: Any, base: Any, state: Any) -> Any:
-    """``copyreg._reconstructor`` restricted to our stand-in classes (protocol-0/1
-    pickles of new-style objects go through it)."""
-    if not (isinstance(cls, type) and issubclass(cls, (_ChumpyArray, _SparseMatrix))):
-        raise pickle.UnpicklingError(f"refusing to reconstruct {cls!r}")
-    if base is not object:
-        raise pickle.UnpicklingError(f"refusing reconstructor base {base!r}")
-    return cls()
-
-
-class _SMPLUnpickler(pickle.Unpickler):
-    """Unpickler for SMPL model files that imports nothing but numpy's array
-    reconstruction: chumpy objects and sparse matrices become stand-ins, and every
-    other global (``os.system``, ``builtins.eval``, ...) is refused."""
-
-    _NUMPY = {
-        ("numpy.core.multiarray", "_reconstruct"),
-        ("numpy._core.multiarray", "_reconstruct"),
-        ("numpy.core.multiarray", "scalar"),
-        ("numpy._core.multiarray", "scalar"),
-        ("numpy", "ndarray"),
-        ("numpy", "dtype"),
-    }
-
-    # plain containers that chumpy objects keep in their state
-    _BUILTINS = {t.__name__: t for t in (object, set, frozenset, list, dict, tuple, complex, slice)}
-
-    def find_class(self, module: str, name: str) -> Any:
-        if (module, name) in self._NUMPY:
-            return getattr(np, name) if module == "numpy" else _numpy_global(name)
-        if module == "chumpy" or module.startswith("chumpy."):
-            return _ChumpyArray
-        if module.startswith("scipy.sparse") and name in ("csc_matrix", "csr_matrix", "coo_matrix"):
-            return _SPARSE[name[:3]]
-        if module in ("copy_reg", "copyreg") and name == "_reconstructor":
-            return _safe_reconstructor
-        if module in ("__builtin__", "builtins") and name in self._BUILTINS:
-            return self._BUILTINS[name]
-        if module == "_codecs" and name == "encode":  # bytes in protocol-0..2 pickles
-            return codecs.encode
-        raise pickle.UnpicklingError(
-            f"refusing to load global {module}.{name}: not part of an SMPL model file"
-        )
-
-
-def _numpy_global(name: str) -> Any:
-    try:
-        from numpy._core import multiarray  # numpy >= 2
-    except ImportError:  # pragma: no cover - numpy 1.x
-        from numpy.core import multiarray
-    return getattr(multiarray, name)
-
-
-def _to_numpy(value: Any) -> Any:
-    if isinstance(value, _ChumpyArray):
-        if value.value is None:
-            raise ValueError(f"a chumpy object without a value (state keys {value.state_keys})")
-        return value.value
-    if isinstance(value, _SparseMatrix):
-        return value.to_dense()
-    return value
-
-
-def read_smpl_arrays(path: str | Path) -> dict[str, np.ndarray]:
-    """Arrays of an SMPL-format model file (``.pkl`` or ``.npz``), as numpy.
-
-    Real SMPL pickles (with chumpy arrays and a scipy sparse ``J_regressor``) load
-    without chumpy or scipy; any pickled object that is not an array is refused.
-
-    Raises:
-        BodyModelError: the file is missing, unreadable, or holds foreign objects.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise BodyModelError(f"{path}: no such file")
-    suffix = path.suffix.lower()
-    if suffix == ".npz":
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                return {k: z[k] for k in z.files}
-        except ValueError as e:  # object arrays need pickle: refuse them
-            raise BodyModelError(
-                f"{path}: cannot read without pickle ({e}); save the model with plain "
-                "numpy arrays (np.savez) or pass the original SMPL .pkl"
-            ) from e
-        except Exception as e:
-            raise BodyModelError(f"{path}: not a readable .npz file ({e})") from e
-    if suffix != ".pkl":
-        raise BodyModelError(
-            f"{path}: unsupported body model file type {suffix!r} (want .pkl or .npz)"
-        )
-    try:
-        with open(path, "rb") as fh:
-            data = _SMPLUnpickler(fh, encoding="latin1").load()
-    except pickle.UnpicklingError as e:
-        raise BodyModelError(f"{path}: {e}") from e
-    except Exception as e:
-        raise BodyModelError(f"{path}: not a readable SMPL pickle ({type(e).__name__}: {e})") from e
-    if not isinstance(data, dict):
-        raise BodyModelError(f"{path}: expected a dict of arrays, got {type(data).__name__}")
-    out = {}
-    for k, v in data.items():
-        try:
-            out[str(k)] = _to_numpy(v)
-        except ValueError as e:
-            raise BodyModelError(f"{path}: entry {k!r}: {e}") from e
-    return out
-
-
-def _find_model_file(path: Path, gender: str) -> Path:
-    """The model file for ``gender`` inside folder ``path`` (or its ``smpl/``)."""
-    names = [f"SMPL_{gender.upper()}.pkl", f"SMPL_{gender.upper()}.npz", *_OFFICIAL_NAMES[gender]]
-    for folder in (path, path / "smpl"):
-        for name in names:
-            if (folder / name).is_file():
-                return folder / name
-    raise BodyModelError(
-        f"{path}: folder has no SMPL model for gender {gender!r} (looked for "
-        f"{', '.join(names)} here and in {path / 'smpl'}); download SMPL from "
-        "https://smpl.is.tue.mpg.de and pass the .pkl file or its folder"
-    )
-
-
-def _validate(arrays: dict[str, Any], path: Path) -> dict[str, np.ndarray]:
-    missing = [k for k in _REQUIRED_KEYS if k not in arrays]
-    if missing:
-        raise BodyModelError(
-            f"{path}: not an SMPL model: missing {', '.join(missing)} "
-            f"(has {', '.join(sorted(arrays)) or 'nothing'})"
-        )
-    a = {k: np.asarray(arrays[k]) for k in _REQUIRED_KEYS}
-    V = a["v_template"].shape[0] if a["v_template"].ndim == 2 else -1
-    expect = {
-        "v_template": (V, 3),
-        "shapedirs": (V, 3, None),
-        "posedirs": (V, 3, NUM_POSE_BASIS),
-        "J_regressor": (NUM_JOINTS, V),
-        "weights": (V, NUM_JOINTS),
-        "kintree_table": (2, NUM_JOINTS),
-        "f": (None, 3),
-    }
-    for k, shape in expect.items():
-        got = a[k].shape
-        if len(got) != len(shape) or any(
-            s is not None and s != g for s, g in zip(shape, got, strict=True)
-        ):
-            want = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
-            raise BodyModelError(
-                f"{path}: {k} has shape {got}, expected {want} for a 24-joint SMPL model"
-            )
-    for k in ("v_template", "shapedirs", "posedirs", "J_regressor", "weights"):
-        if not np.isfinite(a[k]).all():
-            raise BodyModelError(f"{path}: {k} has NaN or inf values")
-    f = a["f"]
-    if f.min() < 0 or f.max() >= V:
-        raise BodyModelError(f"{path}: faces index vertices outside [0, {V})")
-    parents = a["kintree_table"][0].astype(np.int64).copy()
-    parents[0] = -1
-    if tuple(parents.tolist()) != PARENTS:
-        raise BodyModelError(f"{path}: kinematic tree {parents.tolist()} is not SMPL's")
-    out = dict(arrays)
-    out.update(a)
-    return out
 
 
 def _text(arrays: dict[str, Any], key: str, default: str) -> str:
@@ -513,7 +286,13 @@ class BodyModel(torch.nn.Module):
         return BodyOutput(joints=out_joints, vertices=verts.reshape(*lead, -1, 3))
 
     # -- conveniences on Motion -----------------------------------------------------------
-    def _motion_inputs(self, motion: Any, frames: Any = None):
+    def motion_inputs(
+        self, motion: Any, frames: Any = None
+    ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray]:
+        """What :meth:`forward` takes for ``motion`` (a ``mrlib.Motion``) at ``frames``
+        (default all): rotation matrices ``(T', 24, 3, 3)`` and translation ``(T', 3)`` on
+        this body's device and dtype, and betas ``(num_betas,)`` float32 (:func:`fit_betas`:
+        betas beyond this body's ``num_betas`` are dropped)."""
         from mrlib.rotations import axis_angle_to_matrix
 
         poses = np.asarray(motion.poses, np.float32)
@@ -523,9 +302,7 @@ class BodyModel(torch.nn.Module):
             if len(idx) and (idx.min() < -len(poses) or idx.max() >= len(poses)):
                 raise BodyModelError(f"frames {idx.tolist()} out of range for {len(poses)} frames")
             poses, trans = poses[idx], trans[idx]
-        betas = np.zeros(self.num_betas, np.float32)
-        mb = np.asarray(motion.betas, np.float32).reshape(-1)[: self.num_betas]
-        betas[: len(mb)] = mb  # extra betas beyond this body's num_betas are dropped
+        betas = fit_betas(motion.betas, self.num_betas)
         R = axis_angle_to_matrix(torch.from_numpy(poses).to(self.device, self.dtype))
         return R, torch.from_numpy(trans).to(self.device, self.dtype), betas
 
@@ -533,17 +310,44 @@ class BodyModel(torch.nn.Module):
     def motion_vertices(self, motion: Any, frames: Any = None) -> np.ndarray:
         """All vertices of ``motion`` (a ``mrlib.Motion``) at ``frames`` (default all):
         ``(T', V, 3)`` float32 numpy. Betas beyond ``num_betas`` are dropped."""
-        R, t, b = self._motion_inputs(motion, frames)
+        R, t, b = self.motion_inputs(motion, frames)
         return self.forward(R, t, b, vertex_ids="all").vertices.cpu().numpy().astype(np.float32)
 
     @torch.no_grad()
     def motion_joints(self, motion: Any) -> np.ndarray:
         """Joint positions of ``motion``: ``(T, 24, 3)`` float32 numpy."""
-        R, t, b = self._motion_inputs(motion)
+        R, t, b = self.motion_inputs(motion)
         return self.forward(R, t, b).joints.cpu().numpy().astype(np.float32)
 
 
+def fit_betas(betas: Any, num_betas: int, dtype: Any = np.float32) -> np.ndarray:
+    """Shape coefficients ``betas`` (any length, or None) cut or zero-padded to
+    ``(num_betas,)``: a motion's betas for a body with another number of them."""
+    out = np.zeros(int(num_betas), dtype)
+    if betas is not None:
+        b = np.asarray(betas, dtype).reshape(-1)[: int(num_betas)]
+        out[: len(b)] = b
+    return out
+
+
 # -- loading ------------------------------------------------------------------------------
+def resolve_body(body: BodyModel | None = None, *, shared: bool = False) -> BodyModel:
+    """``body``, or the default body model (:func:`load_body_model`) when None: every
+    function of mrlib that takes an optional ``body`` falls back through here.
+
+    ``shared=True`` returns one instance loaded once per process, for callers that only
+    read it (file readers called in loops); a body that may be moved to another device
+    or changed must be a fresh one (the default)."""
+    if body is not None:
+        return body
+    return _shared_body() if shared else load_body_model()
+
+
+@functools.lru_cache(maxsize=1)
+def _shared_body() -> BodyModel:
+    return load_body_model()
+
+
 def _resolve(path: str | Path | None, gender: str) -> tuple[Path, bool]:
     """(model file, is the embedded default)."""
     if path is None:
@@ -554,7 +358,7 @@ def _resolve(path: str | Path | None, gender: str) -> tuple[Path, bool]:
             return default_body_path(), True
     p = Path(path).expanduser()
     if p.is_dir():
-        p = _find_model_file(p, gender)
+        p = find_model_file(p, gender)
     elif not p.exists():
         hint = f" (from ${SMPL_PATH_ENV})" if str(path) == os.environ.get(SMPL_PATH_ENV) else ""
         raise BodyModelError(
@@ -586,12 +390,12 @@ def load_body_model(
         BodyModelError: missing file, unreadable file, or not a 24-joint SMPL model.
     """
     gender = gender.lower()
-    if gender not in _OFFICIAL_NAMES:
+    if gender not in OFFICIAL_NAMES:
         raise BodyModelError(f"gender must be 'neutral', 'female' or 'male', got {gender!r}")
     if not (isinstance(num_betas, int) and num_betas >= 1):
         raise BodyModelError(f"num_betas must be a positive int, got {num_betas!r}")
     file, is_default = _resolve(path, gender)
-    arrays = _validate(read_smpl_arrays(file), file)
+    arrays = validate_smpl_arrays(read_smpl_arrays(file), file)
     V = arrays["v_template"].shape[0]
 
     if "vertex_ids" in arrays:
@@ -624,7 +428,7 @@ def load_body_model(
             )
         )
         kwargs = dict(vertex_ids=vid, use_hands=False, use_feet_keypoints=True)
-    struct = smplx.utils.Struct(**{k: arrays[k] for k in _REQUIRED_KEYS})
+    struct = smplx.utils.Struct(**{k: arrays[k] for k in REQUIRED_KEYS})
     try:
         with contextlib.redirect_stdout(io.StringIO()):  # smplx prints a warning for 10 betas
             smpl = smplx.SMPL(

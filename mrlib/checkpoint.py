@@ -32,10 +32,12 @@ import contextlib
 import hashlib
 import os
 import pickle
+import random
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import torch
 
 from mrlib.errors import MotionFileError, MrlibError
@@ -48,6 +50,8 @@ __all__ = [
     "state_checksum",
     "reading",
     "CheckpointError",
+    "global_rng_state",
+    "set_global_rng_state",
 ]
 
 FORMAT = "mrlib-checkpoint"
@@ -180,3 +184,32 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
             f"(this mrlib reads version {FORMAT_VERSION})",
         )
     return state
+
+
+def global_rng_state() -> dict:
+    """The states of torch's, numpy's and Python's global generators (and CUDA's), as
+    tensors, lists and numbers that a checkpoint can hold."""
+    np_state = np.random.get_state()
+    state = {
+        "torch": torch.get_rng_state(),
+        "numpy": [
+            np_state[0],
+            torch.from_numpy(np_state[1].astype(np.int64)),
+            *map(float, np_state[2:]),
+        ],
+        "python": list(random.getstate()),
+    }
+    if torch.cuda.is_available():
+        state["cuda"] = torch.cuda.get_rng_state_all()
+    return state
+
+
+def set_global_rng_state(state: dict) -> None:
+    """Restore what :func:`global_rng_state` returned."""
+    torch.set_rng_state(state["torch"])
+    n = state["numpy"]
+    np.random.set_state((n[0], n[1].numpy().astype(np.uint32), int(n[2]), int(n[3]), float(n[4])))
+    py = state["python"]
+    random.setstate((py[0], tuple(py[1]), py[2]))
+    if "cuda" in state and torch.cuda.is_available():
+        torch.cuda.set_rng_state_all(state["cuda"])

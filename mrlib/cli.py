@@ -1,6 +1,9 @@
-"""Command-line interface: ``mrlib {demo,train,sample,evaluate,export,info}``.
+"""Command-line interface: ``mrlib {demo,train,train-speech,sample,evaluate,export,info}``.
 
-Run ``mrlib COMMAND --help`` for the options of each command.
+Run ``mrlib COMMAND --help`` for the options of each command. Each command is a pair of
+functions, ``_add_<command>`` (its options, with help texts) and ``_cmd_<command>`` (a
+few lines calling the library); the option lists make the module long, the logic lives
+in ``mrlib``.
 """
 
 from __future__ import annotations
@@ -161,38 +164,6 @@ def _add_train(sub):
     p.set_defaults(func=_cmd_train)
 
 
-def _block_iterations(iterations, n: int) -> tuple[int, ...]:
-    """``--iterations`` for a model of ``n`` blocks: one value for all, or one per block."""
-    its = tuple(iterations) * n if len(iterations) == 1 else tuple(iterations)
-    if len(its) != n:
-        raise MrlibError(f"--iterations has {len(its)} values but the model has {n} blocks")
-    return its
-
-
-def training_config(preset: str, iterations=None, levels=None, seed=None, device=None):
-    """A preset with the CLI's overrides applied. Changing ``levels`` keeps the preset's
-    first-block budget for block 1 and its last block's budget for every other block."""
-    import dataclasses
-    import math
-
-    from mrlib.config import get_preset
-
-    cfg = get_preset(preset)
-    model = cfg.model if levels is None else dataclasses.replace(cfg.model, num_levels=levels)
-    n = math.ceil(model.num_levels / cfg.block_size)
-    if iterations is not None:
-        its = _block_iterations(iterations, n)
-    else:
-        base = cfg.block_iterations
-        its = tuple(base[0] if b == 0 else base[min(b, len(base) - 1)] for b in range(n))
-    changes = {"model": model, "block_iterations": its}
-    if seed is not None:
-        changes["seed"] = seed
-    if device is not None:
-        changes["device"] = device
-    return cfg.replace(**changes)
-
-
 def _single_clip(data, k: int):
     """Clip ``k`` of a TrainingSet as a set of its own (normaliser refitted)."""
     from mrlib.data import TrainingSet
@@ -206,7 +177,7 @@ def _single_clip(data, k: int):
 
 
 def _cmd_train(args) -> int:
-    from mrlib.config import ganimator_mode
+    from mrlib.config import ganimator_mode, training_config
     from mrlib.data import TrainingSet
     from mrlib.train import train
 
@@ -304,8 +275,8 @@ def _add_train_speech(sub):
 
 
 def _cmd_train_speech(args) -> int:
-    from mrlib.speech import SpeechFeatureExtractor
-    from mrlib.speech_train import SpeechTrainingSet, speech_paper, speech_train, speech_tutorial
+    from mrlib.config import block_iterations_for, speech_paper, speech_tutorial
+    from mrlib.speech import SpeechFeatureExtractor, SpeechTrainingSet, speech_train
 
     data = cfg = None
     if args.resume is None:
@@ -313,7 +284,9 @@ def _cmd_train_speech(args) -> int:
             raise MrlibError("give a folder of paired clips, or --resume a checkpoint")
         cfg = speech_paper() if args.preset == "paper" else speech_tutorial()
         if args.iterations is not None:
-            cfg = cfg.replace(block_iterations=_block_iterations(args.iterations, cfg.num_blocks))
+            cfg = cfg.replace(
+                block_iterations=block_iterations_for(args.iterations, cfg.num_blocks)
+            )
         if args.seed is not None:
             cfg = cfg.replace(seed=args.seed)
         cfg = cfg.replace(device=args.device)
@@ -443,7 +416,7 @@ def _cmd_sample(args) -> int:
 
 
 def _audio_samples(args):
-    from mrlib.speech_train import generate_from_audio, load_speech_model
+    from mrlib.speech import generate_from_audio, load_speech_model
 
     if args.seconds is not None:
         raise MrlibError(

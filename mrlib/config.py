@@ -1,8 +1,9 @@
-"""Configuration of the networks and of training, with the named presets ``paper``,
-``tutorial`` and ``demo``.
+"""Configuration of the networks and of training, with named presets.
 
-Configs are frozen dataclasses; make variants with ``dataclasses.replace`` and save them
-as JSON next to every checkpoint (``config_to_json`` / ``config_from_json``).
+Configs are frozen dataclasses; make variants with ``dataclasses.replace`` (or
+``TrainConfig.replace``) and save them as JSON next to every checkpoint
+(``config_to_json`` / ``config_from_json``). ``PRESETS`` names them: ``paper``,
+``tutorial`` and ``demo`` for labels, ``speech_paper`` and ``speech_tutorial`` for speech.
 
 What the paper fixes (Moreno-Villamarin et al., CVMP 2024, Sec. 3-4): L = 8 levels for
 labels (10 for speech), F = 4/3, FiLM embedding of size 8, WGAN-GP, Adam with lr 1e-4,
@@ -22,47 +23,24 @@ summed into one generator step (the paper's Eq. 6; GANimator takes a separate
 reconstruction step); the smoothness term applies to the finer half of the levels
 ("finer temporal resolution levels", Sec. 3.4), the contact term to every level; the
 reconstruction noise z*_1 is a draw of the random noise z_1 (N(0, sigma_1), shared by all
-channels, as the paper describes z_i) rather than GANimator's default full-channel
-N(0, 1), which left the label's effect on random samples weak in our tests.
+channels, as the paper describes z_i) rather than GANimator's full-channel N(0, 1).
 
-Beyond the paper (on in ``tutorial``, off in ``paper``): conditional critics
-(``ModelConfig(critic_condition=True)``, a projection discriminator, Miyato & Koyama
-2018). With unconditional critics a label reaches random generations only through the
-reconstruction loss, and single-label samples drift to other labels' motion (condition
-fidelity 72 % on four Bandai walks at 400 iterations per block); conditional critics
-hold them to their label (82 % at 400, 96 % at 800). Whether a crossover also takes its
-fine detail from the fine label depends on what the label term looks at: judging the
-whole signal made the crossover a switch between the two labels, and judging only
-single-label samples left the detail with the coarse label (2 of 24 cases). The
-``tutorial`` preset judges the label on the detail band only (``critic_band="detail"``)
-and scores every level with the label that drove it (``critic_mixed="label"``): on
-its own, that made the detail follow the fine label in 11 of 24 cases. A label term on
-the band each level adds (``critic_band="level"``) kept the low band with A in 24 of 24
-but the detail with B in only 2 (10 with the mismatch term): that band is too weak a
-signal to steer.
+Beyond the paper, on in the ``tutorial`` presets and off in ``paper``:
 
-What makes the fine levels follow the fine label is the detail-statistics term
-(``LossWeights.detail``, weight 100 in ``tutorial``): at every level from 2 on, the
-per-channel RMS of the detail that level adds to a random generation is pulled to the
-mean of the training clips of the label driving that level, a style as channel
-statistics in the sense of Gatys et al. (2016) and AdaIN (Huang & Belongie 2017). On the
-four Bandai walks (crossovers at levels 2 and 4 of all 12 ordered label pairs, training
-seeds 0-4) both halves of the crossover claim hold in 23, 23, 22, 22 and 24 of 24 cases
-with weight 100, at condition fidelity 93.3, 92.2, 90.9, 94.7 and 93.5 % (96.5 % without
-the term, seed 0; all misses but one are low bands of the two most alike walks, normal
-and happy, at level 2); weight 200 gives 24, 23 and 23 of 24 but fidelity 93.1, 87.5 and
-85.8 %, and weight 50 16 of 24 at 95.6 % (seed 0). Coverage stays at 100 % (eps = 2) in
-all of them. See ``mrlib.control``.
+* conditional critics (``ModelConfig.critic_condition``, a projection discriminator,
+  Miyato & Koyama 2018): with the paper's unconditional critics a label reaches random
+  generations only through the reconstruction loss, and single-label samples drift to
+  other labels' motion;
+* a label term that sees only the detail band (``critic_band="detail"``), scoring every
+  level of a mixed sample with the label that drove it (``critic_mixed="label"``);
+* the detail-statistics term (``LossWeights.detail``): what makes a crossover's fine
+  levels follow the fine label;
+* for speech, the mismatch term (``LossWeights.mismatch``, Reed et al. 2016): what ties
+  gestures to the audio rather than to any speech.
 
-``LossWeights.mismatch`` adds to a conditional critic's loss the real clips shown with a
-wrong condition (Reed et al. 2016). For speech it is what ties gestures to the audio
-(``mrlib.speech_train.speech_tutorial``). For labels it is off in ``tutorial``: on the
-four Bandai walks (weight 1, before the detail term) it raised condition fidelity from
-96.5 % to 99.2 % but left the crossover much as it was (low band from A in 19 of 24
-cases, residual from B in 13, both in 8; coverage 100 % at eps = 2). Added to the
-current ``tutorial`` (weight 1, training seed 2) it raised fidelity from 90.9 % to
-97.4 % but took the low band from A in only 16 of 24 cases (22 without it): the
-crossover drifts back towards a switch between the labels.
+Every measured figure behind these choices is in ``docs/results.md``, with the command
+that measures it (``bench/condition_control.py``, ``bench/speech_sync.py``,
+``bench/demo_budget.py``).
 """
 
 from __future__ import annotations
@@ -72,6 +50,7 @@ import json
 from dataclasses import dataclass, field
 
 from mrlib.errors import MrlibError
+from mrlib.skeleton import UPPER_BODY_JOINTS
 
 __all__ = [
     "ModelConfig",
@@ -80,13 +59,22 @@ __all__ = [
     "paper",
     "tutorial",
     "demo",
+    "speech_paper",
+    "speech_tutorial",
+    "SPEECH_NUM_LEVELS",
     "PRESETS",
     "get_preset",
+    "training_config",
+    "block_iterations_for",
+    "quick",
     "check_device",
     "ganimator_mode",
     "config_to_json",
     "config_from_json",
 ]
+
+
+SPEECH_NUM_LEVELS = 10  # L for speech-guided synthesis (paper, Sec. 3.2)
 
 
 class ConfigError(MrlibError, ValueError):
@@ -258,26 +246,16 @@ def paper() -> TrainConfig:
 
 
 def tutorial() -> TrainConfig:
-    """A CPU budget: the paper's 8 levels and losses, narrower networks (72/144/144 hidden
-    channels in the generators, 48/96/96 in the critics), 2 critic steps per generator
-    step, a larger learning rate (5e-4), 800 iterations per block, conditional critics
-    whose label term sees the detail band (``critic_band="detail"``), each level scored
-    with the label that drove it (``critic_mixed="label"``), and the detail-statistics
-    term at weight 100 (``LossWeights(detail=100)``).
+    """A CPU budget for labels: the paper's 8 levels and losses, narrower networks (72/144/144
+    hidden channels in the generators, 48/96/96 in the critics), 2 critic steps per generator
+    step, a larger learning rate (5e-4: a few thousand iterations instead of 90000), 800
+    iterations per block, conditional critics whose label term sees the detail band
+    (``critic_band="detail"``), each level scored with the label that drove it
+    (``critic_mixed="label"``), and the detail-statistics term at weight 100.
 
-    Measured on four Bandai walks (normal/happy/sad/angry_001, ~900 frames at 30 fps) on
-    a 2-core CPU shared with 3 other jobs, one torch thread, training seeds 0 / 1 / 2 /
-    3 / 4: condition fidelity 93.3 / 92.2 / 90.9 / 94.7 / 93.5 %; crossovers at levels
-    2 and 4 of all 12 label pairs with the low-pass band from the coarse label and the
-    detail from the fine label in 23 / 23 / 22 / 22 / 24 of 24 cases; coverage 100 % at
-    eps 2 (>= 95.6 % at eps 1); 1765-1932 s of training with three or four such runs on
-    the two cores (1088 s with two, at weight 200). Without the detail term (the
-    previous preset, seed 0): fidelity 96.5 %, both halves in 8 of 24 (the detail from
-    the fine label in 11); with weight 200: 23-24 of 24 but fidelity 93.1 / 87.5 /
-    85.8 %. Paper-style unconditional critics: fidelity 71.9 % at 400 and 85.5 % at
-    800 iterations per block. ``python bench/condition_control.py --seed N`` measures
-    these figures; ``bench/time_to_quality.py`` reports when a model first meets the
-    quality target."""
+    Condition fidelity, crossover evidence, coverage and training time of this preset on
+    four Bandai walks, over five training seeds and against its variants, are in
+    ``docs/results.md`` (``python bench/condition_control.py --seed N``)."""
     return TrainConfig(
         model=ModelConfig(
             num_levels=8,
@@ -308,6 +286,56 @@ def demo() -> TrainConfig:
     return tutorial().replace(block_iterations=(800, 600, 400, 300), n_critic=1, checkpoint_every=0)
 
 
+def speech_paper() -> TrainConfig:
+    """The paper's speech setting (Sec. 3.2, 6): L = 10, F = 4/3, FiLM on the upper body,
+    the label setting's optimiser and loss weights. The paper gives no iteration counts
+    for speech; we reuse its label schedule (15000 iterations for levels 1-2, 25000 per
+    further block). No speech mixing (``mix_prob = 0``)."""
+    return TrainConfig(
+        model=ModelConfig(
+            num_levels=SPEECH_NUM_LEVELS, scale_factor=4 / 3, film_joints=UPPER_BODY_JOINTS
+        ),
+        block_size=2,
+        block_iterations=(15000, 25000, 25000, 25000, 25000),
+        mix_prob=0.0,
+    )
+
+
+def speech_tutorial() -> TrainConfig:
+    """A CPU budget for a dozen ~10 s speech clips at 25 fps: L = 10 as in the paper,
+    narrower networks, one critic step per generator step, 3900 iterations in all, and
+    conditional critics that learn whether motion and speech go together.
+
+    Why it departs from the paper: the learning rate is 2e-3, not 1e-4 (a few thousand
+    iterations instead of 115000: at 1e-4 the arms are not yet reconstructed after 300);
+    the smoothness weight is 0.5, not 5 (the smoothness term penalises the fast beat
+    strokes that carry the syllable-level coupling); the critics are conditional on the
+    speech, judged on the motion's detail band, with the mismatch term
+    (``critic_condition=True``, ``critic_band="detail"``, ``LossWeights(mismatch=1)``),
+    and their random generations take paired audio (``mrlib.speech.SpeechTrainer``).
+    Measured synchrony against the paper's critics: ``docs/results.md``
+    (``python bench/speech_sync.py``)."""
+    return TrainConfig(
+        model=ModelConfig(
+            num_levels=SPEECH_NUM_LEVELS,
+            scale_factor=4 / 3,
+            gen_hidden=(48, 96, 96),
+            disc_hidden=(48, 96, 96),
+            film_joints=UPPER_BODY_JOINTS,
+            critic_condition=True,
+            critic_band="detail",
+        ),
+        block_size=2,
+        loss=LossWeights(smooth=0.5, mismatch=1.0),
+        block_iterations=(1500, 800, 600, 500, 500),
+        lr=2e-3,
+        n_critic=1,
+        mix_prob=0.0,
+        checkpoint_every=500,
+        log_every=10,
+    )
+
+
 def ganimator_mode(config: TrainConfig) -> TrainConfig:
     """``config`` for a GANimator-style baseline (one model per clip, Li et al. 2022): no
     style mixing (one label, nothing to mix) and unconditional critics."""
@@ -315,14 +343,71 @@ def ganimator_mode(config: TrainConfig) -> TrainConfig:
     return config.replace(mix_prob=0.0, model=model)
 
 
-PRESETS = {"paper": paper, "tutorial": tutorial, "demo": demo}
+PRESETS = {
+    "paper": paper,
+    "tutorial": tutorial,
+    "demo": demo,
+    "speech_paper": speech_paper,
+    "speech_tutorial": speech_tutorial,
+}
 
 
 def get_preset(name: str) -> TrainConfig:
-    """A named preset: ``"paper"``, ``"tutorial"`` or ``"demo"``."""
+    """A named preset of ``PRESETS``: ``"paper"``, ``"tutorial"``, ``"demo"``,
+    ``"speech_paper"`` or ``"speech_tutorial"``."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     return PRESETS[name]()
+
+
+def block_iterations_for(iterations, num_blocks: int) -> tuple[int, ...]:
+    """Iterations per block for a model of ``num_blocks`` blocks from one value for all
+    blocks or one value per block."""
+    its = (iterations,) if isinstance(iterations, int) else tuple(iterations)
+    its = its * num_blocks if len(its) == 1 else its
+    if len(its) != num_blocks:
+        raise ConfigError(f"iterations has {len(its)} values but the model has {num_blocks} blocks")
+    return tuple(int(n) for n in its)
+
+
+def training_config(
+    preset: str,
+    iterations=None,
+    levels: int | None = None,
+    seed: int | None = None,
+    device: str | None = None,
+) -> TrainConfig:
+    """A preset with the command line's overrides applied (``mrlib train``).
+
+    ``iterations``: one value for every block or one per block. Changing ``levels``
+    keeps the preset's first-block budget for block 1 and its last block's budget for
+    every other block."""
+    cfg = get_preset(preset)
+    model = cfg.model if levels is None else dataclasses.replace(cfg.model, num_levels=levels)
+    n = -(-model.num_levels // cfg.block_size)
+    if iterations is not None:
+        its = block_iterations_for(iterations, n)
+    else:
+        base = cfg.block_iterations
+        its = tuple(base[0] if b == 0 else base[min(b, len(base) - 1)] for b in range(n))
+    changes = {"model": model, "block_iterations": its}
+    if seed is not None:
+        changes["seed"] = seed
+    if device is not None:
+        changes["device"] = device
+    return cfg.replace(**changes)
+
+
+def quick(config: TrainConfig, iterations=10, hidden: tuple[int, ...] | None = None, **changes):
+    """A smoke-test budget of ``config`` (what the notebooks run in CI): ``iterations``
+    per block (one value, or one per block), no intermediate checkpoints, and, with
+    ``hidden``, the same narrower widths for generators and critics. The numbers such a
+    model gives mean nothing; it only runs every step. ``changes`` go to ``replace``."""
+    model = config.model
+    if hidden is not None:
+        model = dataclasses.replace(model, gen_hidden=tuple(hidden), disc_hidden=tuple(hidden))
+    its = block_iterations_for(iterations, config.num_blocks)
+    return config.replace(model=model, block_iterations=its, checkpoint_every=0, **changes)
 
 
 def check_device(name: str) -> str:

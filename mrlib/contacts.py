@@ -35,7 +35,8 @@ import numpy as np
 import torch
 
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.skeleton import CONTACT_NAMES, NUM_CONTACTS, NUM_JOINTS
+from mrlib.plots import plot_contacts  # drawing lives in mrlib.plots; kept here by name
+from mrlib.skeleton import NUM_JOINTS
 
 __all__ = [
     "DEFAULT_CONTACT_THRESHOLD",
@@ -147,22 +148,13 @@ def foot_contacts(
         raise MotionValueError(
             f"contact threshold must be a positive speed in m/s, got {threshold}"
         )
-    if body is None:
-        from mrlib.body import load_body_model
+    from mrlib.body import resolve_body
 
-        body = load_body_model()
+    body = resolve_body(body)
     if motion.num_frames < 2:
         raise ClipTooShortError(f"{motion!r}: contact labels need at least 2 frames")
-    from mrlib.rotations import axis_angle_to_matrix
-
     with torch.no_grad():
-        R = axis_angle_to_matrix(
-            torch.as_tensor(motion.poses, dtype=body.dtype, device=body.device)
-        )
-        trans = torch.as_tensor(motion.trans, dtype=body.dtype, device=body.device)
-        betas = np.zeros(body.num_betas, np.float32)
-        mb = np.asarray(motion.betas, np.float32).reshape(-1)[: body.num_betas]
-        betas[: len(mb)] = mb
+        R, trans, betas = body.motion_inputs(motion)
         pos = foot_vertex_positions(body, R, trans, betas)  # (T, 6, 3)
         vel = finite_difference_velocity(pos, motion.fps)
     c = contacts_from_velocity(vel, threshold)
@@ -170,38 +162,3 @@ def foot_contacts(
         y = pos[..., 1].cpu().numpy()
         c = c * (y < y.min() + max_height)
     return c.astype(np.float32)
-
-
-def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: str | None = None):
-    """Contact labels as six horizontal bars over time (seconds).
-
-    Args:
-        contacts: ``(T, 6)`` labels (values in [0, 1] are shaded).
-        fps: frames per second.
-        ax: a matplotlib Axes; a new figure when None.
-    Returns:
-        The Axes.
-    """
-    import matplotlib.pyplot as plt
-
-    c = np.asarray(contacts, dtype=np.float32)
-    if c.ndim != 2 or c.shape[1] != NUM_CONTACTS:
-        raise MotionValueError(f"contacts must have shape (T, {NUM_CONTACTS}), got {c.shape}")
-    if ax is None:
-        _, ax = plt.subplots(figsize=(8, 2.4))
-    T = len(c)
-    ax.imshow(
-        c.T,
-        aspect="auto",
-        interpolation="nearest",
-        cmap="Greys",
-        vmin=0,
-        vmax=1,
-        extent=(0, T / fps, NUM_CONTACTS - 0.5, -0.5),
-    )
-    ax.set_yticks(range(NUM_CONTACTS), [n.replace("_", " ") for n in CONTACT_NAMES])
-    ax.axhline(2.5, color="tab:red", lw=0.8)  # left foot above, right foot below
-    ax.set_xlabel("time (s)")
-    if title:
-        ax.set_title(title)
-    return ax

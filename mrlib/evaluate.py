@@ -16,25 +16,10 @@ trained model in with a closure, e.g.
 ``lambda label, length, seed: generate(model, label, length=length, seed=seed)``
 (``mrlib.sample.generate`` returns one ``Motion`` for ``num_samples=1``).
 
-**Calibration rows.** The metrics alone are hard to read: a periodic clip (a walk) is
-covered by anything walk-like, and an under-trained generator scores more "diverse"
-than a second real take. ``calibration_rows`` builds comparison motions from the data,
-scored with the same code and settings as the generators:
-
-* ``played twice``: the training clip twice in a row, the second copy continuing the
-  root path (coverage 100 %, global diversity ~0: a perfect copy);
-* ``frozen first frame``: the first frame held for ``length_factor`` times the clip's
-  length (no motion at all; coverage ~0 because its computed contact labels say both
-  feet are always down: on the rotation channels alone a frozen walk frame can lie
-  within ``eps`` of every window);
-* ``other take`` / ``other style``: another real recording of the same content (same
-  style, another take; or another style), when one exists. A second take is not
-  always the closer one: actors vary a style between takes;
-* ``different content``: a real clip of other content (a bow against a walk).
-
-For Bandai Namco clips (``dataset-1_<content>_<style>_<take>``) the real counterparts
-are found by name in ``$MRLIB_DATA_DIR`` (``find_bandai_counterparts``). Real clips are
-scored at their own length; the synthetic rows are one clip each.
+**Calibration rows** (``mrlib.calibration``): the training clip played twice, its first
+frame frozen, and other real takes, styles and contents, scored with the same code, so
+the generators' numbers can be read against them. Real clips are scored at their own
+length; the built rows are one clip each.
 
 **Features.** Coverage and diversity use ``mrlib.metrics.metric_features``: the 23
 non-root joints' local rotations in 6D plus the 6 foot-contact labels (``D = 144``).
@@ -42,6 +27,10 @@ Clips without contact labels get them from ``mrlib.contacts.foot_contacts`` (spe
 threshold 0.25 m/s), so every clip is compared on the same channels. GANimator's
 published numbers use its own features (21 joints of its skeleton plus 4 contacts), so
 the values here are not on the same scale as GANimator's tables.
+
+The module is the protocol and its table (``EvaluationResult``: Markdown, CSV, the
+summary) together, which runs a little past 600 lines; the calibration motions are in
+``mrlib.calibration`` and the plot in ``mrlib.plots``.
 """
 
 from __future__ import annotations
@@ -49,21 +38,28 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
-import re
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 
 from mrlib import metrics as mt
 from mrlib import plausibility as pl
+from mrlib.body import resolve_body
+from mrlib.calibration import (  # noqa: F401  (part of this module's API before they moved)
+    CALIBRATION_METHODS,
+    calibration_rows,
+    find_bandai_counterparts,
+    freeze_first_frame,
+    load_counterparts,
+    parse_bandai_name,
+    play_twice,
+)
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.io import default_data_dir  # noqa: F401  (part of this module's API)
 from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 __all__ = [
     "SampleFn",
@@ -84,13 +80,7 @@ SampleFn = Callable[[str, int, int], Motion]
 """``sample_fn(label, length, seed) -> Motion``: one generated clip of ``length`` frames."""
 
 # Names of the calibration rows, in the order they are reported.
-PLAYED_TWICE = "played twice"
-FROZEN = "frozen first frame"
-OTHER_TAKE = "other take"
-OTHER_STYLE = "other style"
-DIFFERENT_CONTENT = "different content"
-CALIBRATION_METHODS = (PLAYED_TWICE, FROZEN, OTHER_TAKE, OTHER_STYLE, DIFFERENT_CONTENT)
-_CALIB_PREFIX = "calib: "
+CALIB_PREFIX = "calib: "  # method name of a calibration row: CALIB_PREFIX + row name
 
 
 # ---------------------------------------------------------------------------------------
@@ -151,201 +141,6 @@ class EvaluationSettings:
 
 
 # ---------------------------------------------------------------------------------------
-# Calibration motions
-# ---------------------------------------------------------------------------------------
-def _yaw_matrix(angle: float) -> np.ndarray:
-    """Rotation about +Y by ``angle`` radians, ``(3, 3)``; maps +Z to (sin, 0, cos)."""
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def _heading(root_orient: np.ndarray) -> np.ndarray:
-    """``(T, 3)`` axis-angle of the pelvis -> ``(T,)`` yaw (radians) of its +Z axis."""
-    R = axis_angle_to_matrix(torch.from_numpy(np.asarray(root_orient, np.float64))).numpy()
-    fwd = R[:, :, 2]  # (T, 3): the body's forward direction
-    return np.arctan2(fwd[:, 0], fwd[:, 2])
-
-
-def play_twice(motion: Motion) -> Motion:
-    """The clip followed by a copy of itself that continues its root path.
-
-    The copy is turned about the vertical axis and shifted on the ground so that its
-    first frame is where the clip would be one frame after its last: heading (pelvis
-    yaw) and ground position extrapolated from the last two frames. A walk keeps walking
-    instead of jumping back to its start, and a clip moving along a circle continues on
-    it exactly. Heights are kept. Contact labels, when present, are repeated.
-
-    Args:
-        motion: ``poses (T, 24, 3)``, ``trans (T, 3)``; ``T >= 2``.
-    Returns:
-        a ``Motion`` of ``2 T`` frames named ``"<name> x2"``.
-    """
-    T = motion.num_frames
-    if T < 2:
-        raise ClipTooShortError(f"{motion!r}: playing a clip twice needs at least 2 frames")
-    # Frame T extrapolates the last frame: its heading turns on by the last frame's yaw
-    # change, its position moves on by the last step turned by that change. The copy is
-    # the rigid motion (yaw about +Y, then a shift) that takes frame 0 there.
-    yaw = _heading(motion.poses[:, 0])
-    turn = float(yaw[-1] - yaw[-2])
-    Ry = _yaw_matrix(float(yaw[-1] - yaw[0]) + turn)
-    R0 = axis_angle_to_matrix(torch.from_numpy(motion.poses[:, 0].astype(np.float64)))
-    poses2 = motion.poses.astype(np.float64).copy()
-    poses2[:, 0] = matrix_to_axis_angle(torch.from_numpy(Ry) @ R0).numpy()
-    tr = motion.trans.astype(np.float64)
-    step = _yaw_matrix(turn) @ (tr[-1] - tr[-2])
-    anchor = np.array([tr[-1, 0] + step[0], tr[0, 1], tr[-1, 2] + step[2]])
-    trans2 = (tr - tr[0]) @ Ry.T + anchor  # (T, 3); Ry keeps heights
-    contacts = None if motion.contacts is None else np.concatenate([motion.contacts] * 2)
-    return motion.replace(
-        poses=np.concatenate([motion.poses, poses2.astype(np.float32)]),
-        trans=np.concatenate([motion.trans, trans2.astype(np.float32)]),
-        contacts=contacts,
-        name=f"{motion.name or 'clip'} x2",
-        meta=dict(motion.meta, calibration=PLAYED_TWICE),
-    )
-
-
-def freeze_first_frame(motion: Motion, length: int | None = None) -> Motion:
-    """The first frame held still for ``length`` frames (default ``2 T``); no contact
-    labels (computed ones are all 1: nothing moves)."""
-    n = 2 * motion.num_frames if length is None else length
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise MotionValueError(f"length must be a positive integer, got {length!r}")
-    return motion.replace(
-        poses=np.repeat(motion.poses[:1], n, axis=0),
-        trans=np.repeat(motion.trans[:1], n, axis=0),
-        contacts=None,
-        name=f"{motion.name or 'clip'} frame 0",
-        meta=dict(motion.meta, calibration=FROZEN),
-    )
-
-
-def default_data_dir() -> Path:
-    """The Bandai Namco dataset folder: ``$MRLIB_DATA_DIR``, else
-    ``../shared/data/bandai-namco-motion-1`` next to the repository."""
-    env = os.environ.get("MRLIB_DATA_DIR")
-    if env:
-        return Path(env).expanduser()
-    return Path(__file__).resolve().parents[2] / "shared" / "data" / "bandai-namco-motion-1"
-
-
-_BANDAI = re.compile(
-    r"^(?:(?P<prefix>dataset-\d+)_)?(?P<content>[A-Za-z0-9-]+)_(?P<style>[A-Za-z0-9-]+)_(?P<take>\d+)$"
-)
-
-
-def parse_bandai_name(name: str) -> dict[str, str] | None:
-    """``"dataset-1_walk_happy_001"`` (or ``"walk_happy_001"``) -> ``{"prefix":
-    "dataset-1", "content": "walk", "style": "happy", "take": "001"}``; None when the
-    name does not follow the Bandai Namco pattern."""
-    m = _BANDAI.match(Path(str(name)).stem)
-    if m is None:
-        return None
-    d = m.groupdict()
-    d["prefix"] = d["prefix"] or ""
-    return d
-
-
-def find_bandai_counterparts(
-    name: str,
-    data_dir: str | Path | None = None,
-    *,
-    different_content: str | None = None,
-    other_style: str = "normal",
-) -> dict[str, Path]:
-    """Real clips to calibrate against, found by Bandai Namco file names.
-
-    Args:
-        name: the training clip, e.g. ``"dataset-1_walk_happy_001"``.
-        data_dir: the dataset folder (with a ``data/`` subfolder) or the folder of BVH
-            files; default ``default_data_dir()``.
-        different_content: content of the ``"different content"`` clip; default
-            ``"bow"`` (``"walk"`` when the clip is a bow).
-        other_style: preferred style of the ``"other style"`` clip (the first other
-            style in alphabetical order when it is the clip's own or missing).
-
-    Returns:
-        ``{"other take": path, "other style": path, "different content": path}``, only
-        the entries that exist: another take of the same content and style (lowest take
-        number), the same content in another style (same take number when there is
-        one), and the other content in the ``"normal"`` style. Empty when the name is
-        not a Bandai Namco name or the folder is missing.
-    """
-    ref = parse_bandai_name(name)
-    root = Path(data_dir) if data_dir is not None else default_data_dir()
-    folder = root / "data" if (root / "data").is_dir() else root
-    if ref is None or not folder.is_dir():
-        return {}
-    clips = []
-    for p in sorted(folder.glob("*.bvh")):
-        d = parse_bandai_name(p.stem)
-        if d is not None and d["prefix"] == ref["prefix"]:
-            clips.append((d, p))
-
-    def pick(cands: list, prefer_take: str | None = None) -> Path | None:
-        if not cands:
-            return None
-        same = [c for c in cands if c[0]["take"] == prefer_take]
-        return sorted(same or cands, key=lambda c: (int(c[0]["take"]), c[1].name))[0][1]
-
-    out: dict[str, Path] = {}
-    take = pick(
-        [c for c in clips if (c[0]["content"], c[0]["style"]) == (ref["content"], ref["style"])
-         and c[0]["take"] != ref["take"]]
-    )  # fmt: skip
-    if take is not None:
-        out[OTHER_TAKE] = take
-    styles = sorted(
-        {c[0]["style"] for c in clips if c[0]["content"] == ref["content"]} - {ref["style"]}
-    )
-    if styles:
-        style = other_style if other_style in styles else styles[0]
-        out[OTHER_STYLE] = pick(
-            [c for c in clips if c[0]["content"] == ref["content"] and c[0]["style"] == style],
-            ref["take"],
-        )
-    content = different_content or ("walk" if ref["content"] == "bow" else "bow")
-    other = [c for c in clips if c[0]["content"] == content]
-    if other:
-        normal = [c for c in other if c[0]["style"] == "normal"]
-        out[DIFFERENT_CONTENT] = pick(normal or other, "001")
-    return out
-
-
-def calibration_rows(
-    reference: Motion,
-    others: Mapping[str, Motion] | None = None,
-    length_factor: float = 2.0,
-) -> dict[str, Motion]:
-    """Comparison motions for one training clip.
-
-    Args:
-        reference: the training clip.
-        others: real clips by row name (``"other take"``, ``"other style"``,
-            ``"different content"``, or any name), e.g. loaded from the paths of
-            ``find_bandai_counterparts``; used as they are.
-        length_factor: the frozen frame lasts ``round(length_factor * T)`` frames.
-
-    Returns:
-        ``{"played twice": ..., "frozen first frame": ..., **others}``.
-    """
-    if not isinstance(reference, Motion):
-        raise MotionValueError(f"reference must be a Motion, got {type(reference).__name__}")
-    if not (np.isfinite(length_factor) and length_factor > 0):
-        raise MotionValueError(f"length_factor must be positive, got {length_factor}")
-    rows = {
-        PLAYED_TWICE: play_twice(reference),
-        FROZEN: freeze_first_frame(reference, max(1, round(length_factor * reference.num_frames))),
-    }
-    for key, m in (others or {}).items():
-        if not isinstance(m, Motion):
-            raise MotionValueError(f"others[{key!r}] must be a Motion, got {type(m).__name__}")
-        rows[key] = m
-    return rows
-
-
-# ---------------------------------------------------------------------------------------
 # Scoring
 # ---------------------------------------------------------------------------------------
 @dataclass
@@ -386,7 +181,7 @@ def score_motions(
     reconstruction: Motion | None = None,
     _cache: _ReferenceCache | None = None,
 ) -> dict[str, float]:
-    """All metrics of one row: ``motions`` (S clips) scored against ``reference``.
+    """All metrics of one row: ``motions`` (B clips) scored against ``reference``.
 
     Args:
         motions: generated (or calibration) clips at the reference's frame rate.
@@ -407,10 +202,7 @@ def score_motions(
     s = settings or EvaluationSettings()
     if not motions:
         raise MotionValueError("score_motions: no motions")
-    if body is None:
-        from mrlib.body import load_body_model
-
-        body = load_body_model()
+    body = resolve_body(body)
     for m in motions:
         if not isinstance(m, Motion):
             raise MotionValueError(f"expected Motions, got {type(m).__name__}")
@@ -490,7 +282,7 @@ _EXTRA_COLUMNS = (
 )  # fmt: skip
 CSV_COLUMNS = _ID_COLUMNS + tuple(k for k, _, _ in METRIC_COLUMNS) + _EXTRA_COLUMNS
 # Panels of EvaluationResult.plot.
-_PLOT_COLUMNS = (
+PLOT_COLUMNS = (
     "coverage_pct", "global_div", "local_div", "skate_pct",
     "jerk_ratio", "penetration_cm", "w_root_speed", "w_angspeed_legs",
 )  # fmt: skip
@@ -597,53 +389,11 @@ class EvaluationResult:
         return _write_csv(path, cols, summ)
 
     def plot(self, path: str | Path | None = None):
-        """Bars (mean over sequences) and dots (sequences) per method for the main
-        metrics; calibration rows in grey. Returns the matplotlib Figure; saved to
-        ``path`` when given."""
-        from matplotlib import colormaps
-        from matplotlib.figure import Figure  # no pyplot: works headless, no global state
+        """``mrlib.plots.plot_evaluation``: bars (mean over sequences) and dots
+        (sequences) per method for the main metrics; saved to ``path`` when given."""
+        from mrlib.plots import plot_evaluation
 
-        methods = self.methods
-        kinds = {r["method"]: r["kind"] for r in self.rows}
-        headers = {k: h for k, h, _ in METRIC_COLUMNS}
-        cmap = colormaps["tab10"]
-        colors, model_i = [], 0
-        for m in methods:
-            if kinds[m] == "calibration":
-                colors.append("0.6")
-            else:
-                colors.append(cmap(model_i % 10))
-                model_i += 1
-        fig = Figure(figsize=(16, 7.5), layout="constrained")
-        axes = fig.subplots(2, 4)
-        rng = np.random.default_rng(0)  # x jitter of the dots only
-        x = np.arange(len(methods))
-        for ax, key in zip(axes.ravel(), _PLOT_COLUMNS, strict=True):
-            for i, m in enumerate(methods):
-                v = np.array([r.get(key, math.nan) for r in self.rows if r["method"] == m], float)
-                v = v[np.isfinite(v)]
-                if not len(v):
-                    continue
-                ax.bar(i, v.mean(), color=colors[i], alpha=0.55, width=0.7)
-                ax.scatter(i + rng.uniform(-0.18, 0.18, len(v)), v, s=14, color="k", zorder=3)
-            ax.set_title(headers[key], fontsize=10)
-            if key == "jerk_ratio":  # spans decades (a noisy bow: x100); 0 must stay visible
-                ax.set_yscale("symlog", linthresh=1.0)
-            ax.set_xticks(
-                x,
-                [m.replace(_CALIB_PREFIX, "") for m in methods],
-                rotation=35,
-                ha="right",
-                fontsize=8,
-            )
-            ax.grid(axis="y", alpha=0.3)
-        if any(kinds[m] == "calibration" for m in methods):
-            fig.suptitle(
-                "Methods (colour) and calibration rows (grey); dots: sequences", fontsize=11
-            )
-        if path is not None:
-            fig.savefig(path, dpi=110)
-        return fig
+        return plot_evaluation(self, path)
 
     def save(self, out_dir: str | Path) -> dict[str, Path]:
         """Write ``evaluation.csv``, ``evaluation_summary.csv``, ``evaluation.md`` and
@@ -698,26 +448,6 @@ def _draw(
             )
         out.append(m)
         bar.update(1)
-    return out
-
-
-def _load_counterparts(
-    label: str, reference: Motion, data_dir: Any, body: Any, notes: list[str]
-) -> dict[str, Motion]:
-    name = reference.name or Path(str(reference.meta.get("source", ""))).stem
-    paths = find_bandai_counterparts(name, data_dir) if name else {}
-    if not paths:
-        notes.append(
-            f"{label}: no real calibration clips (reference {name!r} is not a Bandai Namco "
-            f"name, or {data_dir or default_data_dir()} is missing)"
-        )
-        return {}
-    from mrlib.io import load_motion
-
-    out = {}
-    for key, p in paths.items():
-        m = load_motion(p, body=body)
-        out[key] = m.resample(reference.fps) if abs(m.fps - reference.fps) > 1e-6 else m
     return out
 
 
@@ -807,10 +537,7 @@ def evaluate(
         if not callable(fn):
             raise MotionValueError(f"the sampler of {k!r} is not callable")
     recons = {name: reconstructions or {}, **(extra_reconstructions or {})}
-    if body is None:
-        from mrlib.body import load_body_model
-
-        body = load_body_model()
+    body = resolve_body(body)
 
     cache = _ReferenceCache(body, settings.feature_kind)
     multi = dict(references) if len(references) > 1 else None
@@ -838,7 +565,7 @@ def evaluate(
             references.items(), desc="calibration", disable=not progress, leave=False
         ):
             if calibration_others == "auto":
-                others = _load_counterparts(label, ref, data_dir, body, notes)
+                others = load_counterparts(label, ref, data_dir, body, notes)
             elif calibration_others is None:
                 others = {}
             else:
@@ -854,7 +581,7 @@ def evaluate(
                     continue
                 source = m.name or ""
                 calib_rows.setdefault(key, []).append(
-                    {"method": _CALIB_PREFIX + key, "kind": "calibration", "sequence": label,
+                    {"method": CALIB_PREFIX + key, "kind": "calibration", "sequence": label,
                      "source": source, **row}
                 )  # fmt: skip
         order = [k for k in CALIBRATION_METHODS if k in calib_rows]

@@ -1,4 +1,4 @@
-"""Training losses (paper Eq. 6-11) as pure functions on padded batches.
+"""Training losses (paper Eq. 6-11, and the terms mrlib adds) as pure functions.
 
 Shapes: B batch, C channels, T frames. A batch may be padded ``(B, C, T_max)`` or packed
 ``(1, C, S)`` (``mrlib.pyramid.PackedLevels``); either way, ``weights (B, T)`` gives every
@@ -29,6 +29,9 @@ __all__ = [
     "critic_loss",
     "generator_adversarial_loss",
     "gradient_penalty",
+    "wgan_gp_critic_loss",
+    "mismatch_critic_loss",
+    "detail_statistics_loss",
     "reconstruction_loss",
     "contact_consistency_loss",
     "smoothness_loss",
@@ -103,6 +106,88 @@ def gradient_penalty(
     (grad,) = torch.autograd.grad((score * (weights > 0)).sum(), x, create_graph=True)
     norm = grad.norm(dim=1)  # (B, T)
     return weighted_mean((norm - 1) ** 2, weights)
+
+
+def wgan_gp_critic_loss(
+    critic,
+    real: torch.Tensor,
+    fake: torch.Tensor,
+    weights: torch.Tensor,
+    alpha: torch.Tensor,
+    pad_index: torch.Tensor,
+    pad_index_pair: torch.Tensor,
+    cond_real: torch.Tensor | None = None,
+    cond_fake: torch.Tensor | None = None,
+    band_of: Callable[[torch.Tensor], torch.Tensor] | None = None,
+    band_of_pair: Callable[[torch.Tensor], torch.Tensor] | None = None,
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Critic loss ``E[D(fake)] - E[D(real)]`` and gradient penalty of packed batches.
+
+    Real and fake are scored in one critic forward on ``[real, fake]`` (concatenated along
+    time, a packed batch of twice the samples); the penalty takes its own forward (a
+    double backward through the real and fake halves would be wasted work).
+    ``losses.critic_loss`` and ``losses.gradient_penalty`` are the reference.
+
+    Args:
+        critic: a ``PatchCritic``.
+        real, fake: ``(1, C, S)`` packed with the same layout; ``weights (1, S)``.
+        alpha: ``(1, 1, S)`` interpolation weight of each sample, spread over its frames.
+        pad_index: the layout's reflect-pad index ``(1, 1, S + 2p)``.
+        pad_index_pair: that of the layout repeated twice ``(1, 1, 2S + 2p)``.
+        cond_real, cond_fake: ``(1, S, D)`` conditions of a conditional critic (the real
+            clips' own, and those the fakes were generated with; the penalty's
+            interpolates take the fakes'); None for an unconditional critic.
+        band_of, band_of_pair: ``x -> level band of x`` in the layout and in the pair
+            layout, for critics with ``critic_band="level"`` (``PackedLevels.level_band``).
+    """
+    S = real.shape[-1]
+    pair = torch.cat([real, fake], -1)
+    both = None if cond_fake is None else torch.cat([cond_real, cond_fake], 1)
+    band = None if band_of is None else band_of_pair(pair)
+    scores = critic(pair, pad_index_pair, both, band)  # (1, 2S)
+
+    def one(x: torch.Tensor) -> torch.Tensor:
+        return critic(x, pad_index, cond_fake, None if band_of is None else band_of(x))
+
+    gp = gradient_penalty(one, real, fake, weights, alpha)
+    return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
+
+
+def mismatch_critic_loss(
+    critic,
+    real: torch.Tensor,
+    cond_own: torch.Tensor,
+    cond_wrong: torch.Tensor,
+    weights: torch.Tensor,
+    pad_index_pair: torch.Tensor,
+    band_of_pair: Callable[[torch.Tensor], torch.Tensor] | None = None,
+) -> torch.Tensor:
+    """``E[D(real, wrong condition)] - E[D(real, own condition)]``: the real clips shown
+    once more with conditions that are not theirs, scored as fakes (the "real data, wrong
+    text" negatives of Reed et al., ICML 2016), in one critic forward on ``[real, real]``.
+
+    Args:
+        critic: a conditional ``PatchCritic``.
+        real: ``(1, C, S)`` packed; ``weights (1, S)``.
+        cond_own, cond_wrong: ``(1, S, D)`` the clips' own and wrong conditions.
+        pad_index_pair: reflect-pad index of the layout repeated twice.
+        band_of_pair: level band in the pair layout, for ``critic_band="level"``.
+    """
+    S = real.shape[-1]
+    twice = torch.cat([real, real], -1)
+    band = None if band_of_pair is None else band_of_pair(twice)
+    scores = critic(twice, pad_index_pair, torch.cat([cond_own, cond_wrong], 1), band)
+    return critic_loss(scores[:, :S], scores[:, S:], weights, weights)
+
+
+# -- detail statistics (beyond the paper) ----------------------------------------------------
+def detail_statistics_loss(band_rms: torch.Tensor, target_rms: torch.Tensor) -> torch.Tensor:
+    """``mean_{b, c} |rms_bc - target_bc|``: the per-channel RMS ``(B, C)`` of the detail a
+    level adds to each random generation (``PackedLevels.level_band``) against the mean
+    RMS of that band over the training clips of the label driving the sample's level,
+    ``(B, C)``: a style as channel statistics (Gatys et al. 2016; Huang & Belongie 2017).
+    ``LossWeights.detail``."""
+    return (band_rms - target_rms).abs().mean()
 
 
 # -- reconstruction ------------------------------------------------------------------------

@@ -25,7 +25,12 @@ instead (the coverage threshold ``eps`` then applies to the squared mean).
 ``0 .. T - w``). GANimator's code loops over ``range(T - w)`` and so leaves out the last
 window; the difference is one window in ``T - w + 1``.
 
-Dimension letters: T frames, D feature channels, S samples, N windows.
+Dimension letters (``mrlib`` glossary): T frames, D feature channels, B samples,
+N windows.
+
+The module ends with slow ``_naive`` versions of the metrics, written from their
+definitions, that the tests check the fast ones against; keeping them next to what they
+check is why the module runs past 600 lines.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ from mrlib.rotations import axis_angle_to_6d, axis_angle_to_matrix
 __all__ = [
     "metric_features",
     "frame_distances",
+    "nearest_windows",
     "coverage",
     "coverage_profile",
     "global_diversity",
@@ -216,6 +222,29 @@ def _window_nn(
         start[i0 : i0 + n] = j
         dist[i0 : i0 + n] = sums[np.arange(n), j] / w
     return dist, start
+
+
+def nearest_windows(
+    generated: Any,
+    reference: Any,
+    window: int,
+    squared: bool = False,
+    *,
+    names: tuple[str, str] = ("generated", "reference"),
+) -> tuple[np.ndarray, np.ndarray]:
+    """For every ``window``-frame window of ``generated``, its nearest window of
+    ``reference``: ``(dist (N,), start (N,))`` with ``N = T_gen - window + 1``, the mean
+    per-frame distance to it and its first frame in ``reference``.
+
+    Args:
+        generated, reference: ``(T, D)`` features or Motions (:func:`metric_features`).
+        squared: per-frame squared distances instead of distances.
+        names: how errors name the two inputs.
+    """
+    w = _check_positive_int("window", window)
+    g, r = _pair(generated, reference, *names)
+    _check_windows(w, {names[0]: g, names[1]: r})
+    return _window_nn(g, r, w, squared)
 
 
 def _check_windows(w: int, clips: dict[str, np.ndarray]) -> None:

@@ -47,7 +47,8 @@ the ground at the first percentile, the reference's lowest vertex goes at most 0
 below it on any of the 50 clips checked, so ``PENETRATION_THRESHOLD = 1 cm`` counts no
 frame of real data.
 
-Dimension letters: T frames, J joints (24), K foot vertices (6), S samples.
+Dimension letters (``mrlib`` glossary): T frames, J joints (24), K foot vertices (6),
+B samples.
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ import numpy as np
 import torch
 from scipy.stats import wasserstein_distance
 
+from mrlib.body import resolve_body
 from mrlib.contacts import (
     DEFAULT_CONTACT_THRESHOLD,
     contacts_from_velocity,
@@ -153,15 +155,8 @@ def motion_kinematics(motion: Motion, body: Any = None) -> tuple[np.ndarray, np.
     """
     if not isinstance(motion, Motion):
         raise MotionValueError(f"expected a mrlib.Motion, got {type(motion).__name__}")
-    if body is None:
-        from mrlib.body import load_body_model
-
-        body = load_body_model()
-    R = axis_angle_to_matrix(torch.from_numpy(motion.poses).to(body.device, body.dtype))
-    trans = torch.from_numpy(motion.trans).to(body.device, body.dtype)
-    betas = np.zeros(body.num_betas, np.float32)
-    mb = np.asarray(motion.betas, np.float32).reshape(-1)[: body.num_betas]
-    betas[: len(mb)] = mb
+    body = resolve_body(body)
+    R, trans, betas = body.motion_inputs(motion)
     out = body(R, trans, betas, vertex_ids=list(body.foot_vertex_ids))
     return (
         out.joints.cpu().numpy().astype(np.float64),
@@ -398,7 +393,7 @@ def plausibility_report(
     """Plausibility of ``motions`` next to the training clip(s) ``references``.
 
     Args:
-        motions: a ``Motion`` or a list of them (e.g. S generated samples); frame values
+        motions: a ``Motion`` or a list of them (e.g. B generated samples); frame values
             are pooled over all of them.
         references: the training clip(s) of the same content.
         body: ``BodyModel`` (default body when None).
@@ -431,10 +426,7 @@ def plausibility_report(
     for name, ms in (("motions", gens), ("references", refs)):
         for m in ms:
             _need_frames(f"{name}: {m!r}", m.num_frames, 4, "the plausibility report")
-    if body is None:
-        from mrlib.body import load_body_model
-
-        body = load_body_model()
+    body = resolve_body(body)
 
     ref_kin = _kinematics_of(refs, reference_kinematics, body, "reference_kinematics")
     if ground is None:

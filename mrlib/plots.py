@@ -12,11 +12,14 @@ well the training timeline is covered, and how quality evolves during training.
   (covered) and red above it.
 * :func:`plot_quality_curve` draws a quantity measured at checkpoints against training
   time, with its target (``bench/time_to_quality.py``).
+* :func:`plot_crossover_evidence`, :func:`plot_nearest_sequence` and
+  :func:`plot_condition_fidelity` draw the measurements of ``mrlib.control``;
+  :func:`plot_contacts` draws foot-contact labels over time.
 
 Like ``mrlib.render``, this module imports matplotlib only inside its functions; every
 function draws into a given Axes or a new figure and returns the Axes.
 
-Dimension letters: T frames, S samples, N windows.
+Dimension letters (``mrlib`` glossary): T frames, B samples, N windows, K labels.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from mrlib.errors import MotionValueError
+from mrlib.skeleton import CONTACT_NAMES, NUM_CONTACTS
 
 __all__ = [
     "segmentation_frame_map",
@@ -35,6 +39,11 @@ __all__ = [
     "plot_coverage_strip",
     "plot_quality_curve",
     "save_titled_image",
+    "plot_crossover_evidence",
+    "plot_nearest_sequence",
+    "plot_condition_fidelity",
+    "plot_contacts",
+    "plot_evaluation",
 ]
 
 # Colours of consecutive segments (tab10 without its grey, which reads as "missing").
@@ -171,7 +180,7 @@ def plot_coverage_strip(
     """Heat strip of nearest-neighbour distances over the training timeline.
 
     Args:
-        profile: ``(N,)`` or ``(S, N)``: for each of the ``N = T_ref - window + 1``
+        profile: ``(N,)`` or ``(B, N)``: for each of the ``N = T_ref - window + 1``
             training windows (by first frame), the distance to the closest window of a
             generated clip (``mrlib.metrics.coverage_profile``); one row per sample.
         eps: the coverage threshold; windows closer than it are covered. The colour
@@ -196,26 +205,26 @@ def plot_coverage_strip(
     if p.ndim == 1:
         p = p[None]
     if p.ndim != 2 or p.shape[1] == 0 or p.shape[0] == 0:
-        raise MotionValueError(f"profile must have shape (N,) or (S, N), got {np.shape(profile)}")
+        raise MotionValueError(f"profile must have shape (N,) or (B, N), got {np.shape(profile)}")
     if not np.isfinite(p).all() or (p < 0).any():
         raise MotionValueError("profile must hold finite, non-negative distances")
     if row_labels is not None and len(row_labels) != len(p):
         raise MotionValueError(f"got {len(row_labels)} row labels for {len(p)} rows")
     if fps is not None and not (np.isfinite(fps) and fps > 0):
         raise MotionValueError(f"fps must be a positive number, got {fps!r}")
-    S, N = p.shape
-    covered = (p < eps).mean(1)  # (S,)
+    B, N = p.shape
+    covered = (p < eps).mean(1)  # (B,)
     s = 1.0 / fps if fps is not None else 1.0
-    ax = _new_axes(ax, (8.0, 0.9 + 0.32 * S))
+    ax = _new_axes(ax, (8.0, 0.9 + 0.32 * B))
     # A fixed scale (0 .. 2 eps) keeps strips comparable; farther windows saturate red.
     norm = TwoSlopeNorm(vmin=0.0, vcenter=eps, vmax=2.0 * eps)
     im = ax.imshow(
         p, aspect="auto", cmap="RdYlGn_r", norm=norm, interpolation="nearest",
-        extent=(0, N * s, S - 0.5, -0.5),
+        extent=(0, N * s, B - 0.5, -0.5),
     )  # fmt: skip
-    labels = list(row_labels) if row_labels is not None else [f"sample {i}" for i in range(S)]
+    labels = list(row_labels) if row_labels is not None else [f"sample {i}" for i in range(B)]
     ax.set_yticks(
-        range(S), [f"{lab} ({100 * c:.0f}%)" for lab, c in zip(labels, covered, strict=True)]
+        range(B), [f"{lab} ({100 * c:.0f}%)" for lab, c in zip(labels, covered, strict=True)]
     )
     unit = "s" if fps is not None else "frame"
     what = f"{window}-frame window" if window is not None else "window"
@@ -301,3 +310,217 @@ def save_titled_image(img: np.ndarray, title: str, path: str | Path) -> Path:
     fig.suptitle(title, fontsize=12, y=0.99)
     fig.savefig(path)
     return Path(path)
+
+
+# -- condition control (mrlib.control) ------------------------------------------------------
+def plot_crossover_evidence(evidence: Any, axes: Any = None):
+    """Bars per band of a ``mrlib.control.CrossoverEvidence``: distance to the coarse
+    label A and to the fine label B, with the per-sample values as dots. The bands have
+    their own scales.
+
+    Args:
+        axes: two matplotlib Axes (low-pass, residual); a new figure when None.
+    Returns:
+        the two Axes.
+    """
+    import matplotlib.pyplot as plt
+
+    e = evidence
+    if axes is None:
+        _, axes = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
+    axes = np.atleast_1d(axes)
+    if len(axes) != 2:
+        raise MotionValueError("plot_crossover_evidence needs two axes (one per band)")
+    a, b = e.coarse_label, e.fine_label
+    panels = (
+        ("low", "low-pass band: per-frame NN distance", "expected: closer to A"),
+        ("high", "residual band: RMS-profile distance", "expected: closer to B"),
+    )
+    for k, (ax, (key, title, note)) in enumerate(zip(axes, panels, strict=True)):
+        vals = [getattr(e, f"{key}_to_coarse"), getattr(e, f"{key}_to_fine")]
+        ax.bar([0, 1], vals, 0.6, color=["tab:blue", "tab:orange"])
+        ps = e.per_sample[:, 2 * k : 2 * k + 2]
+        jitter = np.linspace(-0.15, 0.15, len(ps)) if len(ps) > 1 else np.zeros(1)
+        for j in range(2):
+            ax.scatter(j + jitter, ps[:, j], s=7, color="k", zorder=3)
+        ax.set_xticks([0, 1], [f"A = {a}\n(coarse, 1-{e.level})", f"B = {b}\n(fine)"])
+        ax.set_title(f"{title}\n({note})", fontsize=9)
+        ax.set_ylabel(f"distance to {e.reference}")
+    axes[0].figure.suptitle(
+        f"crossover at level {e.level}: bands split at {e.cutoff_hz:.1f} Hz",
+        fontsize=10,
+    )
+    return axes
+
+
+_STRIP_COLOURS = (
+    "tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple",
+    "tab:brown", "tab:pink", "tab:gray", "tab:olive", "tab:cyan",
+)  # fmt: skip
+
+
+def plot_nearest_sequence(strip: Any, axes: Any = None, *, title: str | None = None):
+    """Two panels over generated time for a ``mrlib.control.NearestSequenceStrip``: a
+    colour band naming the nearest training sequence of every window, and where in that
+    sequence the window is (start frame, seconds). Diagonal runs in the lower panel are
+    stretches that follow one training clip.
+
+    Args:
+        strip: from ``mrlib.control.nearest_sequence_strip``.
+        axes: two matplotlib Axes (band, position); a new figure when None.
+    Returns:
+        the two Axes.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    if axes is None:
+        _, axes = plt.subplots(
+            2, 1, figsize=(9, 3.4), sharex=True, gridspec_kw={"height_ratios": [1, 3]}
+        )
+    axes = np.atleast_1d(axes)
+    if len(axes) != 2:
+        raise MotionValueError("plot_nearest_sequence needs two axes")
+    fps = strip.fps if np.isfinite(strip.fps) else 1.0
+    unit = "s" if np.isfinite(strip.fps) else "frames"
+    K, N = len(strip.names), len(strip.index)
+    colours = [_STRIP_COLOURS[k % len(_STRIP_COLOURS)] for k in range(K)]
+    t = np.arange(N) / fps
+    band, pos = axes
+    band.imshow(
+        strip.index[None],
+        aspect="auto",
+        cmap=ListedColormap(colours),
+        vmin=-0.5,
+        vmax=K - 0.5,
+        interpolation="nearest",
+        extent=(0, N / fps, 0, 1),
+    )
+    band.set_yticks([])
+    band.tick_params(labelbottom=False)
+    pos.set_xlim(0, N / fps)
+    band.set_title(
+        title or f"nearest training sequence of every {strip.window}-frame window", fontsize=10
+    )
+    for k in range(K):
+        on = strip.index == k
+        if on.any():
+            pos.scatter(t[on], strip.start[on] / fps, s=6, color=colours[k])
+    pos.set_xlabel(f"generated window start ({unit})")
+    pos.set_ylabel(f"position in source ({unit})")
+    shares = strip.shares()
+    handles = [
+        Patch(color=colours[k], label=f"{nm} [{lab}] {100 * shares[nm]:.0f}%")
+        for k, (nm, lab) in enumerate(zip(strip.names, strip.labels, strict=True))
+    ]
+    pos.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    return axes
+
+
+def plot_condition_fidelity(fidelity: Any, ax: Any = None):
+    """The confusion matrix of a ``mrlib.control.ConditionFidelity`` as an image, shares
+    in %: rows the requested label, columns the label of the nearest training window."""
+    import matplotlib.pyplot as plt
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(4.6, 3.8))
+    labels = fidelity.labels
+    K = len(labels)
+    ax.imshow(100 * fidelity.confusion, cmap="Blues", vmin=0, vmax=100)
+    for i in range(K):
+        for j in range(K):
+            v = 100 * fidelity.confusion[i, j]
+            ax.text(j, i, f"{v:.0f}", ha="center", va="center",
+                    color="white" if v > 60 else "black", fontsize=9)  # fmt: skip
+    ax.set_xticks(range(K), labels, rotation=30, ha="right")
+    ax.set_yticks(range(K), labels)
+    ax.set_xlabel("label of the nearest training window")
+    ax.set_ylabel("requested label")
+    ax.set_title(f"condition fidelity {100 * fidelity.overall:.1f}% (diagonal, %)", fontsize=10)
+    return ax
+
+
+def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: str | None = None):
+    """Contact labels as six horizontal bars over time (seconds).
+
+    Args:
+        contacts: ``(T, 6)`` labels (values in [0, 1] are shaded).
+        fps: frames per second.
+        ax: a matplotlib Axes; a new figure when None.
+    Returns:
+        The Axes.
+    """
+    import matplotlib.pyplot as plt
+
+    c = np.asarray(contacts, dtype=np.float32)
+    if c.ndim != 2 or c.shape[1] != NUM_CONTACTS:
+        raise MotionValueError(f"contacts must have shape (T, {NUM_CONTACTS}), got {c.shape}")
+    if ax is None:
+        _, ax = plt.subplots(figsize=(8, 2.4))
+    T = len(c)
+    ax.imshow(
+        c.T,
+        aspect="auto",
+        interpolation="nearest",
+        cmap="Greys",
+        vmin=0,
+        vmax=1,
+        extent=(0, T / fps, NUM_CONTACTS - 0.5, -0.5),
+    )
+    ax.set_yticks(range(NUM_CONTACTS), [n.replace("_", " ") for n in CONTACT_NAMES])
+    ax.axhline(2.5, color="tab:red", lw=0.8)  # left foot above, right foot below
+    ax.set_xlabel("time (s)")
+    if title:
+        ax.set_title(title)
+    return ax
+
+
+def plot_evaluation(result: Any, path: str | Path | None = None):
+    """Bars (mean over sequences) and dots (sequences) per method for the main metrics of
+    a ``mrlib.evaluate.EvaluationResult``; calibration rows in grey. Returns the
+    matplotlib Figure; saved to ``path`` when given."""
+    from matplotlib import colormaps
+    from matplotlib.figure import Figure  # no pyplot: works headless, no global state
+
+    from mrlib.evaluate import CALIB_PREFIX, METRIC_COLUMNS, PLOT_COLUMNS
+
+    methods = result.methods
+    kinds = {r["method"]: r["kind"] for r in result.rows}
+    headers = {k: h for k, h, _ in METRIC_COLUMNS}
+    cmap = colormaps["tab10"]
+    colors, model_i = [], 0
+    for m in methods:
+        if kinds[m] == "calibration":
+            colors.append("0.6")
+        else:
+            colors.append(cmap(model_i % 10))
+            model_i += 1
+    fig = Figure(figsize=(16, 7.5), layout="constrained")
+    axes = fig.subplots(2, 4)
+    rng = np.random.default_rng(0)  # x jitter of the dots only
+    x = np.arange(len(methods))
+    for ax, key in zip(axes.ravel(), PLOT_COLUMNS, strict=True):
+        for i, m in enumerate(methods):
+            v = np.array([r.get(key, np.nan) for r in result.rows if r["method"] == m], float)
+            v = v[np.isfinite(v)]
+            if not len(v):
+                continue
+            ax.bar(i, v.mean(), color=colors[i], alpha=0.55, width=0.7)
+            ax.scatter(i + rng.uniform(-0.18, 0.18, len(v)), v, s=14, color="k", zorder=3)
+        ax.set_title(headers[key], fontsize=10)
+        if key == "jerk_ratio":  # spans decades (a noisy bow: x100); 0 must stay visible
+            ax.set_yscale("symlog", linthresh=1.0)
+        ax.set_xticks(
+            x,
+            [m.replace(CALIB_PREFIX, "") for m in methods],
+            rotation=35,
+            ha="right",
+            fontsize=8,
+        )
+        ax.grid(axis="y", alpha=0.3)
+    if any(kinds[m] == "calibration" for m in methods):
+        fig.suptitle("Methods (colour) and calibration rows (grey); dots: sequences", fontsize=11)
+    if path is not None:
+        fig.savefig(path, dpi=110)
+    return fig

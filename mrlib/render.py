@@ -25,6 +25,7 @@ from mrlib.errors import MotionValueError
 from mrlib.skeleton import NUM_JOINTS, PARENTS
 
 __all__ = [
+    "crop_to_bodies",
     "render_meshes",
     "plot_skeleton_strip",
     "animate_skeleton",
@@ -55,6 +56,24 @@ def _headless_defaults() -> None:
 
 
 # -- meshes (pyvista) ---------------------------------------------------------------------
+def crop_to_bodies(image: np.ndarray, pad: int = 16, min_saturation: int = 25) -> np.ndarray:
+    """Crop a ``render_meshes`` image ``(H, W, 3)`` uint8 to its coloured pixels (skin,
+    contact markers) plus ``pad`` pixels: the white background and the grey floor have
+    (almost) equal RGB channels and fall away. Returns the image unchanged when nothing
+    is coloured."""
+    img = np.asarray(image)
+    if img.ndim != 3 or img.shape[2] < 3:
+        raise MotionValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
+    rgb = img[..., :3].astype(np.int16)
+    coloured = (rgb.max(-1) - rgb.min(-1)) > min_saturation  # (H, W)
+    rows, cols = np.flatnonzero(coloured.any(1)), np.flatnonzero(coloured.any(0))
+    if len(rows) == 0:
+        return img
+    r0, r1 = max(0, rows[0] - pad), min(img.shape[0], rows[-1] + pad + 1)
+    c0, c1 = max(0, cols[0] - pad), min(img.shape[1], cols[-1] + pad + 1)
+    return img[r0:r1, c0:c1]
+
+
 def render_meshes(
     motion: Any,
     body: Any = None,
@@ -89,10 +108,9 @@ def render_meshes(
     _headless_defaults()
     import pyvista as pv
 
-    if body is None:
-        from mrlib.body import load_body_model
+    from mrlib.body import resolve_body
 
-        body = load_body_model()
+    body = resolve_body(body)
     if layout not in ("strip", "path"):
         raise MotionValueError(f"layout must be 'strip' or 'path', got {layout!r}")
     T = motion.num_frames
@@ -192,10 +210,9 @@ def render_mesh_animation(
         raise MotionValueError(f"{len(titles)} titles for {len(motions)} motions")
     if not (np.isfinite(fps) and fps > 0):
         raise MotionValueError(f"fps must be positive, got {fps}")
-    if body is None:
-        from mrlib.body import load_body_model
+    from mrlib.body import resolve_body
 
-        body = load_body_model()
+    body = resolve_body(body)
     src_fps = motions[0].fps
     duration = min(m.num_frames for m in motions) / src_fps
     if seconds is not None:

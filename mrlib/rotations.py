@@ -12,6 +12,7 @@ Neural Networks", CVPR 2019) is the first two **columns** of the rotation matrix
 
 from __future__ import annotations
 
+import numpy as np
 import roma
 import torch
 
@@ -23,6 +24,11 @@ __all__ = [
     "axis_angle_to_6d",
     "sixd_to_axis_angle",
     "geodesic_distance",
+    "matrix_to_axis_angle_numpy",
+    "kabsch_rotation",
+    "rotation_between",
+    "axis_rotation",
+    "skew",
 ]
 
 
@@ -60,3 +66,76 @@ def sixd_to_axis_angle(x: torch.Tensor) -> torch.Tensor:
 def geodesic_distance(R1: torch.Tensor, R2: torch.Tensor) -> torch.Tensor:
     """Angle in radians of ``R1^T R2`` for ``(..., 3, 3)`` inputs, ``(...)`` output."""
     return roma.rotmat_geodesic_distance(R1, R2)
+
+
+# -- numpy, for small CPU-bound geometry (retargeting) where torch's per-call cost dominates --
+def kabsch_rotation(H: np.ndarray) -> np.ndarray:
+    """The rotation ``C`` maximising ``tr(C H)`` (``H = sum d a^T`` for ``C d ~ a``)."""
+    U, _, Vt = np.linalg.svd(H)
+    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
+    return Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
+
+
+def rotation_between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Smallest rotation taking unit vector ``u`` to unit vector ``v``."""
+    w = np.cross(u, v)
+    c = float(u @ v)
+    if c < -1 + 1e-12:  # opposite: half-turn about any axis perpendicular to u
+        p = np.eye(3)[np.argmin(np.abs(u))]
+        k = np.cross(u, p)
+        k /= np.linalg.norm(k)
+        return 2 * np.outer(k, k) - np.eye(3)
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+    return np.eye(3) + K + K @ K / (1 + c)
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """``(3,)`` -> the ``(3, 3)`` cross-product matrix ``[v]_x``."""
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+
+
+def axis_rotation(d: np.ndarray, theta: float) -> np.ndarray:
+    """Rotation ``(3, 3)`` about unit axis ``d (3,)`` by ``theta`` radians (Rodrigues)."""
+    K = skew(d)
+    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
+
+
+def matrix_to_axis_angle_numpy(R: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)`` rotations -> ``(..., 3)`` axis-angle, in numpy (float64).
+
+    Same result as :func:`matrix_to_axis_angle` (tested), without torch: on small CPU
+    machines torch's intra-op threads made this step dominate the load time of a BVH. Quaternion by Shepperd's method (the best-conditioned of four formulas),
+    then ``2 atan2(|v|, w) v / |v|``.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    r00, r11, r22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
+    d21, d02, d10 = (
+        R[..., 2, 1] - R[..., 1, 2],
+        R[..., 0, 2] - R[..., 2, 0],
+        R[..., 1, 0] - R[..., 0, 1],
+    )
+    s01, s02, s12 = (
+        R[..., 0, 1] + R[..., 1, 0],
+        R[..., 0, 2] + R[..., 2, 0],
+        R[..., 1, 2] + R[..., 2, 1],
+    )
+    diag = np.stack([r00 + r11 + r22, r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11], -1)
+    big = np.sqrt(np.maximum(1.0 + diag, 1e-30))  # 2 |q_i| for each candidate
+    # candidate quaternions (w, x, y, z), each scaled by 2 |q_i| (normalised below)
+    cands = np.stack(
+        [
+            np.stack([big[..., 0] ** 2, d21, d02, d10], -1),
+            np.stack([d21, big[..., 1] ** 2, s01, s02], -1),
+            np.stack([d02, s01, big[..., 2] ** 2, s12], -1),
+            np.stack([d10, s02, s12, big[..., 3] ** 2], -1),
+        ],
+        -2,
+    )  # (..., 4, 4)
+    best = np.argmax(diag, axis=-1)[..., None, None]
+    q = np.take_along_axis(cands, best, axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    q = np.where(q[..., :1] < 0, -q, q)  # w >= 0: angle in [0, pi]
+    v = q[..., 1:]
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(n, q[..., :1])
+    return v * np.where(n > 1e-12, angle / np.maximum(n, 1e-300), 2.0)

@@ -1,6 +1,6 @@
 """Sampling from a trained model: random generation under one or several conditions,
 any length, per-level condition assignment and blending, reconstruction of the training
-clips, and an optional foot-contact clean-up by inverse kinematics.
+clips, and an optional foot-contact clean-up (``mrlib.footik``).
 
 Levels are 1-based in this module's public API (level 1 is the coarsest), as in the
 paper; ``conditions=[("walk_normal", (1, 4)), ("walk_happy", (5, 8))]`` gives levels
@@ -20,6 +20,7 @@ from mrlib.checkpoint import load_checkpoint, reading
 from mrlib.config import TrainConfig, config_from_json
 from mrlib.errors import MotionValueError
 from mrlib.features import FeatureNormalizer, features_to_motion
+from mrlib.footik import cleanup_foot_contacts, contact_skating
 from mrlib.models import MultiResGenerator, build_generator
 from mrlib.motion import Motion
 from mrlib.pyramid import PackedLevels, level_fps, pyramid_lengths
@@ -27,6 +28,7 @@ from mrlib.pyramid import PackedLevels, level_fps, pyramid_lengths
 __all__ = [
     "GenerativeModel",
     "load_model",
+    "model_from_state",
     "model_from_trainer",
     "label_weights",
     "sample_features",
@@ -81,7 +83,8 @@ class GenerativeModel:
         )
 
 
-def _model_from_state(state: dict, device: str | torch.device) -> GenerativeModel:
+def model_from_state(state: dict, device: str | torch.device = "cpu") -> GenerativeModel:
+    """A :class:`GenerativeModel` from a checkpoint's state dict (``mrlib.checkpoint``)."""
     config = config_from_json(state["config"])
     gen = build_generator(config.model, int(state["cond_dim"]))
     gen.load_state_dict(state["generator"])
@@ -111,12 +114,12 @@ def load_model(path: str | Path, device: str | torch.device = "cpu") -> Generati
     """Load a checkpoint written by ``mrlib.train`` for sampling."""
     state = load_checkpoint(path)
     with reading(path):
-        return _model_from_state(state, device)
+        return model_from_state(state, device)
 
 
 def model_from_trainer(trainer) -> GenerativeModel:
     """A sampling view of a ``mrlib.train.Trainer`` (shares nothing mutable with it)."""
-    return _model_from_state(trainer.state_dict(), trainer.device)
+    return model_from_state(trainer.state_dict(), trainer.device)
 
 
 # -- conditions ---------------------------------------------------------------------------
@@ -347,142 +350,3 @@ def reconstruction_error(model: GenerativeModel, clip_index: int) -> float:
     out = reconstruct_features(model, clip_index)[-1][0]
     target = model.normalizer.normalize(model.features[clip_index].to(out.device)).T
     return float((out - target).abs().mean())
-
-
-# -- foot-contact clean-up ------------------------------------------------------------------
-LEG_JOINTS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
-
-
-def _contact_runs(c: np.ndarray) -> list[tuple[int, int]]:
-    """``c (T,)`` bool -> inclusive runs ``[(start, stop), ...]`` of True frames."""
-    runs, t, T = [], 0, len(c)
-    while t < T:
-        if c[t]:
-            s = t
-            while t + 1 < T and c[t + 1]:
-                t += 1
-            runs.append((s, t))
-        t += 1
-    return runs
-
-
-def _body_inputs(motion: Motion, body) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Rotation matrices ``(T, 24, 3, 3)``, translation ``(T, 3)`` and betas of a motion."""
-    from mrlib.rotations import axis_angle_to_matrix
-
-    R = axis_angle_to_matrix(torch.as_tensor(motion.poses, dtype=torch.float32))
-    betas = np.zeros(body.num_betas, np.float32)
-    b = np.asarray(motion.betas, np.float32).reshape(-1)[: body.num_betas]
-    betas[: len(b)] = b
-    return R, torch.as_tensor(motion.trans, dtype=torch.float32), torch.from_numpy(betas)
-
-
-def contact_skating(motion: Motion, body=None) -> float:
-    """Mean speed (m/s) of the contact vertices on frames labelled in contact (both the
-    frame and its predecessor): 0 for perfectly planted feet."""
-    from mrlib.body import load_body_model
-
-    body = body or load_body_model()
-    if motion.contacts is None:
-        raise MotionValueError("motion has no contact labels")
-    with torch.no_grad():
-        R, t, b = _body_inputs(motion, body)
-        p = body.forward(R, t, b, vertex_ids=list(body.foot_vertex_ids)).vertices  # (T, 6, 3)
-    v = (p[1:] - p[:-1]).norm(dim=-1) * motion.fps  # (T-1, 6)
-    c = torch.as_tensor(motion.contacts > 0.5)
-    both = c[1:] & c[:-1]
-    return float(v[both].mean()) if both.any() else 0.0
-
-
-def _cleanup_ik(motion: Motion, body, blend: int, passes: int = 2) -> Motion:
-    from mrlib.body import load_body_model
-    from mrlib.footik import plant_feet
-    from mrlib.rotations import matrix_to_axis_angle
-
-    if motion.contacts is None:
-        raise MotionValueError("motion has no contact labels to clean up")
-    body = body or load_body_model()
-    R, trans, betas = _body_inputs(motion, body)
-    ids = list(body.foot_vertex_ids)
-    Rn = R.double().numpy()
-    for _ in range(passes):  # each pass re-poses the feet; the targets stay the same
-        with torch.no_grad():
-            out = body.forward(torch.from_numpy(Rn).float(), trans, betas, vertex_ids=ids)
-        J, F = out.joints.double().numpy(), out.vertices.double().numpy()
-        Rn, info = plant_feet(Rn, J, F, motion.contacts, blend)
-    poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
-    meta = dict(motion.meta, contact_cleanup={"method": "ik", "blend": blend, **info})
-    return motion.replace(poses=poses, meta=meta)
-
-
-def cleanup_foot_contacts(
-    motion: Motion,
-    body=None,
-    iterations: int = 150,
-    lr: float = 0.02,
-    weight_reg: float = 1e-2,
-    weight_smooth: float = 1.0,
-    *,
-    method: str = "ik",
-    blend: int = 4,
-) -> Motion:
-    """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
-
-    ``method="ik"`` (default): analytic two-bone leg IK over all frames at once
-    (:mod:`mrlib.footik`): each foot's ankle is pinned to its mean position over every
-    contact run, eased in and out over ``blend`` frames; milliseconds per clip.
-
-    ``method="optimise"``: for every contact vertex and every run of frames labelled in
-    contact, the target is the vertex's mean position over the run (as GANimator does);
-    axis-angle offsets of the leg joints (hips, knees, ankles, feet) are then optimised
-    with Adam (``iterations``, ``lr``) to reach the targets, with a small penalty on the
-    offsets (``weight_reg``) and on their frame-to-frame change (``weight_smooth``).
-
-    Either way the root trajectory is left untouched.
-    """
-    if method not in ("ik", "optimise"):
-        raise MotionValueError(f"method must be 'ik' or 'optimise', got {method!r}")
-    if method == "ik":
-        return _cleanup_ik(motion, body, blend)
-    from mrlib.body import load_body_model
-    from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
-
-    if motion.contacts is None:
-        raise MotionValueError("motion has no contact labels to clean up")
-    body = body or load_body_model()
-    ids = list(body.foot_vertex_ids)
-    R, trans, betas = _body_inputs(motion, body)
-    with torch.no_grad():
-        p0 = body.forward(R, trans, betas, vertex_ids=ids).vertices  # (T, 6, 3)
-    c = np.asarray(motion.contacts) > 0.5
-    target = p0.clone()
-    active = torch.zeros(c.shape, dtype=torch.bool)
-    for v in range(c.shape[1]):
-        for s, e in _contact_runs(c[:, v]):
-            if e > s:
-                target[s : e + 1, v] = p0[s : e + 1, v].mean(0)
-                active[s : e + 1, v] = True
-    if not active.any():
-        return motion.replace()
-    legs = list(LEG_JOINTS)
-    delta = torch.zeros(len(p0), len(legs), 3, requires_grad=True)
-    opt = torch.optim.Adam([delta], lr=lr)
-    for _ in range(iterations):
-        opt.zero_grad()
-        Rn = R.clone()
-        Rn[:, legs] = R[:, legs] @ axis_angle_to_matrix(delta)
-        p = body.forward(Rn, trans, betas, vertex_ids=ids).vertices
-        err = ((p - target) ** 2).sum(-1)[active].mean()
-        loss = (
-            err
-            + weight_reg * delta.pow(2).mean()
-            + weight_smooth * (delta[1:] - delta[:-1]).pow(2).mean()
-        )
-        loss.backward()
-        opt.step()
-    with torch.no_grad():
-        Rn = R.clone()
-        Rn[:, legs] = R[:, legs] @ axis_angle_to_matrix(delta)
-        poses = matrix_to_axis_angle(Rn).cpu().numpy()
-    meta = dict(motion.meta, contact_cleanup={"iterations": iterations})
-    return motion.replace(poses=poses, meta=meta)

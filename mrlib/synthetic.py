@@ -106,11 +106,11 @@ def synthetic_walk(
     ``seed`` adds small smooth random variation of amplitudes, so two takes of the same
     style differ slightly, as two captures would.
     """
-    from mrlib.body import load_body_model
+    from mrlib.body import resolve_body
 
     name = style if isinstance(style, str) else "walk_custom"
     s = STYLES[style] if isinstance(style, str) else style
-    body = load_body_model() if body is None else body
+    body = resolve_body(body)
     rng = np.random.default_rng(seed)
     T = int(round(seconds * fps))
     t = np.arange(T) / fps
@@ -156,9 +156,9 @@ def synthetic_walk(
 
 def synthetic_wave(seconds: float = 8.0, fps: float = 30.0, seed: int = 0, body=None) -> Motion:
     """Standing in place, waving the right hand, with slow weight shifts."""
-    from mrlib.body import load_body_model
+    from mrlib.body import resolve_body
 
-    body = load_body_model() if body is None else body
+    body = resolve_body(body)
     rng = np.random.default_rng(seed)
     T = int(round(seconds * fps))
     t = np.arange(T) / fps

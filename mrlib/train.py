@@ -20,11 +20,17 @@ sample by sample.
 Checkpoints (``mrlib.checkpoint``) hold everything needed to resume bit-exactly on CPU:
 networks, optimizers, iteration, and the RNG states. Ctrl-C finishes the current
 iteration, writes a checkpoint and returns.
+
+This module is long (~800 lines) on purpose: one :class:`Trainer` holds a run's fixed
+batches, its condition hooks, one iteration, its checkpoints and its loop, and
+``mrlib.speech.SpeechTrainer`` overrides pieces of each; the losses themselves are pure
+functions in ``mrlib.losses``.
 """
 
 from __future__ import annotations
 
 import csv
+import json
 import random
 import signal
 import threading
@@ -37,7 +43,14 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint, reading, save_checkpoint
+from mrlib.checkpoint import (
+    CheckpointError,
+    global_rng_state,
+    load_checkpoint,
+    reading,
+    save_checkpoint,
+    set_global_rng_state,
+)
 from mrlib.config import ConfigError, TrainConfig, config_from_json, config_to_json
 from mrlib.data import TrainingSet
 from mrlib.errors import ClipTooShortError, MrlibError
@@ -46,22 +59,26 @@ from mrlib.losses import (
     backward_velocity,
     body_kinematics,
     contact_consistency_loss,
-    critic_loss,
+    detail_statistics_loss,
     generator_adversarial_loss,
-    gradient_penalty,
+    mismatch_critic_loss,
     reconstruction_loss,
     smoothness_loss,
+    wgan_gp_critic_loss,
 )
 from mrlib.models import MultiResGenerator, build_critics, build_generator
 from mrlib.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid_lengths
+from mrlib.sample import load_model
 
 __all__ = [
     "train",
+    "train_or_reuse",
     "Trainer",
     "TrainResult",
+    "TrainRecord",
+    "RandomDraw",
     "TrainingDivergedError",
     "LOSS_NAMES",
-    "wgan_gp_critic_loss",
 ]
 
 
@@ -84,75 +101,24 @@ class TrainResult:
     losses: dict[int, dict[str, float]]  # last logged losses per level (1-based)
 
 
-def wgan_gp_critic_loss(
-    critic,
-    real: torch.Tensor,
-    fake: torch.Tensor,
-    weights: torch.Tensor,
-    alpha: torch.Tensor,
-    pad_index: torch.Tensor,
-    pad_index_pair: torch.Tensor,
-    cond_real: torch.Tensor | None = None,
-    cond_fake: torch.Tensor | None = None,
-    band_of: Callable[[torch.Tensor], torch.Tensor] | None = None,
-    band_of_pair: Callable[[torch.Tensor], torch.Tensor] | None = None,
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Critic loss ``E[D(fake)] - E[D(real)]`` and gradient penalty of packed batches.
+@dataclass
+class RandomDraw:
+    """The control signals and noises of a batch of random generations, and how they were
+    drawn (what :meth:`Trainer.draw_random` returns).
 
-    Real and fake are scored in one critic forward on ``[real, fake]`` (concatenated along
-    time, a packed batch of twice the samples); the penalty takes its own forward (a
-    double backward through the real and fake halves would be wasted work).
-    ``losses.critic_loss`` and ``losses.gradient_penalty`` are the reference.
-
-    Args:
-        critic: a ``PatchCritic``.
-        real, fake: ``(1, C, S)`` packed with the same layout; ``weights (1, S)``.
-        alpha: ``(1, 1, S)`` interpolation weight of each sample, spread over its frames.
-        pad_index: the layout's reflect-pad index ``(1, 1, S + 2p)``.
-        pad_index_pair: that of the layout repeated twice ``(1, 1, 2S + 2p)``.
-        cond_real, cond_fake: ``(1, S, D)`` conditions of a conditional critic (the real
-            clips' own, and those the fakes were generated with; the penalty's
-            interpolates take the fakes'); None for an unconditional critic.
-        band_of, band_of_pair: ``x -> level band of x`` in the layout and in the pair
-            layout, for critics with ``critic_band="level"`` (``PackedLevels.level_band``).
+    Attributes:
+        conds: per level ``(1, S_i, D)`` conditions (packed, ``mrlib.pyramid``).
+        noises: per level ``(1, 1, S_i)`` noise ``z_i``.
+        mixed: ``(B, L)`` bool, the levels each sample takes from its second condition.
+        labels: ``(B, L)`` label index per level (label training).
+        paired: ``(B, L)`` bool, speech from paired audio (speech training).
     """
-    S = real.shape[-1]
-    pair = torch.cat([real, fake], -1)
-    both = None if cond_fake is None else torch.cat([cond_real, cond_fake], 1)
-    band = None if band_of is None else band_of_pair(pair)
-    scores = critic(pair, pad_index_pair, both, band)  # (1, 2S)
 
-    def one(x: torch.Tensor) -> torch.Tensor:
-        return critic(x, pad_index, cond_fake, None if band_of is None else band_of(x))
-
-    gp = gradient_penalty(one, real, fake, weights, alpha)
-    return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
-
-
-def _rng_state() -> dict:
-    np_state = np.random.get_state()
-    state = {
-        "torch": torch.get_rng_state(),
-        "numpy": [
-            np_state[0],
-            torch.from_numpy(np_state[1].astype(np.int64)),
-            *map(float, np_state[2:]),
-        ],
-        "python": list(random.getstate()),
-    }
-    if torch.cuda.is_available():
-        state["cuda"] = torch.cuda.get_rng_state_all()
-    return state
-
-
-def _set_rng_state(state: dict) -> None:
-    torch.set_rng_state(state["torch"])
-    n = state["numpy"]
-    np.random.set_state((n[0], n[1].numpy().astype(np.uint32), int(n[2]), int(n[3]), float(n[4])))
-    py = state["python"]
-    random.setstate((py[0], tuple(py[1]), py[2]))
-    if "cuda" in state and torch.cuda.is_available():
-        torch.cuda.set_rng_state_all(state["cuda"])
+    conds: list[torch.Tensor]
+    noises: list[torch.Tensor]
+    mixed: torch.Tensor
+    labels: torch.Tensor | None = None
+    paired: torch.Tensor | None = None
 
 
 def _clip_lengths(name: str, length: int, L: int, factor: float, min_length: int) -> list[int]:
@@ -182,10 +148,9 @@ class Trainer:
         torch.manual_seed(config.seed)  # network initialisation
         np.random.seed(config.seed)
         random.seed(config.seed)
-        if body is None:
-            from mrlib.body import load_body_model
+        from mrlib.body import resolve_body
 
-            body = load_body_model()
+        body = resolve_body(body)
         self.body = body.to(self.device) if hasattr(body, "to") else body
         self.betas = torch.as_tensor(
             np.asarray(data.betas), dtype=torch.float32, device=self.device
@@ -236,8 +201,8 @@ class Trainer:
         self.opt_d: torch.optim.Adam | None = None
 
         # 3. fixed batch layouts (packed: samples end to end, see mrlib.pyramid) -------------
-        N, S = data.num_clips, config.samples_per_clip
-        self.N, self.B = N, N * S
+        N = data.num_clips
+        self.N, self.B = N, N * config.samples_per_clip
         self.rand_clip = torch.arange(self.B) % N  # clip whose pyramid random sample b follows
         dev, gap = self.device, 2 * pad
         rand_table = self.lengths[self.rand_clip]
@@ -283,9 +248,9 @@ class Trainer:
             ]
 
     # -- conditions and noise --------------------------------------------------------------
-    # The networks take any control signal (B, T_i, D) per level. These two methods are the
-    # only place where labels become conditions: a trainer for another signal (per-frame
-    # speech features) overrides them.
+    # The networks take any control signal (B, T_i, D) per level. These methods are the only
+    # place where labels become conditions: a trainer for another signal (per-frame speech
+    # features, mrlib.speech.SpeechTrainer) overrides them.
     def label_conditions(
         self, label_table: torch.Tensor, layout: PackedLevels, stop: int
     ) -> list[torch.Tensor]:
@@ -298,9 +263,7 @@ class Trainer:
         """Conditions of the reconstructions: every clip's own label at every level."""
         return self.label_conditions(self.rec_labels, self.rec_layout, stop)
 
-    def draw_random(
-        self, layout: PackedLevels, stop: int
-    ) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+    def draw_random(self, layout: PackedLevels, stop: int) -> RandomDraw:
         """Conditions ``[(1, S_i, K)]`` and noises ``[(1, 1, S_i)]`` of levels ``0..stop-1``
         for the random generations of a layout whose sample b follows clip ``b mod N``.
 
@@ -317,27 +280,33 @@ class Trainer:
         levels = torch.arange(L)[None]
         mixed = mix[:, None] & (levels >= cross[:, None])  # (B, L) levels driven by b
         table = torch.where(mixed, b[:, None], a[:, None])
-        self._last_mixed = mixed  # read by the conditional critics (critic_conditions)
-        self._last_table = table  # read by the detail-statistics term
         noises = []
         for i in range(stop):
             z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
             noises.append(z * layout.per_sample(self.sigma[table[:, i], i], i))
-        return self.label_conditions(table, layout, stop), noises
+        conds = self.label_conditions(table, layout, stop)
+        return RandomDraw(conds, noises, mixed, labels=table)
 
-    def critic_conditions(
-        self, conds: list[torch.Tensor], layout: PackedLevels
-    ) -> list[torch.Tensor]:
-        """What a conditional critic sees with the fakes of the latest :meth:`draw_random`
-        on ``layout``: their conditions, with a style-mixed sample's zeroed from its
-        crossover level on when ``critic_mixed == "none"``. The real clip that shares the
-        sample's slot is then scored without its label too: were only fakes ever
+    def critic_keep(self, draw: RandomDraw) -> torch.Tensor:
+        """``(B, L)`` 1 where a sample of ``draw`` is scored with its condition, else 0:
+        with ``critic_mixed == "none"`` a style-mixed sample is scored without a label from
+        its crossover level on."""
+        if self.config.critic_mixed == "label":
+            return torch.ones_like(draw.mixed, dtype=torch.float32)
+        return (~draw.mixed).float()
+
+    def critic_conditions(self, draw: RandomDraw, layout: PackedLevels) -> list[torch.Tensor]:
+        """What a conditional critic sees with the fakes of ``draw`` on ``layout``: their
+        conditions, zeroed where :meth:`critic_keep` is 0. The real clip that shares the
+        sample's slot is then scored without its condition too: were only fakes ever
         unlabelled, the critic could tell them apart by the missing label alone (the
         projection term is outside the gradient penalty's reach), which we saw diverge."""
-        keep = self._critic_keep()
+        keep = self.critic_keep(draw)
         if bool(keep.all()):
-            return conds
-        return [c * layout.per_sample(keep[:, i], i)[None, :, None] for i, c in enumerate(conds)]
+            return draw.conds
+        return [
+            c * layout.per_sample(keep[:, i], i)[None, :, None] for i, c in enumerate(draw.conds)
+        ]
 
     def mismatched_real_conditions(self, level: int) -> torch.Tensor:
         """Conditions ``(1, S_i, D)`` that do *not* go with the real clips of the random
@@ -349,21 +318,10 @@ class Trainer:
         onehot = F.one_hot(wrong, K).float()
         return self.rand_layout.per_sample(onehot, level)[None].to(self.device)
 
-    def _critic_keep(self) -> torch.Tensor:
-        """``(B, L)`` 1 where the latest draw's sample is scored with its label, else 0."""
-        if self.config.critic_mixed == "label":
-            return torch.ones_like(self._last_mixed, dtype=torch.float32)
-        return (~self._last_mixed).float()
-
-    def detail_loss(self, out_rand: torch.Tensor, level: int) -> torch.Tensor:
-        """``loss.detail`` of the random generations ``(1, C, S_i)`` of the latest draw on
-        the random layout: mean over samples and channels of ``|rms(band) - target|``,
-        the band the level adds (``PackedLevels.level_band``) and the target the mean RMS
-        of that band over the training clips of the label driving the sample's level."""
-        lay = self.rand_layout
-        rms = lay.per_sample_rms(lay.level_band(out_rand, level), level)  # (B, C)
-        target = self.detail_rms[level].to(rms.device)[self._last_table[:, level]]
-        return (rms - target).abs().mean()
+    def detail_targets(self, draw: RandomDraw, level: int) -> torch.Tensor:
+        """``(B, C)`` targets of the detail-statistics term: the mean RMS of the band
+        ``level`` adds, over the training clips of the label driving each sample there."""
+        return self.detail_rms[level].to(self.device)[draw.labels[:, level]]
 
     def _band_of(self, layout, level: int) -> Callable[[torch.Tensor], torch.Tensor] | None:
         """``x -> layout.level_band(x, level)`` for a critic that reads the level band."""
@@ -411,94 +369,105 @@ class Trainer:
             self._rec_cache = (lo, x)
         return self._rec_cache[1]
 
+    # -- one iteration ---------------------------------------------------------------------
     def step(self) -> dict[int, dict[str, torch.Tensor]]:
-        """One iteration (critic steps + one generator step) of the current block."""
-        c, w = self.config, self.config.loss
-        lo, hi = self.block_levels[0], self.block_levels[-1]
-        G, N = self.generator, self.N
+        """One iteration (critic steps + one generator step) of the current block; returns
+        the losses ``{level: {name: value}}`` (0-based levels)."""
         losses: dict[int, dict[str, torch.Tensor]] = {i: {} for i in self.block_levels}
+        if self.config.n_critic > 0:
+            self._critic_steps(losses)
+        self._generator_step(losses)
+        return losses
 
-        # 1. critic steps: fakes of all of them from one gradient-free generation ------------
-        if c.n_critic > 0:
-            conds, noises = self.draw_random(self.fake_layout, hi + 1)
-            with torch.no_grad():
-                fakes = G.run(self.fake_layout, noises, conds, 0, hi + 1, keep=True)
-            if self.real_rand_conds is not None:
-                conds = self.critic_conditions(conds, self.fake_layout)
-                keep = self._critic_keep()  # (n_critic * B, L)
-            alphas = torch.rand(c.n_critic, self.B, generator=self.rng).to(self.device)
-            for j in range(c.n_critic):
-                self.opt_d.zero_grad(set_to_none=True)
-                total = 0.0
-                for i in self.block_levels:
-                    S = self.rand_layout.sizes[i]
-                    fake = fakes[i][..., j * S : (j + 1) * S]  # the j-th copy of the random layout
-                    alpha = self.rand_layout.per_sample(alphas[j], i)[None, None]  # (1, 1, S)
-                    cc = {}
-                    if self.real_rand_conds is not None:
-                        # a real clip is shown without its label where its fake partner
-                        # (same sample slot) is: both sides see the same kind of condition
-                        k_j = self.rand_layout.per_sample(keep[j * self.B : (j + 1) * self.B, i], i)
-                        cc = dict(
-                            cond_real=self.real_rand_conds[i] * k_j[None, :, None],
-                            cond_fake=conds[i][:, j * S : (j + 1) * S],
-                        )
-                    wl, gp = wgan_gp_critic_loss(
+    def _critic_steps(self, losses: dict[int, dict[str, torch.Tensor]]) -> None:
+        """``n_critic`` critic steps on WGAN-GP (+ the mismatch term); the fakes of all of
+        them come from one gradient-free generation."""
+        c, w, G = self.config, self.config.loss, self.generator
+        hi = self.block_levels[-1]
+        draw = self.draw_random(self.fake_layout, hi + 1)
+        with torch.no_grad():
+            fakes = G.run(self.fake_layout, draw.noises, draw.conds, 0, hi + 1, keep=True)
+        if self.real_rand_conds is not None:
+            conds = self.critic_conditions(draw, self.fake_layout)
+            keep = self.critic_keep(draw)  # (n_critic * B, L)
+        alphas = torch.rand(c.n_critic, self.B, generator=self.rng).to(self.device)
+        for j in range(c.n_critic):
+            self.opt_d.zero_grad(set_to_none=True)
+            total = 0.0
+            for i in self.block_levels:
+                S = self.rand_layout.sizes[i]
+                fake = fakes[i][..., j * S : (j + 1) * S]  # the j-th copy of the random layout
+                alpha = self.rand_layout.per_sample(alphas[j], i)[None, None]  # (1, 1, S)
+                cond_real = cond_fake = None
+                if self.real_rand_conds is not None:
+                    # a real clip is shown without its condition where its fake partner
+                    # (same sample slot) is: both sides see the same kind of condition
+                    k_j = self.rand_layout.per_sample(keep[j * self.B : (j + 1) * self.B, i], i)
+                    cond_real = self.real_rand_conds[i] * k_j[None, :, None]
+                    cond_fake = conds[i][:, j * S : (j + 1) * S]
+                pad, pad_pair = (
+                    self.rand_layout.pad_index(i, G.pad),
+                    self.critic_layout.pad_index(i, G.pad),
+                )
+                wl, gp = wgan_gp_critic_loss(
+                    self.critics[i],
+                    self.real_rand[i],
+                    fake,
+                    self.w_rand[i],
+                    alpha,
+                    pad,
+                    pad_pair,
+                    cond_real=cond_real,
+                    cond_fake=cond_fake,
+                    band_of=self._band_of(self.rand_layout, i),
+                    band_of_pair=self._band_of(self.critic_layout, i),
+                )
+                total = total + wl + w.gp * gp
+                losses[i]["D"], losses[i]["gp"] = wl.detach(), gp.detach()
+                if w.mismatch:
+                    wrong = self.mismatched_real_conditions(i) * k_j[None, :, None]
+                    mis = mismatch_critic_loss(
                         self.critics[i],
                         self.real_rand[i],
-                        fake,
+                        cond_real,
+                        wrong,
                         self.w_rand[i],
-                        alpha,
-                        self.rand_layout.pad_index(i, G.pad),
-                        self.critic_layout.pad_index(i, G.pad),
-                        **cc,
-                        band_of=self._band_of(self.rand_layout, i),
-                        band_of_pair=self._band_of(self.critic_layout, i),
+                        pad_pair,
+                        self._band_of(self.critic_layout, i),
                     )
-                    total = total + wl + w.gp * gp
-                    losses[i]["D"], losses[i]["gp"] = wl.detach(), gp.detach()
-                    if w.mismatch:
-                        # the real clips once more, with conditions that are not theirs
-                        wrong = self.mismatched_real_conditions(i) * k_j[None, :, None]
-                        twice = torch.cat([self.real_rand[i], self.real_rand[i]], -1)
-                        scores = self.critics[i](
-                            twice,
-                            self.critic_layout.pad_index(i, G.pad),
-                            torch.cat([cc["cond_real"], wrong], 1),
-                            self._band(self.critic_layout, i, twice),
-                        )
-                        w_r = self.w_rand[i]
-                        mis = critic_loss(scores[:, :S], scores[:, S:], w_r, w_r)
-                        total = total + w.mismatch * mis
-                        losses[i]["mis"] = mis.detach()
-                total.backward()
-                self.opt_d.step()
+                    total = total + w.mismatch * mis
+                    losses[i]["mis"] = mis.detach()
+            total.backward()
+            self.opt_d.step()
 
-        # 2. generator step: reconstructions and random generations in one batch -------------
+    def _generator_step(self, losses: dict[int, dict[str, torch.Tensor]]) -> None:
+        """One generator step on ``L = adv*L_adv + con*L_con + rec*L_rec + smooth*L_smooth``
+        (+ ``detail``) over the block's levels: reconstructions and random generations
+        run as one batch."""
+        c, w, G = self.config, self.config.loss, self.generator
+        lo, hi = self.block_levels[0], self.block_levels[-1]
         self.opt_g.zero_grad(set_to_none=True)
-        rand_conds, noises = self.draw_random(self.rand_layout, hi + 1)
+        draw = self.draw_random(self.rand_layout, hi + 1)
         critic_conds = (
-            None
-            if self.real_rand_conds is None
-            else self.critic_conditions(rand_conds, self.rand_layout)
+            None if self.real_rand_conds is None else self.critic_conditions(draw, self.rand_layout)
         )
         rec_conds = self.rec_conditions(hi + 1)
         rec_noises = self._rec_noises(hi + 1)
         x_in = None
         if lo > 0:
             with torch.no_grad():
-                x_rand = G.run(self.rand_layout, noises, rand_conds, 0, lo)
+                x_rand = G.run(self.rand_layout, draw.noises, draw.conds, 0, lo)
             x_in = torch.cat([self._rec_input(lo), x_rand], -1)
         all_noises, all_conds = [], []
         for i in range(hi + 1):
-            zr, zn = rec_noises[i], noises[i]
+            zr, zn = rec_noises[i], draw.noises[i]
             zn = zn.expand(-1, zr.shape[1], -1)  # level 1: a "full" z*_1 has every channel
             all_noises.append(torch.cat([zr, zn], -1))
-            all_conds.append(torch.cat([rec_conds[i], rand_conds[i]], 1))
+            all_conds.append(torch.cat([rec_conds[i], draw.conds[i]], 1))
         outs = G.run(self.g_layout, all_noises, all_conds, lo, hi + 1, x=x_in, keep=True)
         total = 0.0
         for k, i in enumerate(self.block_levels):
-            cut = self.g_layout.split(i, N)
+            cut = self.g_layout.split(i, self.N)
             out_rec, out_rand = outs[k][..., :cut], outs[k][..., cut:]
             terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
             if c.n_critic > 0 and w.adv:
@@ -511,7 +480,9 @@ class Trainer:
                 )
                 terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
             if w.detail and i > 0:
-                terms["detail"] = self.detail_loss(out_rand, i)
+                lay = self.rand_layout
+                rms = lay.per_sample_rms(lay.level_band(out_rand, i), i)  # (B, C)
+                terms["detail"] = detail_statistics_loss(rms, self.detail_targets(draw, i))
             need_con = w.con and i + 1 >= c.contact_from_level
             need_smooth = w.smooth and i + 1 >= c.smooth_start
             if need_con or need_smooth:
@@ -529,7 +500,6 @@ class Trainer:
                 losses[i][name] = value.detach()
         total.backward()
         self.opt_g.step()
-        return losses
 
     # -- checkpoints -------------------------------------------------------------------------
     def state_dict(self) -> dict:
@@ -557,7 +527,7 @@ class Trainer:
             },
             "optim_g": None if self.opt_g is None else self.opt_g.state_dict(),
             "optim_d": None if self.opt_d is None else self.opt_d.state_dict(),
-            "rng": {**_rng_state(), "trainer": self.rng.get_state()},
+            "rng": {**global_rng_state(), "trainer": self.rng.get_state()},
         }
 
     @classmethod
@@ -600,7 +570,7 @@ class Trainer:
             if state["optim_g"] is not None:
                 self.opt_g.load_state_dict(state["optim_g"])
                 self.opt_d.load_state_dict(state["optim_d"])
-        _set_rng_state(state["rng"])
+        set_global_rng_state(state["rng"])
         self.rng.set_state(state["rng"]["trainer"])
 
     def save(self, path: Path | None = None) -> Path:
@@ -783,3 +753,47 @@ def train(
             raise CheckpointError(None, "train() needs data and config unless resume is given")
         trainer = Trainer(data, config, out_dir, body=body)
     return trainer.fit(progress=progress, callback=callback)
+
+
+@dataclass(frozen=True)
+class TrainRecord:
+    """How a model of :func:`train_or_reuse` came about."""
+
+    checkpoint: Path
+    wall_time_s: float  # training time of the run that wrote the checkpoint
+    reused: bool  # True: an earlier, finished run with the same config and clips
+
+
+def train_or_reuse(
+    data: TrainingSet,
+    config: TrainConfig,
+    out_dir: str | Path,
+    *,
+    body=None,
+    progress: bool = True,
+):
+    """Train with :func:`train` unless ``out_dir`` already holds a finished run with the
+    same config (field for field, as saved next to the checkpoint) and the same clips;
+    then load it. Notebooks and benchmarks use this so that a long run is not repeated
+    on every execution.
+
+    Returns:
+        ``(model, record)``: the ``GenerativeModel`` and a :class:`TrainRecord`; for a
+        reused run the wall time is the last ``time_s`` of its ``losses.csv`` (the time
+        of its last logged iteration, without the final checkpoint write).
+    """
+    out = Path(out_dir)
+    ckpt, log = out / "checkpoint.pt", out / "losses.csv"
+    if ckpt.exists() and ckpt.with_suffix(".pt.json").exists() and log.exists():
+        # Compare the JSON itself: a field missing from it means an older mrlib wrote the
+        # run, whose defaults may differ from today's.
+        saved = json.loads(ckpt.with_suffix(".pt.json").read_text())
+        if saved == json.loads(config_to_json(config)):
+            model = load_model(ckpt)
+            if model.trained_levels == model.num_levels and model.clip_names == list(data.names):
+                with open(log, newline="") as fh:
+                    rows = list(csv.DictReader(fh))
+                wall = float(rows[-1]["time_s"]) if rows else float("nan")
+                return model, TrainRecord(ckpt, wall, True)
+    res = train(data, config, out, body=body, progress=progress)
+    return load_model(res.checkpoint), TrainRecord(res.checkpoint, res.wall_time_s, False)

@@ -1,5 +1,10 @@
 """Shared fixtures.
 
+``body`` / ``default_body``: the default body model, loaded once per session.
+``plumbing_model``: a factory of small models trained for two iterations per block, whose
+samples mean nothing; for tests of what sampling, conditions and measurements do with a
+model, not of what a model learns.
+
 ``pinned_torch`` (autouse) pins what a test of a trained model depends on: one torch
 thread, PyTorch's deterministic algorithms, and the global seeds, so a test sees the
 same numbers on every run on one machine. A trained-model claim must also hold on
@@ -34,3 +39,40 @@ def default_body():
     from mrlib.body import load_body_model
 
     return load_body_model()
+
+
+@pytest.fixture(scope="session")
+def body(default_body):
+    """The default body model (the same object as ``default_body``)."""
+    return default_body
+
+
+@pytest.fixture(scope="session")
+def plumbing_model(tmp_path_factory, default_body):
+    """``make(clips, name) -> GenerativeModel``: 4 levels of 24-channel networks, two
+    iterations per block, one critic step; trained once per name and session."""
+    from mrlib.config import ModelConfig, TrainConfig
+    from mrlib.data import TrainingSet
+    from mrlib.sample import load_model
+    from mrlib.train import train
+
+    cfg = TrainConfig(
+        model=ModelConfig(num_levels=4, gen_hidden=(24, 24), disc_hidden=(24, 24)),
+        block_iterations=(2, 2),
+        n_critic=1,
+        checkpoint_every=0,
+    )
+    made = {}
+
+    def make(clips, name: str):
+        if name not in made:
+            torch.set_num_threads(1)
+            out = tmp_path_factory.mktemp(f"plumbing_{name}")
+            res = train(
+                TrainingSet.from_motions(clips), cfg, out, body=default_body, progress=False
+            )
+            made[name] = load_model(res.checkpoint)
+        return made[name]
+
+    make.config = cfg
+    return make

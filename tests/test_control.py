@@ -8,50 +8,33 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.config import ModelConfig, TrainConfig
 from mrlib.control import (
-    CrossoverView,
     _nn_distance,
     band_distances,
     condition_fidelity_of_model,
     coverage_per_sequence,
-    crop_to_bodies,
     crossover_blend,
     crossover_conditions,
     crossover_cutoff,
     crossover_evidence,
     evidence_table,
-    interactive_crossover,
     lowpass,
     nearest_sequence_strip,
-    plot_nearest_sequence,
     rms_profile,
     split_bands,
-    train_or_reuse,
 )
 from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
-from mrlib.evaluate import default_data_dir
+from mrlib.fidelity import model_references
+from mrlib.io import default_data_dir
 from mrlib.metrics import condition_fidelity, local_diversity, metric_features
+from mrlib.plots import plot_nearest_sequence
 from mrlib.pyramid import level_fps, pyramid_lengths
-from mrlib.sample import generate, label_weights, load_model
+from mrlib.render import crop_to_bodies
+from mrlib.sample import generate, label_weights
 from mrlib.synthetic import synthetic_walk, synthetic_wave
-from mrlib.train import train
-
-# A plumbing model: trained for two iterations per block, its samples mean nothing.
-CFG = TrainConfig(
-    model=ModelConfig(num_levels=4, gen_hidden=(24, 24), disc_hidden=(24, 24)),
-    block_iterations=(2, 2),
-    n_critic=1,
-    checkpoint_every=0,
-)
-
-
-@pytest.fixture(scope="module")
-def body():
-    from mrlib.body import load_body_model
-
-    return load_body_model()
+from mrlib.train import train_or_reuse
+from mrlib.widgets import CrossoverView, interactive_crossover
 
 
 @pytest.fixture(scope="module")
@@ -63,11 +46,9 @@ def clips(body):
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory, body, clips):
-    torch.set_num_threads(1)
-    out = tmp_path_factory.mktemp("control_model")
-    res = train(TrainingSet.from_motions(clips), CFG, out, body=body, progress=False)
-    return load_model(res.checkpoint)
+def model(plumbing_model, clips):
+    """A plumbing model (two iterations per block): its samples mean nothing."""
+    return plumbing_model(clips, "walk_sad_wave")
 
 
 # -- bands -------------------------------------------------------------------------------
@@ -252,7 +233,7 @@ def test_condition_fidelity_of_model_matches_the_metric(model):
     assert set(f.per_label) == {"walk_sad", "wave"} and 0 <= f.overall <= 1
     assert f.overall == pytest.approx(np.mean(list(f.per_label.values())))
     # the same number straight from mrlib.metrics
-    refs = nearest_sequence_strip.__globals__["_reference_features"](model)
+    refs = model_references(model)
     references = dict(zip(refs[1], refs[2], strict=True))
     samples = generate(model, "wave", length=36, seed=1, num_samples=2)
     assert f.per_label["wave"] == pytest.approx(condition_fidelity(samples, references, window=10))
@@ -287,7 +268,7 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
 
 def test_interactive_crossover_mesh_view(model, monkeypatch):
     pytest.importorskip("ipywidgets")
-    import mrlib.render
+    import mrlib.widgets
 
     calls = []
 
@@ -295,7 +276,7 @@ def test_interactive_crossover_mesh_view(model, monkeypatch):
         calls.append(list(frames))
         return np.zeros((40, 120, 3), np.uint8)
 
-    monkeypatch.setattr(mrlib.render, "render_meshes", fake_render)
+    monkeypatch.setattr(mrlib.widgets, "render_meshes", fake_render)
     _, update = interactive_crossover(
         model, body=object(), frames=3, window=10, coarse="wave", fine="walk_sad", level=1
     )
@@ -312,7 +293,7 @@ def test_coverage_per_sequence_matches_the_metric(model):
 
     cov = coverage_per_sequence(model, num_samples=2, length_factor=1.5, seed=4, window=10)
     assert list(cov) == model.clip_names and all(0 <= v <= 1 for v in cov.values())
-    refs = nearest_sequence_strip.__globals__["_reference_features"](model)[2]
+    refs = model_references(model)[2]
     samples = generate(model, "wave", length=round(1.5 * len(refs[1])), seed=4, num_samples=2)
     assert cov[model.clip_names[1]] == pytest.approx(coverage(samples, refs[1], window=10))
     with pytest.raises(MotionValueError, match="length_factor"):
@@ -325,9 +306,9 @@ def test_coverage_per_sequence_matches_the_metric(model):
         coverage_per_sequence(model, eps=-1.0)
 
 
-def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips):
+def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips, plumbing_model):
     data = TrainingSet.from_motions([c.slice(0, 30) for c in clips])
-    cfg = CFG.replace(block_iterations=(1, 1))
+    cfg = plumbing_model.config.replace(block_iterations=(1, 1))
     m1, r1 = train_or_reuse(data, cfg, tmp_path, body=body, progress=False)
     assert not r1.reused and r1.wall_time_s > 0 and r1.checkpoint.exists()
     m2, r2 = train_or_reuse(data, cfg, tmp_path, body=body, progress=False)

@@ -14,8 +14,13 @@ import torch
 from mrlib.config import LossWeights, ModelConfig, TrainConfig
 from mrlib.data import TrainingSet
 from mrlib.sample import generate, load_model
-from mrlib.speech_data import SpeechClip, SpeechMotionPair
-from mrlib.speech_train import SpeechTrainingSet, load_speech_model, speech_train
+from mrlib.speech import (
+    SpeechClip,
+    SpeechMotionPair,
+    SpeechTrainingSet,
+    load_speech_model,
+    speech_train,
+)
 from mrlib.synthetic import synthetic_walk
 from mrlib.train import train
 

@@ -1,5 +1,5 @@
-"""Tests for mrlib.evaluate: calibration motions, Bandai name lookup, scoring, the protocol
-and its outputs. Real-data tests use the Bandai Namco clips in MRLIB_DATA_DIR."""
+"""Tests for mrlib.evaluate: scoring, the protocol with its calibration rows, and its
+outputs. Real-data tests use the Bandai Namco clips in MRLIB_DATA_DIR."""
 
 from __future__ import annotations
 
@@ -10,13 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
+from test_calibration import turning_walk
 
 from mrlib import evaluate as ev
 from mrlib.body import load_body_model
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix
 
 DATA_DIR = Path(
     os.environ.get(
@@ -32,19 +31,6 @@ needs_data = pytest.mark.skipif(
 @pytest.fixture(scope="module")
 def body():
     return load_body_model()
-
-
-def turning_walk(T: int = 60, fps: float = 30.0, yaw_rate: float = 0.8, speed: float = 1.2):
-    """A body gliding along a circular arc, facing along it; legs swing (for contacts)."""
-    t = np.arange(T) / fps
-    yaw = yaw_rate * t
-    poses = np.zeros((T, 24, 3), np.float32)
-    poses[:, 0, 1] = yaw
-    poses[:, 1, 0] = 0.4 * np.sin(2 * np.pi * t)
-    poses[:, 2, 0] = -0.4 * np.sin(2 * np.pi * t)
-    x = speed / yaw_rate * (1 - np.cos(yaw))  # integral of speed * sin(yaw)
-    z = speed / yaw_rate * np.sin(yaw)  # integral of speed * cos(yaw)
-    return Motion(poses=poses, trans=np.stack([x, np.full(T, 0.9), z], -1), fps=fps, name="arc")
 
 
 def noisy_crops(refs: dict[str, Motion], sigma: float = 0.01, log: list | None = None):
@@ -66,106 +52,6 @@ def noisy_crops(refs: dict[str, Motion], sigma: float = 0.01, log: list | None =
 
 
 # -- calibration motions ----------------------------------------------------------------------
-def test_play_twice_repeats_the_poses_and_continues_the_path():
-    m = turning_walk()
-    T = m.num_frames
-    tw = ev.play_twice(m)
-    assert tw.num_frames == 2 * T and tw.name == "arc x2"
-    np.testing.assert_array_equal(tw.poses[:T], m.poses)
-    np.testing.assert_array_equal(tw.poses[T:, 1:], m.poses[:, 1:])  # body poses unchanged
-    np.testing.assert_allclose(tw.trans[T:, 1], m.trans[:, 1])  # heights kept
-    # the path continues: the copy's first step and its heading follow on smoothly
-    step = np.linalg.norm(np.diff(tw.trans[:, [0, 2]], axis=0), axis=1)
-    np.testing.assert_allclose(step, 1.2 / 30, rtol=1e-3)
-    yaw = ev._heading(tw.poses[:, 0])
-    dyaw = np.diff(np.unwrap(yaw))
-    np.testing.assert_allclose(dyaw, 0.8 / 30, atol=1e-5)
-    # and lies on the same circle: it is the arc continued for another T frames
-    np.testing.assert_allclose(tw.trans, turning_walk(2 * T).trans, atol=1e-5)
-    # contact labels are repeated when present
-    c = (np.arange(T * 6).reshape(T, 6) % 3 == 0).astype(np.float32)
-    np.testing.assert_array_equal(ev.play_twice(m.replace(contacts=c)).contacts, np.r_[c, c])
-    with pytest.raises(ClipTooShortError):
-        ev.play_twice(m.slice(0, 1))
-
-
-def test_freeze_first_frame():
-    m = turning_walk(20)
-    f = ev.freeze_first_frame(m)
-    assert f.num_frames == 40 and f.contacts is None
-    np.testing.assert_array_equal(f.poses, np.repeat(m.poses[:1], 40, 0))
-    np.testing.assert_array_equal(f.trans, np.repeat(m.trans[:1], 40, 0))
-    assert ev.freeze_first_frame(m, 7).num_frames == 7
-    with pytest.raises(MotionValueError):
-        ev.freeze_first_frame(m, 0)
-
-
-def test_parse_bandai_name():
-    assert ev.parse_bandai_name("dataset-1_walk-back_not-confident_002") == {
-        "prefix": "dataset-1",
-        "content": "walk-back",
-        "style": "not-confident",
-        "take": "002",
-    }
-    assert ev.parse_bandai_name("walk_happy_001.bvh")["prefix"] == ""
-    assert ev.parse_bandai_name("walk_happy") is None
-    assert ev.parse_bandai_name("my clip") is None
-
-
-def test_find_bandai_counterparts_by_name(tmp_path):
-    names = [
-        "walk_happy_001", "walk_happy_003", "walk_happy_002", "walk_angry_001",
-        "walk_normal_002", "walk_normal_001", "bow_happy_001", "bow_normal_001",
-        "run_normal_001",
-    ]  # fmt: skip
-    (tmp_path / "data").mkdir()
-    for n in names:
-        (tmp_path / "data" / f"dataset-1_{n}.bvh").touch()
-    (tmp_path / "data" / "dataset-2_walk_happy_009.bvh").touch()  # another dataset: ignored
-    found = ev.find_bandai_counterparts("dataset-1_walk_happy_001", tmp_path)
-    stems = {k: p.stem for k, p in found.items()}
-    assert stems == {
-        "other take": "dataset-1_walk_happy_002",
-        "other style": "dataset-1_walk_normal_001",
-        "different content": "dataset-1_bow_normal_001",
-    }
-    # a bow is compared with a walk; no other take of bow_normal exists
-    stems = {
-        k: p.stem
-        for k, p in ev.find_bandai_counterparts("dataset-1_bow_normal_001", tmp_path).items()
-    }
-    assert stems == {
-        "other style": "dataset-1_bow_happy_001",
-        "different content": "dataset-1_walk_normal_001",
-    }
-    # the normal style falls back to another style, preferring the same take number
-    found = ev.find_bandai_counterparts("dataset-1_walk_normal_002", tmp_path / "data")
-    assert found["other take"].stem == "dataset-1_walk_normal_001"
-    assert found["other style"].stem == "dataset-1_walk_angry_001"  # alphabetical
-    assert (
-        ev.find_bandai_counterparts("dataset-1_run_normal_001", tmp_path, different_content="walk")[
-            "different content"
-        ].stem
-        == "dataset-1_walk_normal_001"
-    )
-    assert ev.find_bandai_counterparts("my clip", tmp_path) == {}
-    assert ev.find_bandai_counterparts("walk_happy_001", tmp_path / "missing") == {}
-
-
-def test_calibration_rows_keys_and_lengths():
-    m = turning_walk(40)
-    other = turning_walk(50, yaw_rate=0.2)
-    rows = ev.calibration_rows(m, {"other style": other}, length_factor=1.5)
-    assert list(rows) == ["played twice", "frozen first frame", "other style"]
-    assert rows["played twice"].num_frames == 80
-    assert rows["frozen first frame"].num_frames == 60
-    assert rows["other style"] is other
-    with pytest.raises(MotionValueError):
-        ev.calibration_rows(m, {"x": np.zeros(3)})
-    with pytest.raises(MotionValueError):
-        ev.calibration_rows(m, length_factor=0)
-
-
 def test_settings_validate_and_describe_the_protocol():
     s = ev.EvaluationSettings(num_samples=5)
     text = s.describe()
@@ -250,16 +136,6 @@ def bandai(body):
 
 
 @needs_data
-def test_real_counterparts_of_walk_happy():
-    found = ev.find_bandai_counterparts("dataset-1_walk_happy_001", DATA_DIR)
-    assert {k: p.stem for k, p in found.items()} == {
-        "other take": "dataset-1_walk_happy_002",
-        "other style": "dataset-1_walk_normal_001",
-        "different content": "dataset-1_bow_normal_001",
-    }
-
-
-@needs_data
 def test_frozen_real_frame_has_zero_coverage_and_zero_jitter(bandai, body):
     ref = bandai["walk_happy_001"]
     row = ev.score_motions([ev.freeze_first_frame(ref)], ref, body=body)
@@ -336,12 +212,3 @@ def test_evaluate_dummy_model_on_two_real_labels_writes_table_and_files(bandai, 
     assert "Cond. fid. %" in md
     assert paths["png"].stat().st_size > 20_000
     assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-
-
-def test_heading_of_a_yaw_rotation():
-    yaw = np.array([0.0, 0.5, -2.0])
-    aa = np.zeros((3, 3))
-    aa[:, 1] = yaw
-    np.testing.assert_allclose(ev._heading(aa), yaw, atol=1e-12)
-    R = axis_angle_to_matrix(torch.from_numpy(aa))
-    np.testing.assert_allclose(R[:, :, 2][:, 0].numpy(), np.sin(yaw), atol=1e-12)

@@ -22,8 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mrlib.errors import MrlibError
-from mrlib.evaluate import default_data_dir
-from mrlib.io import load_motion, save_motion
+from mrlib.io import default_data_dir, load_motion, save_motion
 from mrlib.motion import Motion
 from mrlib.synthetic import synthetic_walk
 

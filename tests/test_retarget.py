@@ -14,7 +14,6 @@ from mrlib.io import load_bvh, load_label, load_motion, save_motion
 from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, matrix_to_euler, parse_bvh, read_bvh
 from mrlib.io.retarget import (
     UNITS,
-    _kabsch,
     _solve_offset,
     calibrate_retarget,
     change_up_axis,
@@ -27,7 +26,12 @@ from mrlib.io.retarget import (
     up_axis_rotation,
 )
 from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix, geodesic_distance
+from mrlib.rotations import (
+    axis_angle_to_matrix,
+    geodesic_distance,
+    kabsch_rotation,
+    matrix_to_axis_angle_numpy,
+)
 from mrlib.skeleton import JOINT_NAMES, PARENTS
 
 DATA_DIR = Path(
@@ -135,7 +139,7 @@ def test_change_up_axis_moves_the_body_rigidly(body):
 
 def test_error_joints_are_the_body_forward_joints(body):
     # the retargeting error uses numpy forward kinematics of J(b): same as body.forward
-    from mrlib.io.retarget import _smpl_fk
+    from mrlib.io.bodyfit import smpl_forward_joints as _smpl_fk
 
     m = _smpl_walkish(T=7)
     L = axis_angle_to_matrix(torch.from_numpy(m.poses.astype(np.float64))).numpy()
@@ -148,19 +152,18 @@ def test_error_joints_are_the_body_forward_joints(body):
 
 
 def test_numpy_axis_angle_matches_rotations():
-    from mrlib.io.retarget import _matrix_to_axis_angle
     from mrlib.rotations import matrix_to_axis_angle
 
     rng = np.random.default_rng(7)
     R = _rand_rot(rng, 2000)
     R[:3] = np.eye(3)
     R[3:6] = _rand_rot(rng, 3, scale=1e-7)  # tiny angles
-    ours = _matrix_to_axis_angle(R)
+    ours = matrix_to_axis_angle_numpy(R)
     ref = matrix_to_axis_angle(torch.from_numpy(R)).numpy()
     np.testing.assert_allclose(ours, ref, atol=1e-9)
     # angle pi: the axis sign is arbitrary, the rotation is not
     Rpi = roma.rotvec_to_rotmat(torch.tensor([[np.pi, 0, 0], [0, 0, -np.pi]])).numpy()
-    back = roma.rotvec_to_rotmat(torch.from_numpy(_matrix_to_axis_angle(Rpi))).numpy()
+    back = roma.rotvec_to_rotmat(torch.from_numpy(matrix_to_axis_angle_numpy(Rpi))).numpy()
     np.testing.assert_allclose(back, Rpi, atol=1e-9)
 
 
@@ -169,7 +172,7 @@ def test_kabsch_and_single_direction_offsets():
     C = _rand_rot(rng)
     d = rng.normal(size=(3, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
-    np.testing.assert_allclose(_kabsch(sum(np.outer(x, C @ x) for x in d)), C, atol=1e-10)
+    np.testing.assert_allclose(kabsch_rotation(sum(np.outer(x, C @ x) for x in d)), C, atol=1e-10)
     # one direction: the swing is exact and the twist makes tr(M C) largest
     M = _rand_rot(rng).T  # the best C would be M^T, if it satisfied the direction
     a = C @ d[0]

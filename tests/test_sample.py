@@ -2,8 +2,6 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.config import ModelConfig, TrainConfig
-from mrlib.data import TrainingSet
 from mrlib.errors import MotionValueError
 from mrlib.motion import Motion
 from mrlib.sample import (
@@ -11,37 +9,20 @@ from mrlib.sample import (
     contact_skating,
     generate,
     label_weights,
-    load_model,
     reconstruct,
     reconstruction_error,
 )
 from mrlib.synthetic import synthetic_walk
-from mrlib.train import train
-
-CFG = TrainConfig(
-    model=ModelConfig(num_levels=4, gen_hidden=(24, 24), disc_hidden=(24, 24)),
-    block_iterations=(2, 2),
-    n_critic=1,
-    checkpoint_every=0,
-)
 
 
 @pytest.fixture(scope="module")
-def body():
-    from mrlib.body import load_body_model
-
-    return load_body_model()
-
-
-@pytest.fixture(scope="module")
-def model(tmp_path_factory, body):
+def model(plumbing_model):
+    """A plumbing model (two iterations per block): its samples mean nothing."""
     clips = [
         synthetic_walk(s, seconds=sec, fps=10.0)
         for s, sec in [("walk_normal", 3.0), ("walk_sad", 3.6)]
     ]
-    out = tmp_path_factory.mktemp("model")
-    res = train(TrainingSet.from_motions(clips), CFG, out, body=body, progress=False)
-    return load_model(res.checkpoint)
+    return plumbing_model(clips, "walk_normal_sad")
 
 
 def test_loaded_model_metadata(model):

@@ -1,4 +1,4 @@
-"""The synthetic co-speech set (espeak-ng + rule-based gestures) and the paired loaders."""
+"""The synthetic co-speech set (mrlib.speech.synthetic) and the folder loaders (.data)."""
 
 import os
 from pathlib import Path
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import soundfile
 
-import mrlib.speech_data as sd
+import mrlib.speech.synthetic as sd
 from mrlib.body import load_body_model
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.io import load_motion, save_motion
@@ -15,27 +15,21 @@ from mrlib.skeleton import JOINT_NAMES
 from mrlib.speech import (
     AudioFileError,
     SpeechFeatureExtractor,
+    SpeechSynthesisError,
     beat_alignment_score,
     detect_onsets,
     energy_envelope,
     hand_speed,
-    speech_motion_correlation,
-)
-from mrlib.speech_data import (
-    SENTENCES,
-    VOICES,
-    SpeechSynthesisError,
-    corpus_text,
     load_base_motions,
     load_paired_folder,
     load_unpaired_folder,
-    loop_motion,
     make_synthetic_pair,
-    quiet_window,
+    speech_motion_correlation,
     standing_base,
     synthesize_speech,
     synthetic_corpus,
 )
+from mrlib.speech.synthetic import SENTENCES, VOICES, corpus_text, loop_motion, quiet_window
 
 SR = 16_000
 DATA = Path(

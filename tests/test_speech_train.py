@@ -1,7 +1,7 @@
-"""Speech-conditioned training and generation from audio (mrlib.speech_train).
+"""Speech-conditioned training and generation from audio (mrlib.speech.train, .sample).
 
 The data are made here, without espeak-ng or the Bandai clips: syllable-like tone bursts
-as speech and the synthetic gesture recipe of ``mrlib.speech_data`` on the procedural
+as speech and the synthetic gesture recipe of ``mrlib.speech.synthetic`` on the procedural
 standing base, so every test runs anywhere in a few seconds.
 """
 
@@ -20,30 +20,28 @@ from mrlib.features import channel_joint
 from mrlib.models import LevelGenerator
 from mrlib.pyramid import PackedLevels, pyramid_lengths
 from mrlib.skeleton import UPPER_BODY_JOINTS, graph_distances
-from mrlib.speech import SpeechFeatureExtractor, downsample_levels, levels_to_residuals
-from mrlib.speech.align import speech_conditions
-from mrlib.speech_data import (
+from mrlib.speech import (
     SpeechClip,
+    SpeechFeatureExtractor,
     SpeechMotionPair,
-    apply_offsets,
-    gesture_offsets,
-    loop_motion,
-    standing_base,
-)
-from mrlib.speech_train import (
     SpeechTrainer,
     SpeechTrainingSet,
+    downsample_levels,
     evaluate_speech_sync,
     generate_from_audio,
+    levels_to_residuals,
     load_speech_model,
     phrase_loudness,
-    residual_operators,
+    speech_conditions,
     speech_model_from_trainer,
     speech_paper,
     speech_train,
     speech_tutorial,
+    standing_base,
     wrist_lift,
 )
+from mrlib.speech.synthetic import apply_offsets, gesture_offsets, loop_motion
+from mrlib.speech.train import residual_operators
 
 SR = 16_000
 FPS = 12.5  # half the paper's 25 fps: shorter sequences, same code
@@ -190,8 +188,9 @@ def test_conditional_critics_see_each_real_clip_with_its_own_speech(data, body, 
         t.draw_speech = lambda layout: draws.append(draw_speech(layout)) or draws[-1]  # noqa: B023
         kinds = set()
         for _ in range(4):
-            conds, _ = t.draw_random(t.fake_layout, 3)
-            seen = t.critic_conditions(conds, t.fake_layout)
+            draw = t.draw_random(t.fake_layout, 3)
+            conds = draw.conds
+            seen = t.critic_conditions(draw, t.fake_layout)
             d = draws[-1]
             for i in range(3):
                 got = t.fake_layout.unpack(seen[i].transpose(1, 2), i)

@@ -19,9 +19,9 @@ from mrlib.config import (
     tutorial,
 )
 from mrlib.data import TrainingSet
-from mrlib.losses import critic_loss, gradient_penalty
+from mrlib.losses import critic_loss, detail_statistics_loss, gradient_penalty, wgan_gp_critic_loss
 from mrlib.synthetic import synthetic_walk
-from mrlib.train import Trainer, train, wgan_gp_critic_loss
+from mrlib.train import Trainer, train
 
 TINY_MODEL = ModelConfig(num_levels=3, gen_hidden=(24, 24), disc_hidden=(24, 24))
 
@@ -288,10 +288,10 @@ def test_conditional_critics_train_resume_and_see_each_samples_label(data, body,
         owner = tr.rand_layout.owner[i]
         assert torch.equal(cond[0].argmax(-1), tr.clip_labels[tr.rand_clip][owner])
     # fakes: the label of each level, zeroed from a mixed sample's crossover level on
-    conds, _ = tr.draw_random(tr.rand_layout, 3)
-    mixed = tr._last_mixed
+    draw = tr.draw_random(tr.rand_layout, 3)
+    conds, mixed = draw.conds, draw.mixed
     assert mixed.any() and (~mixed).any()
-    seen = tr.critic_conditions(conds, tr.rand_layout)
+    seen = tr.critic_conditions(draw, tr.rand_layout)
     for i in range(3):
         owner = tr.rand_layout.owner[i]
         assert torch.equal(seen[i][0].sum(-1), (~mixed[owner, i]).float())
@@ -299,7 +299,7 @@ def test_conditional_critics_train_resume_and_see_each_samples_label(data, body,
             seen[i][0].argmax(-1)[~mixed[owner, i]], conds[i][0].argmax(-1)[~mixed[owner, i]]
         )
     tr.config = cfg.replace(critic_mixed="label")
-    assert tr.critic_conditions(conds, tr.rand_layout) is conds
+    assert tr.critic_conditions(draw, tr.rand_layout) is conds
     tr.config = cfg
     tr.start_block()
     before = [p.detach().clone() for p in tr.critics[0].project.parameters()]
@@ -376,10 +376,13 @@ def test_detail_term_pulls_each_level_to_its_labels_detail_statistics(data, body
     # the real clips, each driven by its own label, meet their targets exactly (one clip
     # per label); shown as another label's, they do not
     own = tr.clip_labels[tr.rand_clip]
-    tr._last_table = own[:, None].expand(-1, L)
-    assert tr.detail_loss(tr.real_rand[1], 1).item() < 1e-6
-    tr._last_table = ((own + 1) % K)[:, None].expand(-1, L)
-    assert tr.detail_loss(tr.real_rand[1], 1).item() > 1e-3
+    lay = tr.rand_layout
+    rms = lay.per_sample_rms(lay.level_band(tr.real_rand[1], 1), 1)
+    draw = tr.draw_random(lay, L)
+    draw.labels = own[:, None].expand(-1, L)
+    assert detail_statistics_loss(rms, tr.detail_targets(draw, 1)).item() < 1e-6
+    draw.labels = ((own + 1) % K)[:, None].expand(-1, L)
+    assert detail_statistics_loss(rms, tr.detail_targets(draw, 1)).item() > 1e-3
     # it enters the generator step from level 2 on and is logged
     tr.start_block()
     losses = tr.step()

@@ -33,10 +33,10 @@ def crossover_figure(
     from matplotlib.figure import Figure
 
     from mrlib.config import tutorial
-    from mrlib.control import crop_to_bodies, train_or_reuse
     from mrlib.data import TrainingSet
-    from mrlib.render import evenly_spaced_frames
+    from mrlib.render import crop_to_bodies, evenly_spaced_frames
     from mrlib.sample import generate
+    from mrlib.train import train_or_reuse
 
     torch.set_num_threads(1)
     clips = [mrlib.load_motion(p) for p in sorted((ROOT / "data_samples").glob("*.npz"))]

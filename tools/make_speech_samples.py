@@ -24,14 +24,16 @@ import numpy as np
 from mrlib.body import load_body_model
 from mrlib.io import load_motion
 from mrlib.speech import (
+    GestureParams,
     beat_alignment_score,
     detect_onsets,
     energy_envelope,
     hand_speed,
     load_audio,
     speech_motion_correlation,
+    synthesize_speech,
+    synthetic_corpus,
 )
-from mrlib.speech_data import GestureParams, synthesize_speech, synthetic_corpus
 
 HELLO_TEXT = "Hello! This is a short example of synthetic speech for mrlib."
 

@@ -6,7 +6,7 @@ Entry points:
   retargeted onto SMPL, see ``mrlib.io.retarget``), ``.npz`` (AMASS-style or mrlib's own,
   see ``mrlib.io.npz``), or a folder of EasyMocap per-frame JSON files.
 * ``save_motion(motion, path)``: ``.npz`` (AMASS-style keys plus ``up_axis="y"``,
-  contacts and label) or ``.bvh`` on SMPL's skeleton (``mrlib.io.retarget.smpl_to_bvh``:
+  contacts and label) or ``.bvh`` on SMPL's skeleton (``mrlib.io.export.smpl_to_bvh``:
   cm, ``ZXY`` Euler angles, ROOT with 6 channels, joints with 3). Reading either back
   gives the same poses and translation.
 * ``load_label(path)``: the ``"<content>_<style>"`` label of a Bandai Namco clip from its
@@ -23,7 +23,9 @@ from pathlib import Path
 
 from mrlib.errors import MotionFileError, MotionValueError, MrlibError, UnsupportedFormatError
 from mrlib.io.bvh import BVH, BVHSkeleton, parse_bvh, read_bvh, write_bvh
+from mrlib.io.export import smpl_to_bvh
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
+from mrlib.io.paths import default_data_dir
 from mrlib.io.retarget import (
     JointMap,
     RetargetResult,
@@ -32,11 +34,11 @@ from mrlib.io.retarget import (
     load_joint_map,
     retarget_bvh,
     shipped_joint_maps,
-    smpl_to_bvh,
 )
 from mrlib.motion import Motion
 
 __all__ = [
+    "default_data_dir",
     "load_motion",
     "save_motion",
     "load_label",

@@ -1,4 +1,7 @@
-"""Output paths built from names that come from files.
+"""Where data is read from, and output paths built from names that come from files.
+
+:func:`default_data_dir` finds the Bandai Namco dataset that the real-data tests,
+notebooks and benchmarks use (``$MRLIB_DATA_DIR``).
 
 A clip's name and label come from its file (the npz ``name`` / ``label`` keys, a BVH's
 JSON sidecar, a file stem) and end up in output paths: ``<out>/<clip name>/`` for
@@ -11,6 +14,7 @@ output path through :func:`inside`.
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 import unicodedata
 from collections.abc import Iterable
@@ -18,10 +22,31 @@ from pathlib import Path
 
 from mrlib.errors import MrlibError
 
-__all__ = ["UnsafePathError", "safe_component", "unique_components", "inside"]
+__all__ = [
+    "DATA_DIR_ENV",
+    "default_data_dir",
+    "UnsafePathError",
+    "safe_component",
+    "unique_components",
+    "inside",
+]
+
+DATA_DIR_ENV = "MRLIB_DATA_DIR"
 
 MAX_COMPONENT = 80  # characters of a sanitised name, before its hash suffix
 _ALLOWED = re.compile(r"[^A-Za-z0-9._+=-]+")
+
+
+def default_data_dir(data_dir: str | Path | None = None) -> Path:
+    """The Bandai Namco dataset folder: ``data_dir`` when given, else ``$MRLIB_DATA_DIR``,
+    else ``../shared/data/bandai-namco-motion-1`` beside the repository. The folder may
+    not exist; callers say so with their own error."""
+    if data_dir is not None:
+        return Path(data_dir).expanduser()
+    env = os.environ.get(DATA_DIR_ENV)
+    if env:
+        return Path(env).expanduser()
+    return Path(__file__).resolve().parents[3] / "shared" / "data" / "bandai-namco-motion-1"
 
 
 class UnsafePathError(MrlibError, ValueError):

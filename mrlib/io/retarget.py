@@ -1,9 +1,8 @@
 """Retargeting a BVH skeleton onto SMPL, and the world-frame conversions mrlib's readers share.
 
 The BVH's joints are matched to SMPL's by a *joint map* (SMPL joint name -> BVH joint
-name). Maps ship for the Bandai Namco and CMU skeletons (``joint_maps/*.json``); users
-may pass their own (a dict, a JSON file, or the name of a shipped map), and a BVH whose
-joint names are SMPL's own (what ``mrlib.io.save_motion`` writes) is read back exactly.
+name, ``mrlib.io.jointmap``). A BVH whose joint names are SMPL's own (what
+``mrlib.io.save_motion`` writes) is read back exactly.
 
 Method, in numbered steps (``retarget_bvh``):
 
@@ -46,20 +45,42 @@ Method, in numbered steps (``retarget_bvh``):
 
 from __future__ import annotations
 
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
-from scipy.optimize import lsq_linear
 
-from mrlib.errors import JointMapError, MotionFileError
-from mrlib.io.bvh import BVH, BVHSkeleton, bvh_forward_kinematics, matrix_to_euler
-from mrlib.rotations import axis_angle_to_matrix
+from mrlib.body import fit_betas as betas_of_length  # retarget_bvh has a fit_betas flag
+from mrlib.errors import MotionFileError
+from mrlib.io.bodyfit import (  # noqa: F401  (part of this module's API before they moved)
+    default_body,
+    fit_shape_scale,
+    fit_smpl_offsets,
+    joint_shape_basis,
+    rest_joints_for,
+    rest_pelvis,
+    smpl_forward_joints,
+)
+from mrlib.io.bvh import BVH, BVHSkeleton, bvh_forward_kinematics
+from mrlib.io.jointmap import (  # noqa: F401  (part of this module's API before they moved)
+    JOINT_MAP_DIR,
+    SMPL_JOINT_MAP,
+    JointMap,
+    detect_joint_map,
+    load_joint_map,
+    mapped_targets,
+    shipped_joint_maps,
+    validate_map,
+)
+from mrlib.rotations import (
+    axis_rotation,
+    kabsch_rotation,
+    matrix_to_axis_angle_numpy,
+    rotation_between,
+    skew,
+)
 from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = [
@@ -75,195 +96,16 @@ __all__ = [
     "change_up_axis",
     "retarget_bvh",
     "calibrate_retarget",
-    "smpl_to_bvh",
     "default_body",
     "rest_pelvis",
+    "rest_joints_for",
 ]
-
-JOINT_MAP_DIR = Path(__file__).parent / "joint_maps"
 
 # Candidate file units (metres per file unit) for automatic detection. "cmu" is the unit
 # of the CMU database's ASF/AMC files and of their common BVH conversion: 1/0.45 inch.
 UNITS: dict[str, float] = {"m": 1.0, "cmu": 0.0254 / 0.45, "inch": 0.0254, "cm": 0.01, "mm": 0.001}
 
 _AXES = ("x", "y", "z", "-x", "-y", "-z")
-
-
-# ----------------------------------------------------------------------------------------
-# Joint maps
-# ----------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class JointMap:
-    """Which source joint drives each SMPL joint.
-
-    Attributes:
-        name: short identifier (``"bandai_namco"``, ``"cmu"``, ``"smpl"``, ``"custom"``).
-        mapping: SMPL joint name -> source joint name; SMPL joints left out are unmapped.
-        description: free text.
-    """
-
-    name: str
-    mapping: Mapping[str, str]
-    description: str = ""
-
-    def __post_init__(self) -> None:
-        bad = [k for k in self.mapping if k not in JOINT_NAMES]
-        if bad:
-            raise JointMapError(
-                None, f"joint map '{self.name}': {bad} are not SMPL joint names {list(JOINT_NAMES)}"
-            )
-        if "pelvis" not in self.mapping:
-            raise JointMapError(None, f"joint map '{self.name}' must map SMPL's 'pelvis'")
-        srcs = list(self.mapping.values())
-        dup = sorted({s for s in srcs if srcs.count(s) > 1})
-        if dup:
-            raise JointMapError(
-                None, f"joint map '{self.name}': source joints {dup} are used twice"
-            )
-
-    def source_indices(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
-        """``(24,)`` source joint index per SMPL joint, -1 where unmapped."""
-        return np.array(
-            [names.index(self.mapping[n]) if n in self.mapping else -1 for n in JOINT_NAMES]
-        )
-
-
-SMPL_JOINT_MAP = JointMap(
-    "smpl", {n: n for n in JOINT_NAMES}, "SMPL's own joint names (mrlib's BVH export)"
-)
-
-
-def _joint_map_from_json(path: Path) -> JointMap:
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
-        raise JointMapError(path, f"cannot read joint map: {e}") from None
-    if isinstance(data, dict) and isinstance(data.get("map"), dict):
-        return JointMap(
-            str(data.get("name", Path(path).stem)),
-            dict(data["map"]),
-            str(data.get("description", "")),
-        )
-    if isinstance(data, dict) and all(isinstance(v, str) for v in data.values()):
-        return JointMap(Path(path).stem, dict(data))
-    raise JointMapError(
-        path, 'expected {"map": {smpl_name: bvh_name, ...}} or a flat {smpl_name: bvh_name} object'
-    )
-
-
-@lru_cache(maxsize=1)
-def shipped_joint_maps() -> dict[str, JointMap]:
-    """The joint maps in ``mrlib/io/joint_maps/``, by name."""
-    maps = {}
-    for p in sorted(JOINT_MAP_DIR.glob("*.json")):
-        m = _joint_map_from_json(p)
-        maps[m.name] = m
-    return maps
-
-
-def load_joint_map(spec: str | Path | Mapping[str, str] | JointMap) -> JointMap:
-    """A ``JointMap`` from a shipped map's name, a JSON file or a ``{smpl: bvh}`` dict."""
-    if isinstance(spec, JointMap):
-        return spec
-    if isinstance(spec, Mapping):
-        return JointMap("custom", dict(spec))
-    if str(spec) == "smpl":
-        return SMPL_JOINT_MAP
-    shipped = shipped_joint_maps()
-    if str(spec) in shipped:
-        return shipped[str(spec)]
-    if Path(spec).suffix.lower() == ".json" or Path(spec).exists():
-        return _joint_map_from_json(Path(spec))
-    raise JointMapError(
-        None,
-        f"unknown joint map '{spec}'; shipped maps: {sorted(shipped)}, or pass a JSON path "
-        "or a dict",
-    )
-
-
-def detect_joint_map(
-    names: tuple[str, ...] | list[str], *, source: str | Path | None = None
-) -> JointMap:
-    """The map whose source joints all exist in ``names``: SMPL's own names first, then
-    the shipped map covering the most SMPL joints.
-
-    Raises:
-        JointMapError: no map fits; lists the unmapped joints of the closest map.
-    """
-    if set(JOINT_NAMES) <= set(names):
-        return SMPL_JOINT_MAP
-    best = None
-    for m in shipped_joint_maps().values():
-        missing = [s for s in m.mapping.values() if s not in names]
-        if not missing and (best is None or len(m.mapping) > len(best.mapping)):
-            best = m
-    if best is not None:
-        return best
-    closest = min(
-        shipped_joint_maps().values(), key=lambda m: sum(s not in names for s in m.mapping.values())
-    )
-    missing = {k: v for k, v in closest.mapping.items() if v not in names}
-    raise JointMapError(
-        source,
-        f"no joint map fits this skeleton. Closest shipped map '{closest.name}' leaves SMPL "
-        f"joints {sorted(missing)} unmapped (BVH lacks {sorted(missing.values())}). BVH "
-        f"joints: {list(names)}. Pass joint_map={{smpl_name: bvh_name, ...}}.",
-    )
-
-
-def _validate_map(
-    jmap: JointMap, names: tuple[str, ...], parents: tuple[int, ...], source
-) -> np.ndarray:
-    """Source index per SMPL joint after checking that the names exist and that the map
-    preserves ancestry (a mapped SMPL ancestor maps to a source ancestor)."""
-    missing = {k: v for k, v in jmap.mapping.items() if v not in names}
-    if missing:
-        raise JointMapError(
-            source,
-            f"joint map '{jmap.name}': BVH has no joints {sorted(missing.values())} (for SMPL "
-            f"{sorted(missing)}); BVH joints: {list(names)}",
-        )
-    src = jmap.source_indices(names)
-
-    def ancestors(i: int) -> set[int]:
-        out = set()
-        while parents[i] >= 0:
-            i = parents[i]
-            out.add(i)
-        return out
-
-    for j in range(1, NUM_JOINTS):
-        if src[j] < 0:
-            continue
-        a = _mapped_ancestor(j, src)
-        if src[a] not in ancestors(src[j]):
-            raise JointMapError(
-                source,
-                f"joint map '{jmap.name}': SMPL {JOINT_NAMES[j]} -> {names[src[j]]} but its SMPL "
-                f"ancestor {JOINT_NAMES[a]} -> {names[src[a]]}, which is not an ancestor of "
-                f"{names[src[j]]} in the BVH",
-            )
-    return src
-
-
-def _mapped_ancestor(j: int, src: np.ndarray) -> int:
-    a = PARENTS[j]
-    while a >= 0 and src[a] < 0:
-        a = PARENTS[a]
-    return a
-
-
-def _mapped_targets(j: int, src: np.ndarray) -> list[int]:
-    """Nearest mapped SMPL descendants of ``j`` (through unmapped joints)."""
-    out: list[int] = []
-    stack = [k for k in range(NUM_JOINTS) if PARENTS[k] == j]
-    while stack:
-        k = stack.pop()
-        if src[k] >= 0:
-            out.append(k)
-        else:
-            stack += [c for c in range(NUM_JOINTS) if PARENTS[c] == k]
-    return sorted(out)
 
 
 # ----------------------------------------------------------------------------------------
@@ -316,61 +158,6 @@ def change_up_axis(
     A = up_axis_rotation(axis)
     J0 = np.asarray(rest_pelvis, dtype=np.float64)
     return A @ global_orient, (np.asarray(trans, np.float64) + J0) @ A.T - J0
-
-
-# ----------------------------------------------------------------------------------------
-# Body model access (only its public API: rest_joints and forward)
-# ----------------------------------------------------------------------------------------
-@lru_cache(maxsize=1)
-def default_body():
-    """The body model mrlib ships (loaded once)."""
-    from mrlib.body import load_body_model
-
-    return load_body_model()
-
-
-def _num_betas(body) -> int:
-    for attr in ("num_betas", "n_betas"):
-        n = getattr(body, attr, None)
-        if isinstance(n, int):
-            return n
-    return 10
-
-
-def _rest_joints(body, betas: np.ndarray | None) -> np.ndarray:
-    b = None if betas is None else torch.as_tensor(np.asarray(betas, np.float32))
-    J = body.rest_joints(b)
-    return np.asarray(J.detach().cpu().numpy() if torch.is_tensor(J) else J, dtype=np.float64)
-
-
-@lru_cache(maxsize=8)
-def _joint_shape_basis(body) -> tuple[np.ndarray, np.ndarray]:
-    """``J_0 (24, 3)`` and ``D (24, 3, B)`` with ``rest_joints(b) = J_0 + D b``.
-
-    Uses the body's ``J_template``/``J_shapedirs`` buffers when it has them, otherwise
-    reads the basis off the public ``rest_joints`` (it is linear in betas)."""
-    if hasattr(body, "J_template") and hasattr(body, "J_shapedirs"):
-        J0 = body.J_template.detach().cpu().double().numpy()
-        D = body.J_shapedirs.detach().cpu().double().numpy()
-        return J0, D
-    B = _num_betas(body)
-    J0 = _rest_joints(body, np.zeros(B))
-    D = np.stack([_rest_joints(body, np.eye(B)[i]) - J0 for i in range(B)], axis=-1)
-    return J0, D
-
-
-def rest_pelvis(body, betas: np.ndarray | None) -> np.ndarray:
-    """``(3,)`` rest position of the pelvis for ``betas`` (padded/truncated to the body)."""
-    J0, D = _joint_shape_basis(body)
-    return J0[0] + D[0] @ _fit_betas_length(betas, D.shape[-1])
-
-
-def _fit_betas_length(betas: np.ndarray | None, n: int) -> np.ndarray:
-    out = np.zeros(n)
-    if betas is not None:
-        b = np.asarray(betas, dtype=np.float64).reshape(-1)[:n]
-        out[: len(b)] = b
-    return out
 
 
 # ----------------------------------------------------------------------------------------
@@ -430,35 +217,6 @@ class RetargetResult:
         }
 
 
-def _kabsch(H: np.ndarray) -> np.ndarray:
-    """The rotation ``C`` maximising ``tr(C H)`` (``H = sum d a^T`` for ``C d ~ a``)."""
-    U, _, Vt = np.linalg.svd(H)
-    d = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
-    return Vt.T @ np.diag([1.0, 1.0, d]) @ U.T
-
-
-def _min_rotation(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking unit vector ``u`` to unit vector ``v``."""
-    w = np.cross(u, v)
-    c = float(u @ v)
-    if c < -1 + 1e-12:  # opposite: half-turn about any axis perpendicular to u
-        p = np.eye(3)[np.argmin(np.abs(u))]
-        k = np.cross(u, p)
-        k /= np.linalg.norm(k)
-        return 2 * np.outer(k, k) - np.eye(3)
-    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    return np.eye(3) + K + K @ K / (1 + c)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-
-
-def _axis_rotation(d: np.ndarray, theta: float) -> np.ndarray:
-    K = _skew(d)
-    return np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * K @ K
-
-
 def _solve_offset(pairs: list[tuple[np.ndarray, np.ndarray, float]], M: np.ndarray) -> np.ndarray:
     """Rest alignment ``C`` of one joint.
 
@@ -474,69 +232,16 @@ def _solve_offset(pairs: list[tuple[np.ndarray, np.ndarray, float]], M: np.ndarr
         H = sum(w * np.outer(d, a) for d, a, w in pairs)
         sv = np.linalg.svd(H, compute_uv=False)
         if len(pairs) >= 2 and sv[1] > 1e-3 * sv[0]:
-            return _kabsch(H)
+            return kabsch_rotation(H)
         # One direction (or all parallel): exact swing, twist from the data term.
         d = sum(w * d for d, _, w in pairs)
         a = sum(w * a for _, a, w in pairs)
         d, a = d / np.linalg.norm(d), a / np.linalg.norm(a)
-        C0 = _min_rotation(d, a)
+        C0 = rotation_between(d, a)
         N = M @ C0  # maximise tr(N R_d(theta))
-        theta = np.arctan2(np.trace(N @ _skew(d)), np.trace(N) - d @ N @ d)
-        return C0 @ _axis_rotation(d, theta)
-    return _kabsch(M)
-
-
-def _matrix_to_axis_angle(R: np.ndarray) -> np.ndarray:
-    """``(..., 3, 3)`` rotations -> ``(..., 3)`` axis-angle, in numpy (float64).
-
-    Same result as ``mrlib.rotations.matrix_to_axis_angle`` (tested), without torch:
-    on small CPU machines torch's intra-op threads made this step dominate the load
-    time. Quaternion by Shepperd's method (the best-conditioned of four formulas),
-    then ``2 atan2(|v|, w) v / |v|``.
-    """
-    R = np.asarray(R, dtype=np.float64)
-    r00, r11, r22 = R[..., 0, 0], R[..., 1, 1], R[..., 2, 2]
-    d21, d02, d10 = (
-        R[..., 2, 1] - R[..., 1, 2],
-        R[..., 0, 2] - R[..., 2, 0],
-        R[..., 1, 0] - R[..., 0, 1],
-    )
-    s01, s02, s12 = (
-        R[..., 0, 1] + R[..., 1, 0],
-        R[..., 0, 2] + R[..., 2, 0],
-        R[..., 1, 2] + R[..., 2, 1],
-    )
-    diag = np.stack([r00 + r11 + r22, r00 - r11 - r22, r11 - r00 - r22, r22 - r00 - r11], -1)
-    big = np.sqrt(np.maximum(1.0 + diag, 1e-30))  # 2 |q_i| for each candidate
-    # candidate quaternions (w, x, y, z), each scaled by 2 |q_i| (normalised below)
-    cands = np.stack(
-        [
-            np.stack([big[..., 0] ** 2, d21, d02, d10], -1),
-            np.stack([d21, big[..., 1] ** 2, s01, s02], -1),
-            np.stack([d02, s01, big[..., 2] ** 2, s12], -1),
-            np.stack([d10, s02, s12, big[..., 3] ** 2], -1),
-        ],
-        -2,
-    )  # (..., 4, 4)
-    best = np.argmax(diag, axis=-1)[..., None, None]
-    q = np.take_along_axis(cands, best, axis=-2)[..., 0, :]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    q = np.where(q[..., :1] < 0, -q, q)  # w >= 0: angle in [0, pi]
-    v = q[..., 1:]
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(n, q[..., :1])
-    return v * np.where(n > 1e-12, angle / np.maximum(n, 1e-300), 2.0)
-
-
-def _smpl_fk(G: np.ndarray, J: np.ndarray, trans: np.ndarray) -> np.ndarray:
-    """SMPL joint positions ``(T, 24, 3)`` from global rotations ``(T, 24, 3, 3)``, rest
-    joints ``(24, 3)`` and translation ``(T, 3)`` (what SMPL's forward does to joints)."""
-    pos = np.empty(G.shape[:2] + (3,))
-    pos[:, 0] = J[0] + trans
-    for k in range(1, NUM_JOINTS):
-        p = PARENTS[k]
-        pos[:, k] = pos[:, p] + G[:, p] @ (J[k] - J[p])
-    return pos
+        theta = np.arctan2(np.trace(N @ skew(d)), np.trace(N) - d @ N @ d)
+        return C0 @ axis_rotation(d, theta)
+    return kabsch_rotation(M)
 
 
 # A joint with no bone direction to match gets the rotation that keeps it closest, on
@@ -557,7 +262,7 @@ def _source_directions(
     for j in np.flatnonzero(src >= 0):
         RsT = np.swapaxes(Rw[:, src[j]], -1, -2)  # (T, 3, 3) world -> source local
         out[int(j)] = []
-        for k in _mapped_targets(j, src):
+        for k in mapped_targets(j, src):
             v = (RsT @ (Pw[:, src[k]] - Pw[:, src[j]])[..., None])[..., 0]  # (T, 3)
             n = np.linalg.norm(v, axis=-1)
             length = float(np.median(n))
@@ -616,83 +321,6 @@ def _smpl_globals(C: np.ndarray, src: np.ndarray, Rw: np.ndarray) -> np.ndarray:
     return G
 
 
-def _fit_shape_scale(
-    G: np.ndarray,
-    J0: np.ndarray,
-    D: np.ndarray,
-    Q: np.ndarray,
-    src: np.ndarray,
-    mapped: np.ndarray,
-    b: np.ndarray,
-    fit_betas: bool,
-    scale: float | None,
-    delta: np.ndarray | None,
-    ridge: float,
-    bound: float,
-) -> tuple[np.ndarray, float, np.ndarray]:
-    """Betas ``b``, scale ``s`` and pelvis offset ``delta`` minimising
-    ``mean_{t,k} |x_k(t) + G_pelvis(t) delta - s Q_k(t)|^2 + ridge |b|^2``.
-
-    For fixed global rotations ``G (T, 24, 3, 3)``, SMPL's pelvis-relative joints are
-    linear in the rest joints and so in the betas:
-    ``x_k(t) = sum_{c on the path to k} G_parent(c)(t) (J_c - J_parent(c))(b)``.
-    ``Q (T, Js, 3)`` are the source joints relative to the hips; ``delta`` (pelvis
-    frame) moves SMPL's pelvis off the source hips. Bounded linear least squares
-    (``|b_i| <= bound``, ``s > 0``). Quantities given (``fit_betas=False``, ``scale`` or
-    ``delta`` not None) are held fixed.
-    """
-    T = len(G)
-    B = D.shape[-1]
-    par = np.array(PARENTS[1:])
-    dJ0 = np.concatenate([np.zeros((1, 3)), J0[1:] - J0[par]])  # (24, 3) rest bone vectors
-    dD = np.concatenate([np.zeros((1, 3, B)), D[1:] - D[par]])  # (24, 3, B)
-    W = np.zeros((T, NUM_JOINTS, 3, B))  # d x_k / d b
-    Y = np.zeros((T, NUM_JOINTS, 3))  # x_k at b = 0
-    for k in range(1, NUM_JOINTS):
-        p = PARENTS[k]
-        W[:, k] = W[:, p] + G[:, p] @ dD[k]
-        Y[:, k] = Y[:, p] + G[:, p] @ dJ0[k]
-    ks = mapped  # the pelvis included: its residual is G_pelvis delta
-    Qk = Q[:, src[ks]]  # (T, K, 3)
-    G0 = np.broadcast_to(G[:, None, 0], (T, len(ks), 3, 3))
-    # Columns [b | s | delta]; the fixed ones go to the right-hand side.
-    cols, rhs = [], -Y[:, ks]
-    if fit_betas:
-        cols.append(W[:, ks])
-    else:
-        rhs = rhs - W[:, ks] @ b
-    if scale is None:
-        cols.append(-Qk[..., None])
-    else:
-        rhs = rhs + scale * Qk
-    if delta is None:
-        cols.append(G0)
-    else:
-        rhs = rhs - G0 @ delta
-    nb = B if fit_betas else 0
-    if not cols:
-        return b, float(scale), np.asarray(delta, dtype=np.float64)
-    A = np.concatenate(cols, axis=-1).reshape(T * len(ks) * 3, -1)
-    y = rhs.reshape(-1)
-    nx = A.shape[1]
-    # Reduce to the (nx, nx) triangular system first: the bounded solver is then cheap.
-    n = T * len(ks)  # residual vectors; the ridge is per mean squared error
-    L = np.linalg.cholesky(A.T @ A + 1e-12 * np.eye(nx))  # A^T A = L L^T
-    z = np.linalg.solve(L, A.T @ y)  # min |A x - y| <=> min |L^T x - z|
-    A = np.concatenate([L.T, np.sqrt(ridge * n) * np.eye(nb, nx)])
-    y = np.concatenate([z, np.zeros(nb)])
-    lo = np.full(nx, -np.inf)
-    hi = np.full(nx, np.inf)
-    lo[:nb], hi[:nb] = -bound, bound
-    if scale is None:
-        lo[nb] = 1e-6
-    x = lsq_linear(A, y, bounds=(lo, hi)).x
-    b_out = x[:nb] if fit_betas else b
-    s_out = float(x[nb]) if scale is None else float(scale)
-    d_out = x[-3:] if delta is None else np.asarray(delta, dtype=np.float64)
-    return b_out, s_out, d_out
-
-
 def retarget_bvh(
     bvh: BVH,
     joint_map: str | Path | Mapping[str, str] | JointMap | None = None,
@@ -746,9 +374,9 @@ def retarget_bvh(
         if joint_map is None
         else load_joint_map(joint_map)
     )
-    src = _validate_map(jmap, sk.names, sk.parents, bvh.source)
+    src = validate_map(jmap, sk.names, sk.parents, bvh.source)
     body = default_body() if body is None else body
-    J_tmpl, D = _joint_shape_basis(body)
+    J_tmpl, D = joint_shape_basis(body)
     mapped = np.flatnonzero(src >= 0)
 
     # 1. source forward kinematics (file units, file axes)
@@ -756,7 +384,7 @@ def retarget_bvh(
     T = bvh.num_frames
 
     # bone pairs (SMPL joint j -> nearest mapped descendant k) and their source lengths
-    pairs = [(j, k) for j in mapped for k in _mapped_targets(j, src)]
+    pairs = [(j, k) for j in mapped for k in mapped_targets(j, src)]
     src_len = np.array(
         [np.median(np.linalg.norm(P[:, src[k]] - P[:, src[j]], axis=-1)) for j, k in pairs]
     )
@@ -806,10 +434,10 @@ def retarget_bvh(
     # read exactly: its local rotations are SMPL's, C_j = A^T (identity when Y up).
     smpl_named = jmap is SMPL_JOINT_MAP and _is_smpl_rest(sk, src, A, J_tmpl)
     if betas is not None:
-        b, fit_b = _fit_betas_length(betas, B), False
+        b, fit_b = betas_of_length(betas, B, np.float64), False
     elif smpl_named and fit_betas:
         # SMPL-named skeleton (mrlib's export): its offsets are SMPL rest joints, solve exactly
-        b, fit_b = _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A), False
+        b, fit_b = fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A), False
     else:
         b, fit_b = np.zeros(B), fit_betas and bool(np.any(D))
     fixed_C = None
@@ -838,7 +466,7 @@ def retarget_bvh(
         if not (fit_b or fixed_s is None or fixed_delta is None):
             break
         G = _smpl_globals(C_all, src, Rw[sub])
-        b_new, s_fit, delta = _fit_shape_scale(
+        b_new, s_fit, delta = fit_shape_scale(
             G, J_tmpl, D, Q[sub], src, mapped, b, fit_b, fixed_s, fixed_delta,
             shape_ridge, shape_bound,
         )  # fmt: skip
@@ -857,13 +485,13 @@ def retarget_bvh(
     L = G.copy()
     for j in range(1, NUM_JOINTS):
         L[:, j] = np.swapaxes(G[:, PARENTS[j]], -1, -2) @ G[:, j]
-    poses = _matrix_to_axis_angle(L)
+    poses = matrix_to_axis_angle_numpy(L)
     trans = Pw[:, src[0]] + G[:, 0] @ delta - J[0]
 
     # 7. error: SMPL joints vs the scaled source joints. The joints of SMPL's forward pass
     # are this forward kinematics of the rest joints J(b) (tested against body.forward);
     # numpy avoids the skinning module's per-call overhead.
-    joints = _smpl_fk(G, J, trans)
+    joints = smpl_forward_joints(G, J, trans)
     err = np.linalg.norm(joints[:, mapped] - Pw[:, src[mapped]], axis=-1) * 100.0  # (T, M) cm
     joint_err = np.full(NUM_JOINTS, np.nan)
     joint_err[mapped] = err.mean(0)
@@ -944,74 +572,3 @@ def _is_smpl_rest(sk: BVHSkeleton, src: np.ndarray, A: np.ndarray, J: np.ndarray
         if u @ v < 0.9 * nu * nv:
             return False
     return True
-
-
-def _fit_smpl_offsets(sk, src, unit_m, J_tmpl, D, A) -> np.ndarray:
-    """Betas whose rest joints reproduce an SMPL-named BVH's offsets (linear least squares)."""
-    rows, rhs = [], []
-    for j in range(1, NUM_JOINTS):
-        p = PARENTS[j]
-        rows.append(D[j] - D[p])
-        rhs.append(A @ (unit_m * sk.offsets[src[j]]) - (J_tmpl[j] - J_tmpl[p]))
-    Mx, y = np.concatenate(rows), np.concatenate(rhs)
-    if Mx.size == 0 or not np.any(Mx):
-        return np.zeros(D.shape[-1])
-    return np.linalg.lstsq(Mx, y, rcond=None)[0]
-
-
-# ----------------------------------------------------------------------------------------
-# SMPL -> BVH
-# ----------------------------------------------------------------------------------------
-_BVH_UNITS = {"cm": 100.0, "m": 1.0}
-
-
-def smpl_to_bvh(motion, *, body=None, unit: str = "cm", order: str = "ZXY") -> BVH:
-    """A BVH of ``motion`` on SMPL's skeleton (the inverse of the ``"smpl"`` joint map).
-
-    * Joints are SMPL's 24, named as in ``mrlib.skeleton.JOINT_NAMES``; the rest pose is
-      the body's T-pose for ``motion.betas`` (``OFFSET = J_k - J_parent``), so every
-      joint's local frame is world-aligned at rest and its rotation channels are exactly
-      SMPL's local rotation.
-    * ``pelvis`` is the ROOT with 6 channels (``X/Y/Zposition`` = the pelvis position
-      ``J_pelvis + trans``, then the three rotations); every other joint has 3 rotation
-      channels; leaves (head, feet, hands) end in an ``End Site``.
-    * Euler ``order`` (default ``ZXY``: ``R = Rz Rx Ry``), angles in degrees.
-    * ``unit`` ``"cm"`` (default, the usual BVH unit: import into Blender with scale
-      0.01) or ``"m"``. The world is mrlib's: Y up, facing +Z, which is what Blender's
-      BVH importer expects by default.
-
-    Args:
-        motion: a ``mrlib.Motion``.
-        body: body model for the rest joints (default: mrlib's).
-        unit: ``"cm"`` or ``"m"``.
-        order: any of the six Tait-Bryan orders (``"XYZ"``, ``"ZXY"``, ...).
-
-    Returns:
-        A ``BVH`` (write it with ``mrlib.io.bvh.write_bvh``).
-    """
-    if unit not in _BVH_UNITS:
-        raise ValueError(f"unit must be one of {sorted(_BVH_UNITS)}, got {unit!r}")
-    order = order.upper()
-    k = _BVH_UNITS[unit]
-    body = default_body() if body is None else body
-    J0, D = _joint_shape_basis(body)
-    J = J0 + D @ _fit_betas_length(motion.betas, D.shape[-1])  # (24, 3) metres
-    par = np.array(PARENTS)
-    offsets = np.concatenate([J[:1], J[1:] - J[par[1:]]]) * k
-    rot_ch = tuple(f"{a}rotation" for a in order)
-    channels = (("Xposition", "Yposition", "Zposition") + rot_ch,) + (rot_ch,) * (NUM_JOINTS - 1)
-    leaves = [j for j in range(NUM_JOINTS) if j not in par]
-    ends = tuple(
-        (j, k * (J[j] - J[PARENTS[j]]) * (1.0 if JOINT_NAMES[j] == "head" else 0.5)) for j in leaves
-    )
-    skeleton = BVHSkeleton(
-        names=JOINT_NAMES, parents=PARENTS, offsets=offsets, channels=channels, end_sites=ends
-    )
-    T = motion.num_frames
-    R = axis_angle_to_matrix(torch.from_numpy(motion.poses.astype(np.float64))).numpy()
-    euler = matrix_to_euler(R, order)  # (T, 24, 3) degrees
-    root = (motion.trans.astype(np.float64) + J[0]) * k
-    values = np.concatenate([root, euler.reshape(T, -1)], axis=1)  # (T, 3 + 72)
-    return BVH(
-        skeleton=skeleton, motion=values, frame_time=1.0 / motion.fps, source=str(motion.name)
-    )

@@ -1,27 +1,32 @@
-"""The speech side of co-speech gesture synthesis (paper, Sec. 6): audio to the per-level
-conditions of the multi-resolution GAN, and measures of how motion follows speech.
+"""Co-speech gestures (paper, Sec. 6): speech in, per-level conditions of the
+multi-resolution GAN, training, generation from audio, and measures of how motion follows
+speech. Everything of speech lives in this package and is imported from here.
 
-Pipeline for one clip::
+Pipeline::
 
     wav, sr = load_audio("talk.wav")                    # mono, 16 kHz
     extractor = SpeechFeatureExtractor()                # WavLM (or kind="logmel")
-    feats = extractor(wav, sr)                          # (T_a, D) at 50 fps
-    norm = SpeechNormalizer.fit([feats, ...])           # over all training audio
-    conds = speech_conditions(feats, extractor.fps, motion_fps=25, lengths=lengths,
-                              normalizer=norm, offset_s=extractor.frame_offset_s)
-    # conds: [(T_1, D), ..., (T_L, D)], L = 10; s_1 absolute, s_i residual for i > 1
+    data = SpeechTrainingSet.from_folders("talks/paired", "talks/unpaired", extractor)
+    result = speech_train(data, mrlib.config.speech_tutorial(), "runs/speech")
+    model = load_speech_model(result.checkpoint)
+    motion = generate_from_audio(model, "new_talk.wav", seed=0)
+    sync = evaluate_speech_sync(model, [(wav, sr), ...])
 
-Modules: ``audio`` (I/O, resampling, energy envelope, onsets), ``features`` (WavLM and
-the log-mel fallback), ``align`` (levels, residuals, normalisation, batching),
-``evaluate`` (hand speed, lagged correlation, beat alignment).
+Modules, in the order data flows: ``audio`` (I/O, resampling, spectra, energy envelope,
+onsets), ``features`` (WavLM and the log-mel fallback), ``align`` (motion frame rate,
+levels, residuals, normalisation), ``data`` (folders of paired and unpaired clips, the
+training set), ``train`` (the trainer), ``sample`` (generation from audio),
+``evaluate`` (hand speed, lagged correlation, beat alignment, synchrony of a model);
+``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``).
 """
 
+from mrlib.config import SPEECH_NUM_LEVELS, speech_paper, speech_tutorial
 from mrlib.speech.align import (
-    SPEECH_NUM_LEVELS,
     SpeechNormalizer,
     align_to_levels,
     downsample_levels,
     interpolate_to_fps,
+    level_lengths,
     levels_to_residuals,
     motion_frames_for_audio,
     residuals_to_levels,
@@ -37,19 +42,34 @@ from mrlib.speech.audio import (
     AudioFileError,
     detect_onsets,
     energy_envelope,
+    fit_audio_length,
     load_audio,
+    log_mel_spectrogram,
+    mel_filterbank,
     num_feature_frames,
     onset_strength,
     resample_audio,
     to_mono,
 )
+from mrlib.speech.data import (
+    SPEECH_LABEL,
+    SpeechClip,
+    SpeechMotionPair,
+    SpeechTrainingSet,
+    load_paired_folder,
+    load_unpaired_folder,
+)
 from mrlib.speech.evaluate import (
     LaggedCorrelation,
+    SyncResult,
     beat_alignment_score,
+    evaluate_speech_sync,
     hand_speed,
     lagged_correlation,
     motion_beats,
+    phrase_loudness,
     speech_motion_correlation,
+    wrist_lift,
 )
 from mrlib.speech.features import (
     WAVLM_PATH_ENV,
@@ -60,30 +80,50 @@ from mrlib.speech.features import (
     load_wavlm,
     log_mel_channel_names,
     log_mel_features,
-    log_mel_spectrogram,
-    mel_filterbank,
     wavlm_features,
 )
+from mrlib.speech.sample import (
+    SpeechModel,
+    audio_conditions,
+    generate_from_audio,
+    is_speech_checkpoint,
+    load_speech_model,
+    speech_model_from_trainer,
+)
+from mrlib.speech.synthetic import (
+    GestureParams,
+    SpeechSynthesisError,
+    SyntheticCorpus,
+    espeak_available,
+    load_base_motions,
+    make_synthetic_pair,
+    standing_base,
+    synthesize_speech,
+    synthetic_corpus,
+)
+from mrlib.speech.train import RANDOM_AUDIO, SpeechDraw, SpeechTrainer, speech_train
 
 __all__ = [
+    # audio
     "SAMPLE_RATE",
     "HOP",
     "WINDOW",
     "FEATURE_FPS",
     "FRAME_OFFSET_S",
-    "SPEECH_NUM_LEVELS",
-    "WAVLM_PATH_ENV",
     "AudioFileError",
-    "SpeechModelError",
     "load_audio",
     "to_mono",
     "resample_audio",
+    "fit_audio_length",
     "num_feature_frames",
+    "mel_filterbank",
+    "log_mel_spectrogram",
     "energy_envelope",
     "onset_strength",
     "detect_onsets",
-    "mel_filterbank",
-    "log_mel_spectrogram",
+    # features
+    "WAVLM_PATH_ENV",
+    "SpeechModelError",
     "autocorrelation_pitch",
     "log_mel_features",
     "log_mel_channel_names",
@@ -91,19 +131,58 @@ __all__ = [
     "wavlm_features",
     "SpeechFeatureConfig",
     "SpeechFeatureExtractor",
+    # alignment
+    "SPEECH_NUM_LEVELS",
     "interpolate_to_fps",
     "downsample_levels",
     "align_to_levels",
     "levels_to_residuals",
+    "level_lengths",
     "residuals_to_levels",
     "SpeechNormalizer",
     "speech_conditions",
     "motion_frames_for_audio",
     "stack_conditions",
+    # data
+    "SPEECH_LABEL",
+    "SpeechClip",
+    "SpeechMotionPair",
+    "load_paired_folder",
+    "load_unpaired_folder",
+    "SpeechTrainingSet",
+    # training
+    "speech_paper",
+    "speech_tutorial",
+    "RANDOM_AUDIO",
+    "SpeechDraw",
+    "SpeechTrainer",
+    "speech_train",
+    # generation
+    "SpeechModel",
+    "load_speech_model",
+    "speech_model_from_trainer",
+    "is_speech_checkpoint",
+    "audio_conditions",
+    "generate_from_audio",
+    # evaluation
     "hand_speed",
     "motion_beats",
     "LaggedCorrelation",
     "lagged_correlation",
     "speech_motion_correlation",
     "beat_alignment_score",
+    "wrist_lift",
+    "phrase_loudness",
+    "SyncResult",
+    "evaluate_speech_sync",
+    # synthetic data
+    "SpeechSynthesisError",
+    "espeak_available",
+    "synthesize_speech",
+    "GestureParams",
+    "standing_base",
+    "load_base_motions",
+    "make_synthetic_pair",
+    "SyntheticCorpus",
+    "synthetic_corpus",
 ]

@@ -25,6 +25,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from mrlib.config import SPEECH_NUM_LEVELS
 from mrlib.errors import MotionValueError
 from mrlib.pyramid import pyramid_lengths, resample_linear
 
@@ -37,11 +38,10 @@ __all__ = [
     "residuals_to_levels",
     "SpeechNormalizer",
     "speech_conditions",
+    "level_lengths",
     "motion_frames_for_audio",
     "stack_conditions",
 ]
-
-SPEECH_NUM_LEVELS = 10  # L for speech-guided synthesis (paper, Sec. 3.2)
 
 
 def _check_features(features: torch.Tensor, what: str = "features") -> torch.Tensor:
@@ -239,6 +239,16 @@ class SpeechNormalizer:
 
 
 # -- what the GAN consumes ----------------------------------------------------------------------
+def level_lengths(num_frames: int, model_config) -> list[int]:
+    """Frames ``[T_1, ..., T_L]`` of every level for a clip of ``num_frames`` motion frames
+    under a ``mrlib.config.ModelConfig`` (its L, F and the shortest level its kernels
+    accept)."""
+    mc = model_config
+    return pyramid_lengths(
+        int(num_frames), mc.num_levels, mc.scale_factor, min_length=(mc.kernel_size - 1) // 2 + 1
+    )
+
+
 def motion_frames_for_audio(num_feature_frames: int, audio_fps: float, motion_fps: float) -> int:
     """Motion frames covering ``num_feature_frames`` speech frames (unpaired audio has no
     motion to take the length from): ``round(T_a * motion_fps / audio_fps)``."""

@@ -37,6 +37,9 @@ __all__ = [
     "check_waveform",
     "num_feature_frames",
     "frame_signal",
+    "fit_audio_length",
+    "mel_filterbank",
+    "log_mel_spectrogram",
     "energy_envelope",
     "onset_strength",
     "detect_onsets",
@@ -154,6 +157,57 @@ def frame_signal(wav: torch.Tensor, window: int = WINDOW, hop: int = HOP) -> tor
 
 
 # -- energy and onsets ---------------------------------------------------------------------
+# -- spectra ---------------------------------------------------------------------------------
+def _hz_to_mel(f):
+    return 2595.0 * np.log10(1.0 + np.asarray(f, np.float64) / 700.0)  # HTK
+
+
+def _mel_to_hz(m):
+    return 700.0 * (10.0 ** (np.asarray(m, np.float64) / 2595.0) - 1.0)
+
+
+def mel_filterbank(
+    n_mels: int, n_fft: int = 512, sr: int = SAMPLE_RATE, f_min: float = 0.0, f_max=None
+) -> torch.Tensor:
+    """Triangular mel filters on the HTK mel scale ``m = 2595 log10(1 + f / 700)``,
+    ``(n_fft // 2 + 1, n_mels)``, unit peak (no area normalisation)."""
+    f_max = sr / 2 if f_max is None else f_max
+    if not 0 <= f_min < f_max <= sr / 2:
+        raise MotionValueError(f"need 0 <= f_min < f_max <= sr/2, got {f_min}, {f_max}")
+    edges = _mel_to_hz(np.linspace(_hz_to_mel(f_min), _hz_to_mel(f_max), n_mels + 2))
+    freqs = np.linspace(0, sr / 2, n_fft // 2 + 1)[:, None]  # (F, 1)
+    lo, mid, hi = edges[None, :-2], edges[None, 1:-1], edges[None, 2:]
+    up = (freqs - lo) / (mid - lo)
+    down = (hi - freqs) / (hi - mid)
+    return torch.from_numpy(np.clip(np.minimum(up, down), 0, None)).float()
+
+
+def log_mel_spectrogram(
+    wav: torch.Tensor,
+    n_mels: int = 80,
+    *,
+    hop: int = HOP,
+    window: int = WINDOW,
+    n_fft: int = 512,
+    sr: int = SAMPLE_RATE,
+) -> torch.Tensor:
+    """``wav (N,)`` at ``sr`` -> natural-log mel energies ``(T, n_mels)``; frame k covers
+    samples ``[k hop, k hop + window)`` (Hann window, zero-padded to ``n_fft``)."""
+    frames = frame_signal(wav.float(), window, hop)  # (T, window)
+    spec = torch.fft.rfft(frames * torch.hann_window(window, periodic=False), n=n_fft)
+    power = spec.real**2 + spec.imag**2  # (T, n_fft // 2 + 1)
+    return torch.log(power @ mel_filterbank(n_mels, n_fft, sr) + 1e-10)
+
+
+def fit_audio_length(wav: np.ndarray, num_samples: int) -> np.ndarray:
+    """``wav (N,)`` cut or repeated (from its start) to ``num_samples`` samples."""
+    wav = np.asarray(wav, np.float32)
+    if num_samples < 1 or len(wav) == 0:
+        raise MotionValueError(f"need a non-empty waveform and num_samples >= 1, got {num_samples}")
+    reps = -(-num_samples // len(wav))
+    return np.tile(wav, reps)[:num_samples]
+
+
 def energy_envelope(
     wav: np.ndarray,
     sr: int,
@@ -202,8 +256,6 @@ def onset_strength(wav: np.ndarray, sr: int = SAMPLE_RATE, *, hop_s: float = 0.0
     ``flux[t] = sum_b max(0, M[t, b] - M[t-1, b])`` (Bello et al., "A tutorial on onset
     detection in music signals", IEEE TSALP 2005, Sec. III-B), frame t centred at
     ``t * hop_s + 12.5 ms``. Returns ``(T,)`` float32, ``flux[0] = 0``."""
-    from mrlib.speech.features import log_mel_spectrogram
-
     wav = check_waveform(wav, sr, min_samples=int(0.025 * sr))
     if sr != SAMPLE_RATE:
         wav, sr = resample_audio(wav, sr, SAMPLE_RATE), SAMPLE_RATE

@@ -1,6 +1,6 @@
 """Text to speech with eSpeak NG, from pip alone.
 
-The synthetic co-speech set (``mrlib.speech_data``) speaks its sentences with eSpeak NG,
+The synthetic co-speech set (``mrlib.speech.synthetic``) speaks its sentences with eSpeak NG,
 a formant synthesiser. Two back ends give the same voices:
 
 - ``"library"``: ``libespeak-ng`` and its voice data as shipped in the

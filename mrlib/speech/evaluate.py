@@ -16,6 +16,9 @@ the beat alignment score.
   60 fps; we average over speech onsets (every stressed syllable should meet a beat) and
   give sigma in seconds, default 0.05 s (their 3 frames at 60 fps).
 
+``evaluate_speech_sync`` scores a trained model with all three on held-out utterances,
+against the same model driven by another utterance's audio.
+
 The score has a floor that depends on how dense the motion beats are (with a beat every
 0.25 s, random onsets already land near one), so always compare it with a control: the
 same motion scored against another clip's onsets.
@@ -23,13 +26,21 @@ same motion scored against another clip's onsets.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
+from mrlib.body import resolve_body
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.motion import Motion
+from mrlib.speech.audio import detect_onsets, energy_envelope, fit_audio_length, resample_audio
+
+if TYPE_CHECKING:
+    from mrlib.speech.sample import SpeechModel
 
 __all__ = [
     "WRIST_JOINTS",
@@ -39,6 +50,10 @@ __all__ = [
     "lagged_correlation",
     "speech_motion_correlation",
     "beat_alignment_score",
+    "wrist_lift",
+    "phrase_loudness",
+    "SyncResult",
+    "evaluate_speech_sync",
 ]
 
 WRIST_JOINTS = (20, 21)  # left_wrist, right_wrist (mrlib.skeleton.JOINT_NAMES)
@@ -58,10 +73,7 @@ def hand_speed(motion, body=None, *, joints=WRIST_JOINTS, reduce: str = "mean") 
     """
     if motion.num_frames < 2:
         raise ClipTooShortError(f"hand speed needs at least 2 frames, {motion!r} has 1")
-    if body is None:
-        from mrlib.body import load_body_model
-
-        body = load_body_model()
+    body = resolve_body(body)
     pos = body.motion_joints(motion)[:, list(joints)].astype(np.float64)  # (T, K, 3)
     speed = np.linalg.norm(np.gradient(pos, axis=0), axis=-1) * motion.fps  # (T, K)
     if reduce == "none":
@@ -170,8 +182,6 @@ def speech_motion_correlation(
     Returns:
         :class:`LaggedCorrelation` (``r``, ``lag_s``; positive lag = motion follows).
     """
-    from mrlib.speech.audio import energy_envelope
-
     if isinstance(speech, tuple):
         wav, sr = speech
         speech = energy_envelope(wav, sr, motion.fps, motion.num_frames)
@@ -221,3 +231,163 @@ def beat_alignment_score(
         return 0.0
     d = np.abs(on[:, None] - beats[None]).min(1)
     return float(np.exp(-(d**2) / (2 * sigma**2)).mean())
+
+
+# -- does a model's motion follow the speech? ----------------------------------------------
+def wrist_lift(motion: Motion, body=None) -> np.ndarray:
+    """Height of the wrists above the pelvis, mean of both, metres: ``(T,)``."""
+    body = resolve_body(body)
+    j = body.motion_joints(motion)  # (T, 24, 3)
+    return (j[:, [20, 21], 1] - j[:, [0], 1]).mean(1).astype(np.float64)
+
+
+def phrase_loudness(
+    wav: np.ndarray,
+    sr: int,
+    fps: float,
+    num_frames: int,
+    *,
+    smooth_s: float = 0.5,
+    floor_db: float = -40.0,
+) -> np.ndarray:
+    """Slow loudness ``(num_frames,)`` in [0, 1]: the energy envelope mapped from
+    ``floor_db..0`` dB to 0..1 and smoothed with a Gaussian of ``smooth_s`` seconds
+    (phrases rather than syllables; 0.5 s is the time scale of the synthetic set's arm
+    lift, ``mrlib.speech.synthetic.GestureParams.lift_smooth_s``)."""
+    e = energy_envelope(wav, sr, fps, num_frames, floor_db=floor_db)
+    e = np.clip((e - floor_db) / -floor_db, 0, 1).astype(np.float64)
+    return gaussian_filter1d(e, smooth_s * fps, mode="nearest")
+
+
+@dataclass
+class SyncResult:
+    """What :func:`evaluate_speech_sync` measured.
+
+    Attributes:
+        rows: one dict per (utterance, seed) with ``utterance``, ``seed`` and, for the
+            model driven by its own audio (``_model``) and by another utterance's
+            (``_shuffled``): ``r`` energy / hand-speed correlation, ``beat`` beat
+            alignment, ``lift`` phrase-loudness / wrist-height correlation; ``_data``
+            versions for utterances with a reference motion.
+    """
+
+    rows: list[dict]
+
+    KEYS = ("r", "beat", "lift")
+
+    def mean(self, key: str) -> float:
+        vals = [r[key] for r in self.rows if key in r]
+        return float(np.mean(vals)) if vals else float("nan")
+
+    def std(self, key: str) -> float:
+        vals = [r[key] for r in self.rows if key in r]
+        return float(np.std(vals)) if vals else float("nan")
+
+    def paired(self, key: str) -> tuple[float, float, int, int]:
+        """Own audio against the other utterance's, row by row (same utterance and
+        noise): ``(mean difference, its standard error, rows where own > other, rows)``."""
+        d = np.array(
+            [r[f"{key}_model"] - r[f"{key}_shuffled"] for r in self.rows if f"{key}_model" in r]
+        )
+        if len(d) == 0:
+            return float("nan"), float("nan"), 0, 0
+        se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan")
+        return float(d.mean()), se, int((d > 0).sum()), len(d)
+
+    def summary(self) -> dict[str, float]:
+        """Means over the rows: ``{"r_model": ..., "r_shuffled": ..., ...}``."""
+        keys = [f"{k}_{w}" for w in ("model", "shuffled", "data") for k in self.KEYS]
+        return {k: self.mean(k) for k in keys if any(k in r for r in self.rows)}
+
+    def to_markdown(self) -> str:
+        def cell(key: str) -> str:
+            return f"{self.mean(key):.3f} +- {self.std(key):.3f}"
+
+        lines = [
+            "| | energy / hand-speed r | beat alignment | phrase loudness / wrist-height r |",
+            "|---|---|---|---|",
+        ]
+        for who, name in (
+            ("model", "model, own audio"),
+            ("shuffled", "model, other utterance's audio"),
+        ):
+            lines.append(f"| {name} | " + " | ".join(cell(f"{k}_{who}") for k in self.KEYS) + " |")
+        diffs = []
+        for k in self.KEYS:
+            m, se, wins, n = self.paired(k)
+            diffs.append(f"{m:+.3f} +- {se:.3f} s.e. ({wins}/{n} higher)")
+        lines.append("| own - other audio, paired | " + " | ".join(diffs) + " |")
+        if any("r_data" in r for r in self.rows):
+            lines.append(
+                "| reference motion | " + " | ".join(cell(f"{k}_data") for k in self.KEYS) + " |"
+            )
+        return "\n".join(lines)
+
+
+def evaluate_speech_sync(
+    model: SpeechModel,
+    utterances: Sequence[tuple[np.ndarray, int]],
+    seeds: Sequence[int] = (0, 1, 2),
+    *,
+    references: Sequence[Motion | None] | None = None,
+    body=None,
+    max_lag_s: float = 0.3,
+) -> SyncResult:
+    """How well generated gestures follow the speech, against the same model driven by
+    the wrong audio.
+
+    For utterance k and every seed: gestures generated from k's audio, and gestures
+    generated from utterance ``k + 1``'s audio cut or repeated to k's duration (the
+    *shuffled* control, same noise); both scored against utterance k:
+
+    * ``r``: Pearson correlation of k's energy envelope and the hand speed
+      (``speech_motion_correlation``, best lag within ``max_lag_s``): syllable-level
+      coupling;
+    * ``beat``: ``beat_alignment_score`` of k's onsets against the motion beats;
+    * ``lift``: correlation of k's :func:`phrase_loudness` and the :func:`wrist_lift`
+      (best lag within ``max_lag_s``): phrase-level coupling, arms up while talking.
+
+    ``references`` (e.g. the held-out pairs' own motions) are scored the same way once.
+
+    Args:
+        utterances: ``(wav (N,), sr)`` pairs, at least two.
+    Returns:
+        a :class:`SyncResult` (``.summary()``, ``.to_markdown()``).
+    """
+    from mrlib.speech.sample import generate_from_audio
+
+    if len(utterances) < 2:
+        raise MotionValueError("the shuffled control needs at least two utterances")
+    body = resolve_body(body)
+
+    def score(motion: Motion, wav, sr, onsets, tag: str) -> dict[str, float]:
+        v = hand_speed(motion, body)
+        T = motion.num_frames
+        energy = energy_envelope(wav, sr, motion.fps, T)
+        lag = int(round(max_lag_s * motion.fps))
+        r = speech_motion_correlation(energy, motion, body, max_lag_s=max_lag_s, speed=v).r
+        phrase = phrase_loudness(wav, sr, motion.fps, T)
+        lift = lagged_correlation(phrase, wrist_lift(motion, body), motion.fps, lag).r
+        beat = beat_alignment_score(onsets, motion, body, speed=v)
+        return {f"r_{tag}": r, f"beat_{tag}": beat, f"lift_{tag}": lift}
+
+    rows = []
+    for k, (wav, sr) in enumerate(utterances):
+        other, osr = utterances[(k + 1) % len(utterances)]
+        other = fit_audio_length(other if osr == sr else resample_audio(other, osr, sr), len(wav))
+        onsets = detect_onsets(wav, sr)
+        ref = None if references is None else references[k]
+        extra = {} if ref is None else score(ref, wav, sr, onsets, "data")
+        for seed in seeds:
+            own = generate_from_audio(model, wav, seed, sr=sr)
+            shuf = generate_from_audio(model, other, seed, sr=sr)
+            rows.append(
+                {
+                    "utterance": k,
+                    "seed": int(seed),
+                    **score(own, wav, sr, onsets, "model"),
+                    **score(shuf, wav, sr, onsets, "shuffled"),
+                    **extra,
+                }
+            )
+    return SyncResult(rows)

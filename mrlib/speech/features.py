@@ -30,7 +30,6 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import torch
 
 from mrlib.errors import MotionValueError, MrlibError
@@ -43,6 +42,7 @@ from mrlib.speech.audio import (
     check_waveform,
     frame_signal,
     load_audio,
+    log_mel_spectrogram,
     num_feature_frames,
     resample_audio,
 )
@@ -51,8 +51,6 @@ __all__ = [
     "WAVLM_PATH_ENV",
     "WAVLM_DEFAULT_ID",
     "SpeechModelError",
-    "mel_filterbank",
-    "log_mel_spectrogram",
     "autocorrelation_pitch",
     "log_mel_features",
     "log_mel_channel_names",
@@ -71,47 +69,6 @@ class SpeechModelError(MrlibError, ValueError):
 
 
 # -- log-mel fallback ----------------------------------------------------------------------
-def _hz_to_mel(f):
-    return 2595.0 * np.log10(1.0 + np.asarray(f, np.float64) / 700.0)  # HTK
-
-
-def _mel_to_hz(m):
-    return 700.0 * (10.0 ** (np.asarray(m, np.float64) / 2595.0) - 1.0)
-
-
-def mel_filterbank(
-    n_mels: int, n_fft: int = 512, sr: int = SAMPLE_RATE, f_min: float = 0.0, f_max=None
-) -> torch.Tensor:
-    """Triangular mel filters on the HTK mel scale ``m = 2595 log10(1 + f / 700)``,
-    ``(n_fft // 2 + 1, n_mels)``, unit peak (no area normalisation)."""
-    f_max = sr / 2 if f_max is None else f_max
-    if not 0 <= f_min < f_max <= sr / 2:
-        raise MotionValueError(f"need 0 <= f_min < f_max <= sr/2, got {f_min}, {f_max}")
-    edges = _mel_to_hz(np.linspace(_hz_to_mel(f_min), _hz_to_mel(f_max), n_mels + 2))
-    freqs = np.linspace(0, sr / 2, n_fft // 2 + 1)[:, None]  # (F, 1)
-    lo, mid, hi = edges[None, :-2], edges[None, 1:-1], edges[None, 2:]
-    up = (freqs - lo) / (mid - lo)
-    down = (hi - freqs) / (hi - mid)
-    return torch.from_numpy(np.clip(np.minimum(up, down), 0, None)).float()
-
-
-def log_mel_spectrogram(
-    wav: torch.Tensor,
-    n_mels: int = 80,
-    *,
-    hop: int = HOP,
-    window: int = WINDOW,
-    n_fft: int = 512,
-    sr: int = SAMPLE_RATE,
-) -> torch.Tensor:
-    """``wav (N,)`` at ``sr`` -> natural-log mel energies ``(T, n_mels)``; frame k covers
-    samples ``[k hop, k hop + window)`` (Hann window, zero-padded to ``n_fft``)."""
-    frames = frame_signal(wav.float(), window, hop)  # (T, window)
-    spec = torch.fft.rfft(frames * torch.hann_window(window, periodic=False), n=n_fft)
-    power = spec.real**2 + spec.imag**2  # (T, n_fft // 2 + 1)
-    return torch.log(power @ mel_filterbank(n_mels, n_fft, sr) + 1e-10)
-
-
 def autocorrelation_pitch(
     wav: torch.Tensor,
     *,

@@ -1,0 +1,216 @@
+"""Joint maps: which source joint drives each SMPL joint.
+
+A joint map is ``{SMPL joint name: source joint name}``. Maps ship for known skeletons
+(``joint_maps/*.json``); users may pass their own (a dict, a JSON file, or the name of a
+shipped map), and a skeleton whose joint names are SMPL's own (what
+``mrlib.io.save_motion`` writes) maps onto itself. ``validate_map`` checks a map against
+a skeleton: every source joint exists, and the map keeps ancestry (a mapped SMPL
+ancestor maps to a source ancestor).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from mrlib.errors import JointMapError
+from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+
+__all__ = [
+    "JointMap",
+    "JOINT_MAP_DIR",
+    "SMPL_JOINT_MAP",
+    "load_joint_map",
+    "joint_map_from_json",
+    "shipped_joint_maps",
+    "detect_joint_map",
+    "validate_map",
+    "mapped_ancestor",
+    "mapped_targets",
+]
+
+JOINT_MAP_DIR = Path(__file__).parent / "joint_maps"
+
+
+# Joint maps
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class JointMap:
+    """Which source joint drives each SMPL joint.
+
+    Attributes:
+        name: short identifier (``"bandai_namco"``, ``"cmu"``, ``"smpl"``, ``"custom"``).
+        mapping: SMPL joint name -> source joint name; SMPL joints left out are unmapped.
+        description: free text.
+    """
+
+    name: str
+    mapping: Mapping[str, str]
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        bad = [k for k in self.mapping if k not in JOINT_NAMES]
+        if bad:
+            raise JointMapError(
+                None, f"joint map '{self.name}': {bad} are not SMPL joint names {list(JOINT_NAMES)}"
+            )
+        if "pelvis" not in self.mapping:
+            raise JointMapError(None, f"joint map '{self.name}' must map SMPL's 'pelvis'")
+        srcs = list(self.mapping.values())
+        dup = sorted({s for s in srcs if srcs.count(s) > 1})
+        if dup:
+            raise JointMapError(
+                None, f"joint map '{self.name}': source joints {dup} are used twice"
+            )
+
+    def source_indices(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
+        """``(24,)`` source joint index per SMPL joint, -1 where unmapped."""
+        return np.array(
+            [names.index(self.mapping[n]) if n in self.mapping else -1 for n in JOINT_NAMES]
+        )
+
+
+SMPL_JOINT_MAP = JointMap(
+    "smpl", {n: n for n in JOINT_NAMES}, "SMPL's own joint names (mrlib's BVH export)"
+)
+
+
+def joint_map_from_json(path: Path) -> JointMap:
+    """A map from ``{"name", "description", "map": {smpl: source}}`` or a flat
+    ``{smpl: source}`` JSON object."""
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as e:
+        raise JointMapError(path, f"cannot read joint map: {e}") from None
+    if isinstance(data, dict) and isinstance(data.get("map"), dict):
+        return JointMap(
+            str(data.get("name", Path(path).stem)),
+            dict(data["map"]),
+            str(data.get("description", "")),
+        )
+    if isinstance(data, dict) and all(isinstance(v, str) for v in data.values()):
+        return JointMap(Path(path).stem, dict(data))
+    raise JointMapError(
+        path, 'expected {"map": {smpl_name: bvh_name, ...}} or a flat {smpl_name: bvh_name} object'
+    )
+
+
+@lru_cache(maxsize=1)
+def shipped_joint_maps() -> dict[str, JointMap]:
+    """The joint maps in ``mrlib/io/joint_maps/``, by name."""
+    maps = {}
+    for p in sorted(JOINT_MAP_DIR.glob("*.json")):
+        m = joint_map_from_json(p)
+        maps[m.name] = m
+    return maps
+
+
+def load_joint_map(spec: str | Path | Mapping[str, str] | JointMap) -> JointMap:
+    """A ``JointMap`` from a shipped map's name, a JSON file or a ``{smpl: bvh}`` dict."""
+    if isinstance(spec, JointMap):
+        return spec
+    if isinstance(spec, Mapping):
+        return JointMap("custom", dict(spec))
+    if str(spec) == "smpl":
+        return SMPL_JOINT_MAP
+    shipped = shipped_joint_maps()
+    if str(spec) in shipped:
+        return shipped[str(spec)]
+    if Path(spec).suffix.lower() == ".json" or Path(spec).exists():
+        return joint_map_from_json(Path(spec))
+    raise JointMapError(
+        None,
+        f"unknown joint map '{spec}'; shipped maps: {sorted(shipped)}, or pass a JSON path "
+        "or a dict",
+    )
+
+
+def detect_joint_map(
+    names: tuple[str, ...] | list[str], *, source: str | Path | None = None
+) -> JointMap:
+    """The map whose source joints all exist in ``names``: SMPL's own names first, then
+    the shipped map covering the most SMPL joints.
+
+    Raises:
+        JointMapError: no map fits; lists the unmapped joints of the closest map.
+    """
+    if set(JOINT_NAMES) <= set(names):
+        return SMPL_JOINT_MAP
+    best = None
+    for m in shipped_joint_maps().values():
+        missing = [s for s in m.mapping.values() if s not in names]
+        if not missing and (best is None or len(m.mapping) > len(best.mapping)):
+            best = m
+    if best is not None:
+        return best
+    closest = min(
+        shipped_joint_maps().values(), key=lambda m: sum(s not in names for s in m.mapping.values())
+    )
+    missing = {k: v for k, v in closest.mapping.items() if v not in names}
+    raise JointMapError(
+        source,
+        f"no joint map fits this skeleton. Closest shipped map '{closest.name}' leaves SMPL "
+        f"joints {sorted(missing)} unmapped (BVH lacks {sorted(missing.values())}). BVH "
+        f"joints: {list(names)}. Pass joint_map={{smpl_name: bvh_name, ...}}.",
+    )
+
+
+def validate_map(
+    jmap: JointMap, names: tuple[str, ...], parents: tuple[int, ...], source
+) -> np.ndarray:
+    """Source index per SMPL joint after checking that the names exist and that the map
+    preserves ancestry (a mapped SMPL ancestor maps to a source ancestor)."""
+    missing = {k: v for k, v in jmap.mapping.items() if v not in names}
+    if missing:
+        raise JointMapError(
+            source,
+            f"joint map '{jmap.name}': BVH has no joints {sorted(missing.values())} (for SMPL "
+            f"{sorted(missing)}); BVH joints: {list(names)}",
+        )
+    src = jmap.source_indices(names)
+
+    def ancestors(i: int) -> set[int]:
+        out = set()
+        while parents[i] >= 0:
+            i = parents[i]
+            out.add(i)
+        return out
+
+    for j in range(1, NUM_JOINTS):
+        if src[j] < 0:
+            continue
+        a = mapped_ancestor(j, src)
+        if src[a] not in ancestors(src[j]):
+            raise JointMapError(
+                source,
+                f"joint map '{jmap.name}': SMPL {JOINT_NAMES[j]} -> {names[src[j]]} but its SMPL "
+                f"ancestor {JOINT_NAMES[a]} -> {names[src[a]]}, which is not an ancestor of "
+                f"{names[src[j]]} in the BVH",
+            )
+    return src
+
+
+def mapped_ancestor(j: int, src: np.ndarray) -> int:
+    """Nearest mapped SMPL ancestor of ``j`` (``src (24,)``: source index or -1)."""
+    a = PARENTS[j]
+    while a >= 0 and src[a] < 0:
+        a = PARENTS[a]
+    return a
+
+
+def mapped_targets(j: int, src: np.ndarray) -> list[int]:
+    """Nearest mapped SMPL descendants of ``j`` (through unmapped joints)."""
+    out: list[int] = []
+    stack = [k for k in range(NUM_JOINTS) if PARENTS[k] == j]
+    while stack:
+        k = stack.pop()
+        if src[k] >= 0:
+            out.append(k)
+        else:
+            stack += [c for c in range(NUM_JOINTS) if PARENTS[c] == k]
+    return sorted(out)
