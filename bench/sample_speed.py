@@ -1,13 +1,15 @@
 """Time to generate one-minute motions, raw and with the foot-contact clean-up.
 
-Networks of the ``tutorial`` preset (its weights barely trained: speed does not depend
-on them) on the four synthetic clips of ``data_samples/`` at 30 fps, so a one-minute
-sample has 1800 frames. Prints the time per call for 1, 8 and 64 samples in one batch,
-raw, and the clean-up of a one-minute synthetic walk (contacts labelled from its own
-motion) with the analytic IK (``method="ik"``, the default) against the per-frame
-optimisation it replaces (``method="optimise"``), as a ratio measured in the same run:
+The demo's model: ``demo`` networks (the ``tutorial`` ones; weights barely trained, speed
+does not depend on them) on the four synthetic clips of ``data_samples/`` at the demo's
+15 fps, so a one-minute sample has 900 frames (``--fps 30`` for 1800). For 1, 8 and 64
+samples in one batch, and for 1 and 2 torch threads, it prints the time per call of
+``mrlib.sample.generate`` next to the sampler it replaced (samples packed end to end and
+run through the training path with per-frame FiLM, each converted alone with roma), as
+ratios measured in the same run; then the clean-up of a one-minute walk with the analytic
+IK (the default) against the per-frame optimisation:
 
-    python bench/sample_speed.py [--threads 1] [--repeats 3] [--checkpoint ckpt.pt]
+    python bench/sample_speed.py [--fps 15] [--threads 1,2] [--repeats 3] [--checkpoint ckpt.pt]
 
 Writes ``bench/results/sample_speed.json``.
 """
@@ -34,9 +36,57 @@ def _best(fn, repeats: int) -> float:
     return min(times)
 
 
+def _packed_generate(model, label: str, length: int, seed: int, num_samples: int):
+    """The sampler before the batched path: every sample packed end to end and run through
+    the generator's training path (gathers for padding and upsampling, FiLM per frame),
+    then converted sample by sample with roma's rotation-matrix-to-rotvec."""
+    import numpy as np
+    import roma
+    import torch
+
+    from mrlib.features import root_velocity_to_trans, split_features
+    from mrlib.motion import Motion
+    from mrlib.pyramid import PackedLevels, pyramid_lengths
+    from mrlib.rotations import sixd_to_matrix
+    from mrlib.sample import label_weights
+
+    L = model.num_levels
+    W = label_weights(model, label)
+    pad = (model.config.model.kernel_size - 1) // 2
+    lengths = pyramid_lengths(length, L, model.config.model.scale_factor, min_length=pad + 1)
+    amp = (W * model.sigma.float().T).sum(1)
+    layout = PackedLevels.from_table(
+        torch.tensor(lengths).expand(num_samples, L), 2 * pad, model.device
+    )
+    z = [torch.empty(num_samples, 1, n) for n in lengths]
+    for b in range(num_samples):
+        state = np.random.SeedSequence([seed, b]).generate_state(2, np.uint32)
+        g = torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
+        for i in range(L):
+            z[i][b, 0] = torch.randn(lengths[i], generator=g)
+    noises = [layout.pack(list(z[i] * amp[i]), i) for i in range(L)]
+    conds = [
+        layout.pack([W[i][:, None].expand(-1, n)] * num_samples, i).transpose(1, 2)
+        for i, n in enumerate(lengths)
+    ]
+    with torch.no_grad():
+        out = model.generator.run(layout, noises, conds)
+    motions = []
+    for x in layout.unpack(out, L - 1):
+        f = model.normalizer.denormalize(x.T).double()
+        rot, root, c = split_features(f)
+        poses = roma.rotmat_to_rotvec(sixd_to_matrix(rot))
+        trans = root_velocity_to_trans(root, model.fps)
+        motions.append(
+            Motion(poses.numpy(), trans.numpy(), model.fps, contacts=(c > 0.5).float().numpy())
+        )
+    return motions
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--fps", type=float, default=15.0, help="the model's frame rate [15]")
+    ap.add_argument("--threads", default="1,2", help="torch thread counts [1,2]")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--checkpoint", type=Path, default=None, help="a trained model [train one]")
     args = ap.parse_args(argv)
@@ -45,56 +95,62 @@ def main(argv: list[str] | None = None) -> int:
 
     import mrlib
     import mrlib.synthetic
-    from mrlib.config import tutorial
+    from mrlib.config import demo
     from mrlib.data import TrainingSet
     from mrlib.demo import DATA_SAMPLES
     from mrlib.sample import cleanup_foot_contacts, generate, load_model
     from mrlib.train import train
 
-    torch.set_num_threads(args.threads)
     body = mrlib.load_body_model()
     with tempfile.TemporaryDirectory() as tmp:
         ckpt = args.checkpoint
         if ckpt is None:
-            clips = [mrlib.load_motion(p) for p in sorted(DATA_SAMPLES.glob("*.npz"))]
-            cfg = tutorial().replace(block_iterations=(2, 2, 2, 2), checkpoint_every=0)
+            clips = [mrlib.load_motion(p, fps=args.fps) for p in sorted(DATA_SAMPLES.glob("*.npz"))]
+            cfg = demo().replace(block_iterations=(2, 2, 2, 2))
             ckpt = train(
                 TrainingSet.from_motions(clips, body=body), cfg, tmp, body=body, progress=False
             ).checkpoint
         model = load_model(ckpt)
     T = round(60 * model.fps)
     label = model.labels[0]
-    rows = {}
-    generate(model, label, length=T, seed=0)  # warm-up
-    for n in (1, 8, 64):
-        rows[f"generate {n} x 1 min (raw), s per call"] = _best(
-            lambda n=n: generate(model, label, length=T, seed=0, num_samples=n), args.repeats
-        )
-    # a one-minute walk with contacts labelled from its own motion (a barely trained
-    # model predicts few contacts, which would leave the clean-up nothing to do)
+    threads = [int(t) for t in args.threads.split(",")]
+    rows, result = [], {"frames": T, "fps": model.fps, "machine": platform.machine()}
+    for th in threads:
+        torch.set_num_threads(th)
+        for n in (1, 8, 64):
+            reps = args.repeats if n < 64 else max(1, args.repeats - 1)
+            new = _best(lambda n=n: generate(model, label, length=T, seed=0, num_samples=n), reps)
+            old = _best(lambda n=n: _packed_generate(model, label, T, 0, n), reps)
+            rows.append((f"generate {n} x 1 min, {th} thread(s)", new, old))
+            result[f"generate_{n}_threads_{th}_s"] = new
+            result[f"packed_{n}_threads_{th}_s"] = old
+    torch.set_num_threads(threads[-1])
+    # a one-minute walk with contacts labelled from its own motion (a barely trained model
+    # predicts few contacts, which would leave the clean-up nothing to do)
     m = mrlib.synthetic.synthetic_walk("walk_normal", seconds=60.0, fps=model.fps, body=body)
     m = m.replace(contacts=mrlib.foot_contacts(m, body))
     ik = _best(lambda: cleanup_foot_contacts(m, body, method="ik"), args.repeats)
     opt = _best(lambda: cleanup_foot_contacts(m, body, method="optimise"), 1)
-    rows["clean-up of 1 min, analytic IK, s"] = ik
-    rows["clean-up of 1 min, per-frame optimisation, s"] = opt
-    rows["generate 1 x 1 min + IK clean-up, s"] = _best(
-        lambda: generate(model, label, length=T, seed=0, fix_contacts=True), args.repeats
+    both = _best(
+        lambda: generate(model, label, length=T, seed=0, fix_contacts=True, body=body),
+        args.repeats,
     )
+    result.update(cleanup_ik_s=ik, cleanup_optimise_s=opt, generate_and_cleanup_s=both)
+
     print(
-        f"{T} frames at {model.fps:g} fps, {args.threads} torch thread(s), {platform.processor() or platform.machine()}\n"
+        f"one minute = {T} frames at {model.fps:g} fps; {platform.machine()}, "
+        f"{torch.get_num_threads()} threads for the clean-up rows\n"
     )
-    print("| what | seconds |\n|---|---:|")
-    for k, v in rows.items():
-        print(f"| {k} | {v:.3f} |")
-    print(
-        f"\nanalytic IK is {opt / ik:.0f}x faster than the per-frame optimisation (same clip, same run)"
-    )
+    print("| what | s per call | replaced sampler, s | speed-up |\n|---|---:|---:|---:|")
+    for what, new, old in rows:
+        print(f"| {what} | {new:.3f} | {old:.3f} | {old / new:.1f}x |")
+    print(f"| clean-up of 1 min, analytic IK | {ik:.3f} | | |")
+    print(f"| clean-up of 1 min, per-frame optimisation | {opt:.3f} | | |")
+    print(f"| generate 1 x 1 min + IK clean-up | {both:.3f} | | |")
+    print(f"\nanalytic IK is {opt / ik:.0f}x faster than the per-frame optimisation")
     out = ROOT / "bench" / "results"
     out.mkdir(parents=True, exist_ok=True)
-    (out / "sample_speed.json").write_text(
-        json.dumps({"frames": T, "threads": args.threads, **rows}, indent=2)
-    )
+    (out / "sample_speed.json").write_text(json.dumps(result, indent=2))
     return 0
 
 

@@ -38,6 +38,7 @@ __all__ = [
     "channel_joint",
     "motion_to_features",
     "features_to_motion",
+    "features_to_motions",
     "split_features",
     "root_velocity_to_trans",
     "FeatureNormalizer",
@@ -142,30 +143,61 @@ def features_to_motion(
     contacts are thresholded at ``contact_cutoff``; translation is integrated from
     ``origin`` (x0, z0). ``normalizer`` undoes normalisation first when given.
     """
-    x = torch.as_tensor(np.asarray(x) if not isinstance(x, torch.Tensor) else x).detach().cpu()
+    x = torch.as_tensor(np.asarray(x) if not isinstance(x, torch.Tensor) else x)
     if x.ndim != 2 or x.shape[-1] != NUM_FEATURES:
         raise MotionValueError(
             f"features must have shape (T, {NUM_FEATURES}), got {tuple(x.shape)}"
         )
+    names = None if name is None else [name]
+    return features_to_motions(
+        x[None], fps, betas=betas, origin=origin, normalizer=normalizer,
+        contact_cutoff=contact_cutoff, label=label, names=names,
+    )[0]  # fmt: skip
+
+
+def features_to_motions(
+    x: torch.Tensor,
+    fps: float,
+    *,
+    betas: np.ndarray | None = None,
+    origin: tuple[float, float] | np.ndarray | None = None,
+    normalizer: FeatureNormalizer | None = None,
+    contact_cutoff: float = 0.5,
+    label: str | None = None,
+    names: list[str] | None = None,
+) -> list[Motion]:
+    """``(B, T, 153)`` features -> B Motions: :func:`features_to_motion` of every row,
+    computed in one pass (each Motion is the same as converting its row alone)."""
+    x = torch.as_tensor(x).detach().cpu()
+    if x.ndim != 3 or x.shape[-1] != NUM_FEATURES:
+        raise MotionValueError(
+            f"features must have shape (B, T, {NUM_FEATURES}), got {tuple(x.shape)}"
+        )
     if not torch.isfinite(x).all():
         raise MotionValueError("features contain NaN or inf values")
+    if names is not None and len(names) != len(x):
+        raise MotionValueError(f"{len(x)} clips but {len(names)} names")
     if normalizer is not None:
         x = normalizer.denormalize(x)
     x = x.double()
     rot, root, c = split_features(x)
-    poses = sixd_to_axis_angle(rot)  # (T, 24, 3)
+    poses = sixd_to_axis_angle(rot).numpy()  # (B, T, 24, 3)
     o = None if origin is None else torch.as_tensor(np.asarray(origin, np.float64))
-    trans = root_velocity_to_trans(root, fps, o)
+    trans = root_velocity_to_trans(root, fps, o).numpy()  # (B, T, 3)
+    contacts = (c > contact_cutoff).float().numpy()
     kw = {} if betas is None else {"betas": betas}
-    return Motion(
-        poses=poses.numpy(),
-        trans=trans.numpy(),
-        fps=fps,
-        contacts=(c > contact_cutoff).float().numpy(),
-        label=label,
-        name=name,
-        **kw,
-    )
+    return [
+        Motion(
+            poses=poses[b],
+            trans=trans[b],
+            fps=fps,
+            contacts=contacts[b],
+            label=label,
+            name=None if names is None else names[b],
+            **kw,
+        )
+        for b in range(len(x))
+    ]
 
 
 @dataclass

@@ -23,7 +23,7 @@ import torch.nn.functional as F
 
 from mrlib.config import ModelConfig
 from mrlib.features import NUM_FEATURES, channel_joint
-from mrlib.pyramid import PackedLevels
+from mrlib.pyramid import PackedLevels, resample_linear
 from mrlib.skeleton import NUM_JOINTS, PARENTS, graph_distances
 
 __all__ = [
@@ -90,10 +90,14 @@ class SkeletonConv1d(nn.Module):
             self.weight.uniform_(-1, 1).mul_(bound[:, None, None]).mul_(self.mask)
             self.bias.uniform_(-1, 1).mul_(bound)
 
-    def forward(self, x: torch.Tensor, pad_index: torch.Tensor) -> torch.Tensor:
-        """``x (B, C_in, T)``, ``pad_index (B, 1, T + 2p)`` -> ``(B, C_out, T)``."""
-        B, C, _ = x.shape
-        xp = x.gather(2, pad_index.expand(B, C, -1))  # (B, C_in, T + 2p), reflect-padded
+    def forward(self, x: torch.Tensor, pad_index: torch.Tensor | None = None) -> torch.Tensor:
+        """``x (B, C_in, T)``, ``pad_index (B, 1, T + 2p)`` -> ``(B, C_out, T)``. Without
+        ``pad_index`` every row of the batch is one sample, reflect-padded at its ends."""
+        if pad_index is None:
+            xp = F.pad(x, (self.pad, self.pad), mode="reflect")
+        else:
+            B, C, _ = x.shape
+            xp = x.gather(2, pad_index.expand(B, C, -1))  # (B, C_in, T + 2p), reflect-padded
         return F.conv1d(xp, self.weight * self.mask, self.bias)
 
     def extra_repr(self) -> str:
@@ -131,7 +135,7 @@ class ConvStack(nn.Module):
         self.slope = slope
         self.pad = (kernel_size - 1) // 2
 
-    def forward(self, x: torch.Tensor, pad_index: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, pad_index: torch.Tensor | None = None) -> torch.Tensor:
         for k, layer in enumerate(self.layers):
             x = layer(x, pad_index)
             if k < len(self.layers) - 1:
@@ -169,7 +173,8 @@ class FiLM(nn.Module):
         )  # (C, 1)
 
     def params(self, cond: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """``cond (B, T, D)`` -> ``gamma, delta (B, C, T)``."""
+        """``cond (B, T, D)`` -> ``gamma, delta (B, C, T)`` (``T = 1`` for a condition
+        constant over time, broadcast over the frames)."""
         y = self.embed(cond)  # (B, T, E)
         gamma = 1 + self.to_gamma(y).transpose(1, 2) * self.channel_mask
         delta = self.to_delta(y).transpose(1, 2) * self.channel_mask
@@ -198,9 +203,14 @@ class LevelGenerator(nn.Module):
         self.film = FiLM(cond_dim, NUM_FEATURES, config.film_dim, mask)
 
     def forward(
-        self, x_up: torch.Tensor, z: torch.Tensor, cond: torch.Tensor, pad_index: torch.Tensor
+        self,
+        x_up: torch.Tensor,
+        z: torch.Tensor,
+        cond: torch.Tensor,
+        pad_index: torch.Tensor | None = None,
     ) -> torch.Tensor:
-        """``x_up (B, C, T)``, ``z (B, 1|C, T)``, ``cond (B, T, D)`` -> ``(B, C, T)``."""
+        """``x_up (B, C, T)``, ``z (B, 1|C, T)``, ``cond (B, T|1, D)`` -> ``(B, C, T)``;
+        without ``pad_index`` each row of the batch is one sample."""
         return self.body(self.film(x_up + z, cond), pad_index) + x_up
 
 
@@ -341,6 +351,32 @@ class MultiResGenerator(nn.Module):
     ):
         """All levels; see :meth:`run`."""
         return self.run(layout, noises, conds, keep=keep)
+
+    def run_batch(
+        self, noises: list[torch.Tensor], conds: list[torch.Tensor], keep: bool = False
+    ) -> torch.Tensor | list[torch.Tensor]:
+        """All levels for a batch of samples of equal length, one per row: the sampling
+        path. Reflect padding is ``F.pad`` and upsampling ``F.interpolate`` (the linear
+        interpolation :meth:`run` computes with gathers), so a sample matches the packed
+        run to float rounding (~1e-6); a condition constant over time is passed as
+        ``(B, 1, D)`` and its FiLM parameters are computed once per sample.
+
+        Args:
+            noises: per level ``(B, 1|C, T_i)``.
+            conds: per level ``(B, T_i|1, D)``.
+        Returns:
+            ``(B, C, T_L)`` or the list of every level's output.
+        """
+        outs, x = [], None
+        for i, level in enumerate(self.levels):
+            z = noises[i]
+            if i == 0:
+                x_up = z.new_zeros(z.shape[0], NUM_FEATURES, z.shape[-1])
+            else:
+                x_up = resample_linear(x, z.shape[-1])
+            x = level(x_up, z, conds[i])
+            outs.append(x)
+        return outs if keep else x
 
 
 def build_generator(config: ModelConfig, cond_dim: int) -> MultiResGenerator:

@@ -19,7 +19,7 @@ import torch
 from mrlib.checkpoint import load_checkpoint, reading
 from mrlib.config import TrainConfig, config_from_json
 from mrlib.errors import MotionValueError
-from mrlib.features import FeatureNormalizer, features_to_motion
+from mrlib.features import FeatureNormalizer, features_to_motion, features_to_motions
 from mrlib.footik import cleanup_foot_contacts, contact_skating
 from mrlib.models import MultiResGenerator, build_generator
 from mrlib.motion import Motion
@@ -196,9 +196,9 @@ def sample_features(
             f"need {L} lengths and {L} conditions, got {len(lengths)} and {len(conds)}"
         )
     base = int(seed) if seed is not None else int(torch.seed() % 2**63)
+    dev = model.device
     amp = torch.as_tensor(noise_amplitude, dtype=torch.float32)
     amp = amp.expand(num_samples, L) if amp.ndim == 1 else amp
-    layout = _layout(model, torch.tensor(list(lengths)).expand(num_samples, L))
     # Sample b draws its noise from its own stream (seed, b): a sample does not depend on
     # the batch size it was generated in.
     z = [torch.empty(num_samples, 1, n) for n in lengths]
@@ -207,7 +207,7 @@ def sample_features(
         g = torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
         for i in range(L):
             z[i][b, 0] = torch.randn(lengths[i], generator=g)
-    noises = [layout.pack(list(z[i] * amp[:, i, None, None]), i) for i in range(L)]
+    noises = [(z[i] * amp[:, i, None, None]).to(dev) for i in range(L)]  # (B, 1, T_i)
     cs = []
     for i, c in enumerate(conds):
         c = torch.as_tensor(c, dtype=torch.float32)
@@ -216,12 +216,12 @@ def sample_features(
                 f"condition of level {i + 1} must be (B, {lengths[i]}, "
                 f"{model.generator.cond_dim}), got {tuple(c.shape)}"
             )
-        c = c.expand(num_samples, -1, -1)
-        cs.append(layout.pack([cb.T for cb in c], i).transpose(1, 2))  # (1, S_i, D)
-    with torch.no_grad():
-        outs = model.generator.run(layout, noises, cs, keep=True)
-    stacked = [torch.stack(layout.unpack(o, i)) for i, o in enumerate(outs)]  # (B, C, T_i)
-    return stacked if keep else stacked[-1]
+        if c.stride(1) == 0 or bool((c == c[:, :1]).all()):
+            c = c[:, :1]  # constant over time (a label): FiLM once per sample
+        cs.append(c.expand(num_samples, -1, -1).to(dev))  # (B, T_i or 1, D)
+    with torch.inference_mode():
+        outs = model.generator.run_batch(noises, cs, keep=True)  # [(B, C, T_i)]
+    return outs if keep else outs[-1]
 
 
 def _layout(model: GenerativeModel, table: torch.Tensor) -> PackedLevels:
@@ -234,6 +234,16 @@ def _to_motion(
     return features_to_motion(
         x.T, fps, betas=model.betas, normalizer=model.normalizer, label=label, name=name
     )
+
+
+def _to_motions(
+    model: GenerativeModel, x: torch.Tensor, fps: float, label: str | None, names: list[str]
+) -> list[Motion]:
+    """``(B, C, T)`` normalised features -> B Motions in one conversion."""
+    return features_to_motions(
+        x.transpose(1, 2), fps, betas=model.betas, normalizer=model.normalizer,
+        label=label, names=names,
+    )  # fmt: skip
 
 
 def generate(
@@ -289,10 +299,8 @@ def generate(
         if len(set(names)) == 1 and float(W.max(1).values.min()) == 1.0
         else "+".join(dict.fromkeys(names))
     )
-    motions = [
-        _to_motion(model, outs[-1][b], model.fps, label, f"{label}_seed{seed}_{b}")
-        for b in range(num_samples)
-    ]
+    names = [f"{label}_seed{seed}_{b}" for b in range(num_samples)]
+    motions = _to_motions(model, outs[-1], model.fps, label, names)
     if fix_contacts:
         method = fix_contacts if isinstance(fix_contacts, str) else "ik"
         motions = [cleanup_foot_contacts(m, body, method=method) for m in motions]

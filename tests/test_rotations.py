@@ -1,3 +1,4 @@
+import pytest
 import roma
 import torch
 
@@ -48,3 +49,28 @@ def test_gradients_flow_through_6d():
 def test_device_follows_input():
     aa = torch.zeros(2, 3)
     assert axis_angle_to_6d(aa).device == aa.device
+
+
+@pytest.mark.parametrize("dtype, tol", [(torch.float64, 1e-12), (torch.float32, 2e-6)])
+def test_matrix_to_axis_angle_closed_form_agrees_with_roma_everywhere(dtype, tol):
+    """The closed form (angles up to 3 rad) and roma's route (near a half turn) meet."""
+    import roma
+
+    from mrlib.rotations import matrix_to_axis_angle
+
+    g = torch.Generator().manual_seed(0)
+    axis = torch.nn.functional.normalize(torch.randn(6000, 3, generator=g, dtype=dtype), dim=-1)
+    angle = torch.cat(
+        [
+            torch.rand(3000, generator=g, dtype=dtype) * torch.pi,  # anywhere
+            torch.pi - torch.rand(1000, generator=g, dtype=dtype) * 0.3,  # about the switch
+            torch.full((1000,), 3.0, dtype=dtype),  # at it
+            torch.rand(1000, generator=g, dtype=dtype) * 1e-7,  # tiny
+        ]
+    )
+    aa = axis * angle[:, None]
+    R = roma.rotvec_to_rotmat(aa)
+    ours = matrix_to_axis_angle(R)
+    assert (roma.rotvec_to_rotmat(ours) - R).abs().max() < tol
+    assert (ours - roma.rotmat_to_rotvec(R)).abs().max() < tol
+    assert torch.equal(matrix_to_axis_angle(torch.eye(3, dtype=dtype)), torch.zeros(3, dtype=dtype))
