@@ -1,29 +1,33 @@
-"""Foot-contact clean-up: feet that stay put while labelled in contact, by analytic
-two-bone leg IK vectorised over frames (``cleanup_foot_contacts``, the default) or by a
-per-frame optimisation (``method="optimise"``).
+"""Foot-contact clean-up: feet that stay put while labelled in contact, in closed form
+vectorised over frames (``cleanup_foot_contacts``, the default) or by a per-frame
+optimisation (``method="optimise"``).
 
 The paper refines predicted contacts by inverse kinematics (Sec. 3.4), as GANimator
-does, both with a per-frame optimisation. Here the same goal, feet that stay put while
-labelled in contact, is reached in closed form:
+does, both with a per-frame optimisation. Here the same goal is reached in closed form:
 
 1. **Targets.** Every contact vertex (big toe, small toe, heel of each foot) is pinned,
-   over each run of frames labelled in contact, to its mean position over the run
-   (GANimator's target). The ankle moves by the mean correction of its foot's vertices
-   in contact; the foot keeps its global orientation, so it moves rigidly with the
-   ankle and a vertex alone in contact lands on its target.
-2. **Blending.** ``blend`` frames before and after a run, the correction of the run's
-   boundary frame is applied with a smoothstep weight falling from 1 to 0, so the foot
-   eases into and out of its planted position instead of jumping.
-3. **Two-bone IK** (hip - knee - ankle, the classic law-of-cosines solution): the knee
-   angle is set so the hip-ankle distance matches the target's, by rotating thigh and
-   shin in the leg's bending plane, then the thigh swings the ankle onto the target.
-   Bone lengths and the hip (root trajectory and pelvis) are untouched; the ankle keeps
-   its global orientation, so a planted foot keeps its angle to the ground. Targets out
-   of reach are clamped to the leg's length.
+   over each run of frames labelled in contact and on the frame either side of it, to
+   its mean position over the run (GANimator's target), lifted to the clip's floor (the
+   median height of the contact vertices) when the run lies below it.
+2. **Blending.** Over ``blend`` frames before and after a run (``BLEND_S`` seconds by
+   default) the correction of the run's edge frame fades with a smoothstep weight, so
+   the foot eases into and out of its planted position instead of jumping.
+3. **The foot as a rigid body.** Per frame, the rotation and translation of each foot
+   that keep its pinned vertices on their targets (weighted Procrustes, with the foot's
+   other vertices keeping the rotation near its own and off the floor) give the ankle's
+   target and the foot's new orientation: a foot that rolls while two of its vertices
+   are planted turns back so both hold.
+4. **The root first.** The whole body moves by the feet's corrections, weighted by how
+   planted each foot is: a single planted foot is held by the root alone, which changes
+   no joint angle (so the pose metrics, which leave the root out, barely move).
+5. **Two-bone IK** (hip - knee - ankle, law of cosines) for the rest: the knee angle
+   sets the hip-ankle distance, then the thigh swings the ankle onto its target; bone
+   lengths are kept, targets out of reach are clamped to the leg's length.
 
-Everything is numpy over all frames at once (the loops are over joints, legs, contact
-vertices and contact runs, never frames); a one-minute clip takes tens of milliseconds
-(``bench/sample_speed.py``).
+Everything is numpy over all frames at once (the loops are over legs, contact vertices
+and contact runs, never frames); a one-minute clip takes tens of milliseconds. The
+measured effect on skating, penetration, coverage and diversity is in
+``docs/results.md`` (``python bench/demo_budget.py --clean``).
 """
 
 from __future__ import annotations
@@ -39,9 +43,11 @@ from mrlib.skeleton import NUM_JOINTS, PARENTS
 
 __all__ = [
     "LEGS",
+    "BLEND_S",
     "contact_runs",
     "pin_corrections",
     "two_bone_ik",
+    "foot_transform",
     "plant_feet",
     "cleanup_foot_contacts",
     "contact_skating",
@@ -53,6 +59,7 @@ LEGS: tuple[tuple[tuple[int, int, int], tuple[int, int, int]], ...] = (
     ((2, 5, 8), (3, 4, 5)),
 )
 _EPS = 1e-6
+BLEND_S = 2 / 15  # seconds over which a planted foot eases in and out (4 frames at 30 fps)
 
 
 def contact_runs(c: np.ndarray) -> np.ndarray:
@@ -68,9 +75,9 @@ def pin_corrections(
     """How far a contact point must move to stay planted: ``((T, 3), (T,))``.
 
     In every contact run, and on the frame either side of it, the point is pinned to its
-    mean position over the run (at height ``floor`` when given); over the next ``blend``
-    frames the boundary frame's correction fades out with a smoothstep weight. Returns
-    the corrections (weight included) and the weights.
+    mean position over the run (not below height ``floor`` when given); over the next
+    ``blend`` frames the correction of that edge frame fades out with a smoothstep
+    weight. Returns the corrections (weight included) and the weights.
     """
     pos = np.asarray(pos, np.float64)
     T = len(pos)
@@ -83,18 +90,22 @@ def pin_corrections(
         run_of[s : e + 1] = r
     means = np.stack([pos[s : e + 1].mean(0) for s, e in runs])  # (R, 3)
     if floor is not None:
-        means[:, 1] = floor
+        means[:, 1] = np.maximum(means[:, 1], floor)
     inside = run_of >= 0
     # the nearest contact frame before and after every frame
     prev_c = np.maximum.accumulate(np.where(inside, idx, -1))
     next_c = np.minimum.accumulate(np.where(inside, idx, T)[::-1])[::-1]
     d_prev = np.where(prev_c >= 0, idx - prev_c, T + 1)
     d_next = np.where(next_c < T, next_c - idx, T + 1)
-    near = np.clip(np.where(d_prev <= d_next, prev_c, next_c), 0, T - 1)
+    before = d_prev <= d_next
+    near = np.clip(np.where(before, prev_c, next_c), 0, T - 1)
     dist = np.minimum(d_prev, d_next)
-    corr = means[run_of[near]] - pos[near]
-    # full weight on the run and the frame either side of it (so the velocity of the
-    # run's end frames, a central difference, is zero too), then a smoothstep to 0
+    # The run and the frame either side of it sit on the run's mean (so the velocity of
+    # the run's end frames, a central difference, is zero too); further out, the
+    # correction of that edge frame fades with a smoothstep, so the foot eases into and
+    # out of its planted position.
+    edge = np.clip(np.where(dist <= 1, idx, np.where(before, near + 1, near - 1)), 0, T - 1)
+    corr = means[run_of[near]] - pos[edge]
     x = np.clip(1.0 - (dist - 1) / (blend + 1.0), 0.0, 1.0) if blend > 0 else (dist <= 1) * 1.0
     w = x * x * (3 - 2 * x)
     return w[:, None] * corr, w
@@ -168,6 +179,52 @@ def two_bone_ik(
     return Ga1, Gb1
 
 
+def foot_transform(
+    points: np.ndarray,
+    targets: np.ndarray,
+    weights: np.ndarray,
+    prior: float = 1e-3,
+    floor: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per frame, the rigid motion of a foot that brings its pinned points onto their
+    targets: ``x -> R (x - c) + d``.
+
+    ``c`` and ``d`` are the ``weights``-weighted centres of the points and of their
+    targets, so the pinned points land on their targets' mean; ``R`` is the weighted
+    Procrustes (Kabsch) rotation of the points about those centres. Points that are not
+    pinned enter with weight ``prior`` and the target "where the translation takes them"
+    (lifted to ``floor`` when that would put them below it): they keep the rotation near
+    the identity and settle it where the pinned points leave it free (one point, or the
+    turn about the line of two).
+
+    Args:
+        points, targets: ``(T, K, 3)``; weights: ``(T, K)`` in [0, 1].
+    Returns:
+        ``R (T, 3, 3)``, ``c (T, 3)``, ``d (T, 3)`` (``R = I``, ``c = d = 0`` on frames
+        without a pinned point).
+    """
+    P, w = np.asarray(points, np.float64), np.asarray(weights, np.float64)
+    sw = w.sum(1, keepdims=True)  # (T, 1)
+    pinned = sw[:, 0] > 1e-9
+    c = (w[..., None] * P).sum(1) / np.maximum(sw, 1e-12)
+    d = (w[..., None] * np.asarray(targets)).sum(1) / np.maximum(sw, 1e-12)
+    free = P + (d - c)[:, None]  # unpinned points follow the translation
+    if floor is not None:
+        free[..., 1] = np.maximum(free[..., 1], floor)
+    Q = np.where(w[..., None] > 1e-9, targets, free)
+    a = w + prior  # (T, K)
+    ca = (a[..., None] * P).sum(1) / a.sum(1, keepdims=True)
+    qa = (a[..., None] * Q).sum(1) / a.sum(1, keepdims=True)
+    H = np.einsum("tk,tki,tkj->tij", a, P - ca[:, None], Q - qa[:, None])  # sum a p q^T
+    U, _, Vt = np.linalg.svd(H)
+    V, Ut = np.swapaxes(Vt, -1, -2), np.swapaxes(U, -1, -2)
+    D = np.broadcast_to(np.eye(3), H.shape).copy()
+    D[:, 2, 2] = np.where(np.linalg.det(V @ Ut) < 0, -1.0, 1.0)
+    R = V @ D @ Ut  # (T, 3, 3): R (p - ca) ~ q - qa
+    R = np.where(pinned[:, None, None], R, np.eye(3))
+    return R, np.where(pinned[:, None], c, 0.0), np.where(pinned[:, None], d, 0.0)
+
+
 def _global_rotations(R: np.ndarray) -> np.ndarray:
     G = np.empty_like(R)
     for j in range(NUM_JOINTS):  # joints, vectorised over frames
@@ -182,13 +239,22 @@ def plant_feet(
     feet: np.ndarray,
     contacts: np.ndarray,
     blend: int = 4,
-) -> tuple[np.ndarray, dict[str, int]]:
-    """Local rotations ``(T, 24, 3, 3)`` with the contact vertices planted.
+    *,
+    rotate_foot: bool = True,
+    move_root: bool = True,
+) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
+    """Local rotations ``(T, 24, 3, 3)`` and a root offset ``(T, 3)`` that plant the
+    contact vertices.
 
-    Every contact vertex is pinned over each of its contact runs
-    (:func:`pin_corrections`); the ankle moves by the weighted mean correction of its
-    foot's vertices, and since IK keeps the ankle's global orientation the whole foot
-    moves with it, so a vertex alone in contact lands exactly on its target.
+    1. Every contact vertex is pinned over each of its contact runs
+       (:func:`pin_corrections`); per foot and frame, the rigid motion that keeps its
+       pinned vertices on their targets (:func:`foot_transform`) gives the ankle's target
+       and, with ``rotate_foot``, the foot's new orientation (else the foot keeps its
+       angle and the ankle moves by the mean correction).
+    2. With ``move_root`` the whole body first moves by the feet's corrections, weighted
+       by how pinned each foot is: a single planted foot is then held by the root alone,
+       which changes no joint angle.
+    3. Two-bone leg IK takes each ankle the rest of the way.
 
     Args:
         R: ``(T, 24, 3, 3)`` local rotations (``R[:, 0]`` the global orientation).
@@ -197,7 +263,8 @@ def plant_feet(
         contacts: ``(T, 6)`` contact labels (> 0.5 is contact).
         blend: frames over which a correction eases in before and out after a run.
     Returns:
-        The new rotations and ``{"runs": number of vertex contact runs planted}``.
+        The new rotations, the root offset (add it to the translation), and
+        ``{"runs": number of vertex contact runs planted}``.
     """
     R = np.asarray(R, np.float64)
     J = np.asarray(joints, np.float64)
@@ -215,31 +282,49 @@ def plant_feet(
     runs = 0
     # one floor for the clip: the median height of the vertices while in contact
     floor = float(np.median(F[..., 1][c])) if c.any() else None
+    # 1. per foot: how pinned it is, its ankle target and orientation
+    plans = []
     for (hip, knee, ankle), chans in LEGS:
-        corr = np.zeros((T, 3))
-        weight = np.zeros(T)
-        for v in chans:
+        corr = np.zeros((T, len(chans), 3))
+        weight = np.zeros((T, len(chans)))
+        for k, v in enumerate(chans):
             runs += len(contact_runs(c[:, v]))
-            cv, wv = pin_corrections(F[:, v], c[:, v], blend, floor)
-            corr += cv
-            weight += wv
-        moved = weight > 1e-9
+            corr[:, k], weight[:, k] = pin_corrections(F[:, v], c[:, v], blend, floor)
+        pinned = weight.max(1)  # (T,)
+        if rotate_foot:
+            pts = F[:, chans]
+            Rf, cf, df = foot_transform(pts, pts + corr, weight, floor=floor)
+            target = (Rf @ (J[:, ankle] - cf)[..., None])[..., 0] + df
+            foot_G = Rf @ G[:, ankle]
+        else:
+            w = weight.sum(1)
+            target = J[:, ankle] + corr.sum(1) / np.maximum(w, 1.0)[:, None]
+            foot_G = G[:, ankle]
+        moved = pinned > 1e-9
+        target = np.where(moved[:, None], target, J[:, ankle])
+        plans.append((hip, knee, ankle, moved, pinned, target, foot_G))
+    # 2. the root takes the feet's common correction
+    offset = np.zeros((T, 3))
+    if move_root:
+        total = sum(p[4] for p in plans)  # (T,)
+        moves = sum(p[4][:, None] * (p[5] - J[:, p[2]]) for p in plans)
+        offset = moves / np.maximum(total, 1.0)[:, None]
+    # 3. leg IK for what is left
+    for hip, knee, ankle, moved, _, target, foot_G in plans:
         if not moved.any():
             continue
-        # the weighted mean correction of the foot's vertices, faded in as they are
-        target = J[:, ankle] + corr / np.maximum(weight, 1.0)[:, None]
-        foot_G = G[:, ankle]
         Ga, Gb = G[:, hip], G[:, knee]
         Ga1, Gb1 = two_bone_ik(
-            J[:, hip], J[:, knee], J[:, ankle], target, Ga, Gb, bend_axis=Gb[:, :, 0]
+            J[:, hip], J[:, knee], J[:, ankle], target - offset, Ga, Gb, bend_axis=Gb[:, :, 0]
         )
         Ga1 = np.where(moved[:, None, None], Ga1, Ga)
         Gb1 = np.where(moved[:, None, None], Gb1, Gb)
+        foot_G = np.where(moved[:, None, None], foot_G, G[:, ankle])
         Gp = G[:, PARENTS[hip]]
         out[:, hip] = np.swapaxes(Gp, -1, -2) @ Ga1
         out[:, knee] = np.swapaxes(Ga1, -1, -2) @ Gb1
-        out[:, ankle] = np.swapaxes(Gb1, -1, -2) @ foot_G  # the foot keeps its angle
-    return out, {"runs": int(runs)}
+        out[:, ankle] = np.swapaxes(Gb1, -1, -2) @ foot_G
+    return out, offset, {"runs": int(runs)}
 
 
 # -- clean-up of a Motion ------------------------------------------------------------------
@@ -261,21 +346,29 @@ def contact_skating(motion: Motion, body=None) -> float:
     return float(v[both].mean()) if both.any() else 0.0
 
 
-def _cleanup_ik(motion: Motion, body, blend: int, passes: int = 2) -> Motion:
+def _cleanup_ik(
+    motion: Motion, body, blend: int, passes: int = 2, move_root: bool = True
+) -> Motion:
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
     body = resolve_body(body)
     R, trans, betas = body.motion_inputs(motion)
     ids = list(body.foot_vertex_ids)
-    Rn = R.double().numpy()
-    for _ in range(passes):  # each pass re-poses the feet; the targets stay the same
+    Rn, tn = R.double().numpy(), trans.double().numpy()
+    for _ in range(passes):  # each pass re-poses the feet on the planted ones' means
         with torch.no_grad():
-            out = body.forward(torch.from_numpy(Rn).float(), trans, betas, vertex_ids=ids)
+            out = body.forward(
+                torch.from_numpy(Rn).float(), torch.from_numpy(tn).float(), betas, vertex_ids=ids
+            )
         J, F = out.joints.double().numpy(), out.vertices.double().numpy()
-        Rn, info = plant_feet(Rn, J, F, motion.contacts, blend)
+        Rn, offset, info = plant_feet(Rn, J, F, motion.contacts, blend, move_root=move_root)
+        tn = tn + offset
     poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
-    meta = dict(motion.meta, contact_cleanup={"method": "ik", "blend": blend, **info})
-    return motion.replace(poses=poses, meta=meta)
+    meta = dict(
+        motion.meta,
+        contact_cleanup={"method": "ik", "blend": blend, "move_root": move_root, **info},
+    )
+    return motion.replace(poses=poses, trans=tn.astype(np.float32), meta=meta)
 
 
 def cleanup_foot_contacts(
@@ -287,13 +380,18 @@ def cleanup_foot_contacts(
     weight_smooth: float = 1.0,
     *,
     method: str = "ik",
-    blend: int = 4,
+    blend: int | None = None,
+    move_root: bool = True,
 ) -> Motion:
     """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
 
-    ``method="ik"`` (default): analytic two-bone leg IK over all frames at once
-    (:mod:`mrlib.footik`): each foot's ankle is pinned to its mean position over every
-    contact run, eased in and out over ``blend`` frames; milliseconds per clip.
+    ``method="ik"`` (default): vectorised over all frames (:func:`plant_feet`): every
+    contact vertex is pinned to its mean position over each contact run, eased in and
+    out over ``blend`` frames (default ``BLEND_S`` seconds); the body's root takes the
+    planted feet's common correction (``move_root``; it changes no joint angle) and
+    analytic two-bone leg IK the rest, the foot turning as a rigid body so that all its
+    planted vertices hold.
+    Milliseconds per clip.
 
     ``method="optimise"``: for every contact vertex and every run of frames labelled in
     contact, the target is the vertex's mean position over the run (as GANimator does);
@@ -301,12 +399,13 @@ def cleanup_foot_contacts(
     with Adam (``iterations``, ``lr``) to reach the targets, with a small penalty on the
     offsets (``weight_reg``) and on their frame-to-frame change (``weight_smooth``).
 
-    Either way the root trajectory is left untouched.
+    It leaves the root trajectory untouched.
     """
     if method not in ("ik", "optimise"):
         raise MotionValueError(f"method must be 'ik' or 'optimise', got {method!r}")
     if method == "ik":
-        return _cleanup_ik(motion, body, blend)
+        frames = max(1, round(BLEND_S * motion.fps)) if blend is None else int(blend)
+        return _cleanup_ik(motion, body, frames, move_root=move_root)
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
     body = resolve_body(body)
