@@ -373,13 +373,19 @@ def test_cmu_style_bvh(tmp_path, body):
     assert load_motion(path, fps=30, body=body).num_frames == 10
 
 
-def test_unmappable_skeleton_lists_the_unmapped_joints(tmp_path):
+def test_renamed_skeleton_is_recognised_and_names_alone_list_the_unmapped_joints(tmp_path):
     text = _cmu_bvh_text(T=2).replace("LeftForeArm", "LeftLowerArm")
     path = tmp_path / "odd.bvh"
     path.write_text(text)
+    # no shipped map fits by names: the shipped maps' report lists what is missing
+    names = parse_bvh(text).skeleton.names
     with pytest.raises(JointMapError, match="left_elbow") as info:
-        load_motion(path)
+        detect_joint_map(names, source=path)
     assert "LeftForeArm" in str(info.value) and str(path) in str(info.value)
+    # but the tree is humanoid: the skeleton is recognised, the renamed joint included
+    m = load_motion(path)
+    assert m.meta["joint_map"] == "recognised" and m.meta["joint_map_confidence"] > 0.9
+    assert m.meta["joint_map_pairs"]["left_elbow"] == "LeftLowerArm"
     # a user map naming a joint the file lacks
     bvh = parse_bvh(_cmu_bvh_text(T=2))
     with pytest.raises(JointMapError, match="BVH has no joints"):

@@ -155,6 +155,21 @@ class _Tokens:
         self.pos += 1
         return tok
 
+    def name(self, what: str) -> tuple[str, int]:
+        """A joint name: every token up to the end of its line or a ``{`` (3ds Max and
+        other tools write names with spaces, ``JOINT Bip01 L Thigh``)."""
+        tok, line = self.next(what)
+        if tok == "{":
+            raise self.error(f"expected {what}, got '{{'", line)
+        parts = [tok]
+        while self.pos < len(self.items) and self.items[self.pos][1] == line:
+            nxt = self.items[self.pos][0]
+            if nxt == "{":
+                break
+            parts.append(nxt)
+            self.pos += 1
+        return " ".join(parts), line
+
     def expect(self, word: str) -> int:
         tok, line = self.next(f"'{word}'")
         if tok.upper() != word.upper():
@@ -211,7 +226,7 @@ def _parse_joint(tk: _Tokens, name: str, parent: int, out: dict, depth: int = 0)
         if up == "}":
             return
         if up == "JOINT":
-            child, _ = tk.next("a joint name")
+            child, _ = tk.name("a joint name")
             if child in out["names"]:
                 raise tk.error(f"duplicate joint name '{child}'", line)
             _parse_joint(tk, child, index, out, depth + 1)
@@ -298,7 +313,7 @@ def parse_bvh(text: str, *, source: str | Path = "<string>") -> BVH:
     tok, line = tk.next("'ROOT'")
     if tok.upper() != "ROOT":
         raise tk.error(f"expected 'ROOT', got '{tok}'", line)
-    root, _ = tk.next("the root joint's name")
+    root, _ = tk.name("the root joint's name")
     out: dict = {"names": [], "parents": [], "offsets": [], "channels": [], "end_sites": []}
     _parse_joint(tk, root, -1, out)
     if tk.peek() is not None:

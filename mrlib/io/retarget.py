@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from mrlib.body import fit_betas as betas_of_length  # retarget_bvh has a fit_betas flag
-from mrlib.errors import MotionFileError
+from mrlib.errors import JointMapError, MotionFileError
 from mrlib.io.bodyfit import (  # noqa: F401  (part of this module's API before they moved)
     default_body,
     fit_shape_scale,
@@ -74,6 +74,7 @@ from mrlib.io.jointmap import (  # noqa: F401  (part of this module's API before
     shipped_joint_maps,
     validate_map,
 )
+from mrlib.io.recognize import SkeletonMatch, recognise_bvh
 from mrlib.rotations import (
     axis_rotation,
     kabsch_rotation,
@@ -182,6 +183,8 @@ class RetargetResult:
             pelvis frame, metres: ``trans = s P'_hips + G_pelvis delta - J_pelvis``.
         error_mean_cm, error_max_cm: joint position error over frames and mapped joints.
         joint_error_cm: ``(24,)`` mean error per SMPL joint, NaN where unmapped.
+        recognition: how the map was found when no shipped map fitted
+            (``mrlib.io.recognize``), else None.
     """
 
     poses: np.ndarray
@@ -196,6 +199,7 @@ class RetargetResult:
     error_mean_cm: float
     error_max_cm: float
     joint_error_cm: np.ndarray = field(repr=False)
+    recognition: SkeletonMatch | None = field(default=None, repr=False)
 
     def meta(self) -> dict[str, Any]:
         """JSON-friendly summary for ``Motion.meta``."""
@@ -204,8 +208,13 @@ class RetargetResult:
             for j, e in enumerate(self.joint_error_cm)
             if np.isfinite(e)
         }
+        extra = {}
+        if self.recognition is not None:
+            extra["joint_map_confidence"] = round(self.recognition.confidence, 3)
+            extra["joint_map_report"] = self.recognition.report()
         return {
             "joint_map": self.joint_map.name,
+            **extra,
             "joint_map_pairs": dict(self.joint_map.mapping),
             "unit_m": self.unit,
             "up_axis": self.up_axis,
@@ -308,15 +317,63 @@ def _solve_offsets(
     return C_all
 
 
-def _smpl_globals(C: np.ndarray, src: np.ndarray, Rw: np.ndarray) -> np.ndarray:
-    """SMPL global rotations ``(T, 24, 3, 3)``: ``R'_src(j) C_j`` where mapped, the
-    parent's where not (identity local rotation)."""
+# SMPL's torso chain, pelvis to head: an unmapped joint on it takes a share of the turn
+# between its mapped neighbours (a source spine with fewer joints than SMPL's)
+_TORSO_CHAIN = tuple(
+    JOINT_NAMES.index(n) for n in ("pelvis", "spine1", "spine2", "spine3", "neck", "head")
+)
+
+
+def _spread(Ga: np.ndarray, Gb: np.ndarray, n: int) -> list[np.ndarray]:
+    """Global rotations of ``n`` joints between ``Ga`` and ``Gb`` ``(T, 3, 3)`` that share
+    the turn ``Ga^T Gb`` evenly: ``Ga exp(k / (n + 1) log(Ga^T Gb))``, k = 1..n."""
+    rel = matrix_to_axis_angle_numpy(np.swapaxes(Ga, -1, -2) @ Gb)  # (T, 3)
+    angle = np.linalg.norm(rel, axis=-1, keepdims=True)
+    axis = rel / np.maximum(angle, 1e-12)
+    out = []
+    for k in range(1, n + 1):
+        th = angle[:, 0] * k / (n + 1)
+        K = np.zeros(rel.shape[:-1] + (3, 3))
+        K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+        K = K - np.swapaxes(K, -1, -2)
+        s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+        out.append(Ga @ (np.eye(3) + s * K + (1 - c) * K @ K))  # Rodrigues
+    return out
+
+
+def _smpl_globals(
+    C: np.ndarray, src: np.ndarray, Rw: np.ndarray, spread: bool = True
+) -> np.ndarray:
+    """SMPL global rotations ``(T, 24, 3, 3)``: ``R'_src(j) C_j`` where mapped; an unmapped
+    joint of the torso chain between two mapped ones shares the turn between them
+    (``spread``), any other unmapped joint keeps its parent's (identity local rotation)."""
     T = len(Rw)
     G = np.empty((T, NUM_JOINTS, 3, 3))
+    done = np.zeros(NUM_JOINTS, bool)
     for j in range(NUM_JOINTS):
         if src[j] >= 0:
             G[:, j] = Rw[:, src[j]] @ C[j]
-        else:
+            done[j] = True
+    if spread:
+        chain = _TORSO_CHAIN
+        k = 0
+        while k < len(chain):
+            if src[chain[k]] >= 0:
+                k += 1
+                continue
+            first = k
+            while k < len(chain) and src[chain[k]] < 0:
+                k += 1
+            if first == 0 or k == len(chain):
+                continue  # no mapped joint on one side: identity below
+            run = chain[first:k]
+            for j, Gj in zip(
+                run, _spread(G[:, chain[first - 1]], G[:, chain[k]], len(run)), strict=True
+            ):
+                G[:, j] = Gj
+                done[j] = True
+    for j in range(NUM_JOINTS):
+        if not done[j]:
             G[:, j] = np.eye(3) if PARENTS[j] < 0 else G[:, PARENTS[j]]
     return G
 
@@ -369,14 +426,18 @@ def retarget_bvh(
     sk = bvh.skeleton
     if bvh.num_frames == 0:
         raise MotionFileError(bvh.source, "the BVH has no frames")
-    jmap = (
-        detect_joint_map(sk.names, source=bvh.source)
-        if joint_map is None
-        else load_joint_map(joint_map)
-    )
-    src = validate_map(jmap, sk.names, sk.parents, bvh.source)
     body = default_body() if body is None else body
     J_tmpl, D = joint_shape_basis(body)
+    recognition = None
+    if joint_map is not None:
+        jmap = load_joint_map(joint_map)
+    else:
+        try:
+            jmap = detect_joint_map(sk.names, source=bvh.source)
+        except JointMapError:
+            recognition = recognise_bvh(bvh, J_tmpl)
+            jmap = recognition.joint_map
+    src = validate_map(jmap, sk.names, sk.parents, bvh.source)
     mapped = np.flatnonzero(src >= 0)
 
     # 1. source forward kinematics (file units, file axes)
@@ -508,6 +569,7 @@ def retarget_bvh(
         error_mean_cm=float(err.mean()),
         error_max_cm=float(err.max()),
         joint_error_cm=joint_err,
+        recognition=recognition,
     )
 
 

@@ -1,0 +1,207 @@
+"""Skeleton recognition (mrlib.io.recognize) and retargeting of BVH files in the conventions
+users bring, written here by mrlib itself (tests/rigs.py): Bandai Namco 1 and 2, CMU in
+both common conversions, Mixamo, LaFAN1, 3ds Max Biped and a generic game rig."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rigs
+
+import mrlib
+from mrlib.errors import JointMapError
+from mrlib.io import default_data_dir, load_motion
+from mrlib.io.bvh import write_bvh
+from mrlib.io.recognize import name_parts
+from mrlib.io.retarget import UNITS
+from mrlib.skeleton import JOINT_NAMES
+from mrlib.synthetic import synthetic_walk
+
+BANDAI = default_data_dir() / "data"
+needs_data = pytest.mark.skipif(not BANDAI.is_dir(), reason="Bandai Namco data not found")
+
+# which map each convention ends up with, and a few joints it must get right
+EXPECTED = {
+    "bandai_namco_1": ("bandai_namco", {"left_elbow": "LowerArm_L", "right_foot": "Toes_R"}),
+    "bandai_namco_2": ("bandai_namco", {"left_elbow": "LowerArm_L", "right_foot": "Toes_R"}),
+    "cmu": ("cmu", {"left_elbow": "LeftForeArm", "left_collar": "LeftShoulder"}),
+    "cmu_daz": (
+        "recognised",
+        {
+            "left_collar": "LeftCollar",
+            "left_shoulder": "LeftShoulder",
+            "left_elbow": "LeftElbow",
+            "right_wrist": "RightWrist",
+            "left_hip": "LeftHip",
+            "right_knee": "RightKnee",
+            "left_foot": "LeftToe",
+            "head": "Head",
+        },
+    ),
+    "mixamo": (
+        "recognised",
+        {
+            "pelvis": "mixamorig:Hips",
+            "spine1": "mixamorig:Spine",
+            "spine3": "mixamorig:Spine2",
+            "head": "mixamorig:Head",
+            "left_hand": "mixamorig:LeftHandMiddle1",
+            "right_foot": "mixamorig:RightToeBase",
+        },
+    ),
+    "lafan1": ("recognised", {"left_shoulder": "LeftArm", "right_ankle": "RightFoot"}),
+    "biped": (
+        "recognised",
+        {
+            "left_collar": "Bip01 L Clavicle",
+            "left_elbow": "Bip01 L Forearm",
+            "right_hip": "Bip01 R Thigh",
+            "neck": "Bip01 Neck",
+            "left_hand": "Bip01 L Finger2",
+        },
+    ),
+    "generic": (
+        "recognised",
+        {"left_elbow": "LeftLowerArm", "right_knee": "RightLowerLeg", "spine3": "Chest"},
+    ),
+}
+
+
+@pytest.fixture(scope="module")
+def walk(default_body):
+    return synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=default_body)
+
+
+def _errors(m) -> tuple[float, float]:
+    per_joint = m.meta["retarget_joint_error_cm"]
+    return m.meta["retarget_error_mean_cm"], max(per_joint.values())
+
+
+@pytest.mark.parametrize("convention", list(rigs.RIGS))
+def test_every_convention_loads_without_a_map(convention, walk, default_body, tmp_path):
+    rig = rigs.RIGS[convention]
+    path = write_bvh(tmp_path / f"{convention}.bvh", rigs.write_rig(walk, rig, default_body))
+    m = load_motion(path, body=default_body)
+    map_name, pairs = EXPECTED[convention]
+    assert m.meta["joint_map"] == map_name
+    for smpl, src in pairs.items():
+        assert m.meta["joint_map_pairs"][smpl] == src, smpl
+    if map_name == "recognised":
+        assert m.meta["joint_map_confidence"] >= 0.9
+    mean, worst = _errors(m)
+    assert mean < 3.0 and worst < 6.0, (mean, worst)
+    assert m.meta["unit_m"] == pytest.approx(UNITS[rig.unit]) and m.meta["up_axis"] == rig.up
+    assert m.num_frames == walk.num_frames and m.fps == pytest.approx(walk.fps)
+    # the motion comes back: the root travels as the source's does
+    travel = np.linalg.norm(m.trans[-1, [0, 2]] - m.trans[0, [0, 2]])
+    src_travel = np.linalg.norm(walk.trans[-1, [0, 2]] - walk.trans[0, [0, 2]])
+    assert travel == pytest.approx(src_travel, rel=0.05)
+
+
+@needs_data
+@pytest.mark.parametrize("clip", ["walk_happy_001", "bow_proud_001"])
+def test_real_motion_on_every_convention(clip, default_body, tmp_path):
+    source = load_motion(BANDAI / f"dataset-1_{clip}.bvh", body=default_body)
+    for name, rig in rigs.RIGS.items():
+        path = write_bvh(tmp_path / f"{name}.bvh", rigs.write_rig(source, rig, default_body))
+        mean, worst = _errors(load_motion(path, body=default_body))
+        assert mean < 3.0 and worst < 6.0, (name, mean, worst)
+
+
+def test_names_mean_nothing_the_tree_and_the_pose_suffice(walk, default_body, tmp_path):
+    rig = rigs.RIGS["mixamo"]
+    anon = {row[0]: f"j{k:02d}" for k, row in enumerate(rig.joints)}
+    rows = tuple((anon[n], None if p is None else anon[p], a) for n, p, a in rig.joints)
+    bvh = rigs.write_rig(walk, rigs.Rig("anonymous", rows), default_body)
+    m = load_motion(write_bvh(tmp_path / "anon.bvh", bvh), body=default_body)
+    assert m.meta["joint_map"] == "recognised" and 0.6 <= m.meta["joint_map_confidence"] < 0.9
+    # sides from the pose alone: the left elbow is the left elbow
+    assert m.meta["joint_map_pairs"]["left_elbow"] == anon["mixamorig:LeftForeArm"]
+    assert m.meta["joint_map_pairs"]["right_knee"] == anon["mixamorig:RightLeg"]
+    mean, worst = _errors(m)
+    assert mean < 3.0 and worst < 6.0
+
+
+def test_a_non_humanoid_tree_is_refused_clearly(default_body, tmp_path):
+    walk = synthetic_walk("walk_normal", seconds=1.0, fps=30.0, body=default_body)
+    path = write_bvh(tmp_path / "dog.bvh", rigs.write_rig(walk, rigs.QUADRUPED, default_body))
+    with pytest.raises(JointMapError, match="humanoid") as info:
+        load_motion(path, body=default_body)
+    assert str(path) in str(info.value) and "joint_map=" in str(info.value)
+    # a plain chain has no pelvis at all
+    chain = rigs.Rig(
+        "chain",
+        (("a", None, "pelvis"), ("b", "a", "spine1"), ("c", "b", "spine2"), ("d", "c", "spine3")),
+    )
+    path = write_bvh(tmp_path / "chain.bvh", rigs.write_rig(walk, chain, default_body))
+    with pytest.raises(JointMapError, match="two legs and a spine"):
+        load_motion(path, body=default_body)
+
+
+def test_a_spine_shorter_than_smpls_shares_its_bend(walk, default_body, tmp_path):
+    """The generic rig has two spine joints for SMPL's three: the unmapped one takes half
+    the turn between its neighbours instead of staying straight."""
+    path = write_bvh(tmp_path / "g.bvh", rigs.write_rig(walk, rigs.RIGS["generic"], default_body))
+    m = load_motion(path, body=default_body)
+    assert "spine2" not in m.meta["joint_map_pairs"]
+    s2 = JOINT_NAMES.index("spine2")
+    s3 = JOINT_NAMES.index("spine3")
+    a2 = np.linalg.norm(m.poses[:, s2], axis=-1)
+    a3 = np.linalg.norm(m.poses[:, s3], axis=-1)
+    assert a2.mean() > 0.01 and np.allclose(a2, a3, atol=1e-6)  # an even split
+
+
+@pytest.mark.parametrize(
+    "name, side, core",
+    [
+        ("mixamorig:LeftUpLeg", "left", "upleg"),
+        ("Bip01 L Thigh", "left", "thigh"),
+        ("UpperArm_R", "right", "upperarm"),
+        ("lhand", "left", "hand"),
+        ("RThumb", "right", "thumb"),
+        ("LHipJoint", "left", "hipjoint"),
+        ("Spine1", None, "spine"),
+        ("hand.L", "left", "hand"),
+        ("DEF-forearm_r", "right", "forearm"),
+        ("Hips", None, "hips"),
+    ],
+)
+def test_name_parts(name, side, core):
+    assert name_parts(name) == (side, core)
+
+
+def test_recognition_is_reported(walk, default_body, tmp_path):
+    from mrlib.io import read_bvh
+    from mrlib.io.retarget import retarget_bvh
+
+    path = write_bvh(tmp_path / "m.bvh", rigs.write_rig(walk, rigs.RIGS["lafan1"], default_body))
+    r = retarget_bvh(read_bvh(path), body=default_body)
+    text = r.recognition.report()
+    assert "confidence" in text and "[x] legs: upper / lower bone" in text
+    assert mrlib.load_motion(path).meta["joint_map_confidence"] == pytest.approx(
+        r.recognition.confidence, abs=1e-3
+    )
+
+
+def test_info_prints_the_map_and_writes_it_for_editing(walk, default_body, tmp_path, capsys):
+    from mrlib.cli import main
+
+    path = write_bvh(tmp_path / "daz.bvh", rigs.write_rig(walk, rigs.RIGS["cmu_daz"], default_body))
+    out_map = tmp_path / "map.json"
+    assert main(["info", str(path), "--write-map", str(out_map)]) == 0
+    text = capsys.readouterr().out
+    assert "recognised as humanoid, confidence" in text
+    rows = {line.split()[0]: line.split() for line in text.splitlines()[1:] if line[:2] == "  "}
+    assert rows["left_elbow"][1] == "LeftElbow" and float(rows["left_elbow"][2]) < 3.0
+    assert rows["spine1"][1] == "-"  # unmapped: follows its parent
+    # edit the written map (drive SMPL's neck from lowerneck) and load with it
+    import json
+
+    data = json.loads(out_map.read_text())
+    assert data["map"]["neck"] == "Neck"
+    data["map"]["neck"] = "lowerneck"
+    out_map.write_text(json.dumps(data))
+    assert main(["info", str(path), "--joint-map", str(out_map)]) == 0
+    text = capsys.readouterr().out
+    assert "meta.joint_map  custom" in text and "lowerneck" in text
+    assert "recognised as humanoid" not in text
