@@ -21,52 +21,99 @@ EPILOG = """examples:
   mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10 --out outputs/happy
   mrlib sample runs/samples/checkpoint.pt --crossover walk_sad:1-4 walk_happy:5-8 --out outputs/mix
   mrlib export clip.bvh clip.npz
+  mrlib export outputs/happy/walk_happy_seed0_0.npz happy.glb
 """
+
+
+def _joint_map_option(p) -> None:
+    p.add_argument(
+        "--joint-map",
+        default=None,
+        metavar="MAP",
+        help="BVH only: a shipped map name or a JSON file {smpl_joint: bvh_joint} (default: "
+        "the shipped map that fits, else one recognised from the skeleton)",
+    )
 
 
 def _add_info(sub):
     p = sub.add_parser(
         "info",
         help="print a summary of a motion file",
-        description="Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it.",
+        description="Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it. For "
+        "a BVH, also the joint map used (shipped, given or recognised, with its confidence) "
+        "and the retargeting error of each SMPL joint.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib info clip.bvh\n  mrlib info clip.bvh --write-map map.json\n"
+        "  mrlib info clip.bvh --joint-map map.json   # after editing it",
     )
     p.add_argument("path", type=Path)
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first")
+    _joint_map_option(p)
+    p.add_argument(
+        "--write-map",
+        type=Path,
+        default=None,
+        metavar="JSON",
+        help="BVH only: write the joint map used to this file, to edit and pass back with "
+        "--joint-map",
+    )
     p.set_defaults(func=_cmd_info)
 
 
 def _cmd_info(args) -> int:
-    from mrlib.io import load_motion
+    from mrlib.io import JointMap, load_motion
 
-    m = load_motion(args.path, fps=args.fps)
+    m = load_motion(args.path, fps=args.fps, joint_map=args.joint_map)
     print(m)
     print(f"  duration     {m.duration:.2f} s")
     print(f"  label        {m.label}")
-    print(f"  betas        {m.betas.round(3).tolist()}")
+    print(f"  betas        {[round(float(b), 3) for b in m.betas]}")
     span = m.trans.max(0) - m.trans.min(0)
     print(f"  root travel  x {span[0]:.2f} m, y {span[1]:.2f} m, z {span[2]:.2f} m")
+    table = ("joint_map_pairs", "retarget_joint_error_cm", "joint_map_report")
     for k, v in m.meta.items():
-        print(f"  meta.{k:<10} {v}")
+        if k not in table:
+            print(f"  meta.{k:<10} {f'{v:.4g}' if isinstance(v, float) else v}")
+    if "joint_map_pairs" not in m.meta:
+        if args.write_map is not None:
+            raise MrlibError(f"{args.path}: --write-map is for BVH files (this one has no map)")
+        return 0
+    pairs, errors = m.meta["joint_map_pairs"], m.meta.get("retarget_joint_error_cm", {})
+    if "joint_map_report" in m.meta:
+        print("  " + m.meta["joint_map_report"].replace("\n", "\n  "))
+    print(f"  {'SMPL joint':<15} {'source joint':<28} error cm")
+    from mrlib.skeleton import JOINT_NAMES
+
+    for name in JOINT_NAMES:
+        src = pairs.get(name)
+        err = f"{errors[name]:8.2f}" if name in errors else "       -"
+        print(f"  {name:<15} {src or '- (follows its parent)':<28} {err}")
+    if args.write_map is not None:
+        desc = f"written by `mrlib info` for {Path(args.path).name} ({m.meta['joint_map']} map)"
+        JointMap("custom", pairs, desc).to_json(args.write_map)
+        print(f"wrote {args.write_map}: edit it and pass it back with --joint-map")
     return 0
 
 
 def _add_export(sub):
     p = sub.add_parser(
         "export",
-        help="convert a motion file (BVH <-> SMPL .npz)",
-        description="Convert between formats: any readable motion file to AMASS-style .npz "
-        "or to BVH on the SMPL skeleton (opens in Blender).",
+        help="convert a motion file (BVH, SMPL .npz, glTF .glb)",
+        description="Convert between formats: any readable motion file to AMASS-style .npz, "
+        "to BVH on the SMPL skeleton, or to a .glb with the skinned body mesh and the "
+        "animation (browser viewers, Blender, game engines).",
     )
     p.add_argument("src", type=Path, help="input: .bvh, .npz or an EasyMocap folder")
-    p.add_argument("dst", type=Path, help="output: .npz or .bvh")
+    p.add_argument("dst", type=Path, help="output: .npz, .bvh or .glb")
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate")
+    _joint_map_option(p)
     p.set_defaults(func=_cmd_export)
 
 
 def _cmd_export(args) -> int:
     from mrlib.io import load_motion, save_motion
 
-    m = load_motion(args.src, fps=args.fps)
+    m = load_motion(args.src, fps=args.fps, joint_map=args.joint_map)
     save_motion(m, args.dst)
     print(f"wrote {args.dst} ({m.num_frames} frames @ {m.fps:g} fps)")
     return 0
@@ -140,6 +187,7 @@ def _add_train(sub):
         "--levels", type=int, default=None, help="number of pyramid levels (overrides the preset)"
     )
     p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
+    _joint_map_option(p)
     p.add_argument(
         "--checkpoint-every",
         type=int,
@@ -185,7 +233,9 @@ def _cmd_train(args) -> int:
         raise MrlibError("give clips to train on, or --resume a checkpoint")
     data = None
     if args.resume is None:
-        data = TrainingSet.from_files(args.clips, labels=args.labels, fps=args.fps)
+        data = TrainingSet.from_files(
+            args.clips, labels=args.labels, fps=args.fps, joint_map=args.joint_map
+        )
         print(
             f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
             f"lengths {data.lengths}"
@@ -372,6 +422,11 @@ def _add_sample(sub):
     p.add_argument(
         "--render", action="store_true", help="also write a mesh render (PNG) per sample"
     )
+    p.add_argument(
+        "--glb",
+        action="store_true",
+        help="also write a .glb per sample: the skinned body mesh with the animation",
+    )
     p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("outputs/samples"))
     p.set_defaults(func=_cmd_sample)
@@ -440,6 +495,10 @@ def _write_samples(motions, tag: str, args) -> int:
         stem = inside(args.out, args.out / f"{tag}_seed{args.seed}_{i}")
         save_motion(m, stem.with_suffix(".npz"))
         save_motion(m, stem.with_suffix(".bvh"))
+        kinds = ".npz/.bvh"
+        if getattr(args, "glb", False):
+            save_motion(m, stem.with_suffix(".glb"))
+            kinds += "/.glb"
         if args.render:
             import imageio.v3 as iio
 
@@ -448,7 +507,7 @@ def _write_samples(motions, tag: str, args) -> int:
             iio.imwrite(
                 stem.with_suffix(".png"), render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
             )
-        print(f"wrote {stem}.npz/.bvh: {m}")
+        print(f"wrote {stem}{kinds}: {m}")
     return 0
 
 

@@ -121,12 +121,15 @@ class TrainingSet:
         labels: Sequence[str] | None = None,
         fps: float | None = None,
         body=None,
+        joint_map=None,
     ) -> TrainingSet:
         """Load every file with ``mrlib.io.load_motion`` and build the set (labels from the
-        files, e.g. Bandai ``walk_happy``, unless given)."""
+        files, e.g. Bandai ``walk_happy``, unless given; ``joint_map`` for BVH files whose
+        skeleton is neither shipped nor recognised)."""
         from mrlib.io import load_motion
 
-        return cls.from_motions([load_motion(p) for p in paths], labels, fps, body)
+        motions = [load_motion(p, joint_map=joint_map, body=body) for p in paths]
+        return cls.from_motions(motions, labels, fps, body)
 
     # -- views -----------------------------------------------------------------------------
     @property

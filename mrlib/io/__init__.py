@@ -241,21 +241,26 @@ def load_motion(
 def save_motion(
     motion: Motion, path: str | Path, *, body=None, bvh_unit: str = "cm", euler_order: str = "ZXY"
 ) -> Path:
-    """Write ``motion`` to ``.npz`` (``save_npz``) or ``.bvh`` (``smpl_to_bvh``: SMPL's
-    skeleton for ``motion.betas``, ``bvh_unit`` cm or m, ``euler_order`` rotations).
+    """Write ``motion`` to ``.npz`` (``save_npz``), ``.bvh`` (``smpl_to_bvh``: SMPL's
+    skeleton for ``motion.betas``, ``bvh_unit`` cm or m, ``euler_order`` rotations) or
+    ``.glb`` (``mrlib.io.gltf.save_glb``: the skinned body mesh with the animation).
 
     Raises:
         UnsupportedFormatError: any other extension.
     """
     path = Path(path)
     ext = path.suffix.lower()
-    if ext not in (".npz", ".bvh"):
+    if ext not in (".npz", ".bvh", ".glb"):
         raise UnsupportedFormatError(
-            path, f"unsupported file type '{ext}'; mrlib writes .bvh and .npz"
+            path, f"unsupported file type '{ext}'; mrlib writes .bvh, .glb and .npz"
         )
     try:
         if ext == ".npz":
             return save_npz(motion, path)
+        if ext == ".glb":
+            from mrlib.io.gltf import save_glb
+
+            return save_glb(motion, path, body=body)
         return write_bvh(path, smpl_to_bvh(motion, body=body, unit=bvh_unit, order=euler_order))
     except OSError as e:
         raise MotionFileError(path, f"cannot write: {e.strerror or e}") from e

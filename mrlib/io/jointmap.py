@@ -68,6 +68,18 @@ class JointMap:
                 None, f"joint map '{self.name}': source joints {dup} are used twice"
             )
 
+    def to_json(self, path: str | Path) -> Path:
+        """Write ``{"name", "description", "map"}`` (what ``joint_map_from_json`` and
+        ``load_motion(..., joint_map=path)`` read), in SMPL's joint order."""
+        data = {
+            "name": self.name,
+            "description": self.description,
+            "map": {k: self.mapping[k] for k in JOINT_NAMES if k in self.mapping},
+        }
+        path = Path(path)
+        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        return path
+
     def source_indices(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
         """``(24,)`` source joint index per SMPL joint, -1 where unmapped."""
         return np.array(
