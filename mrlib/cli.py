@@ -378,7 +378,12 @@ def _add_sample(sub):
         epilog="examples:\n  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10\n"
         "  mrlib sample ckpt.pt --crossover walk_sad:1-4 walk_happy:5-8 --num 4 --render\n"
         "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5\n"
-        "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render",
+        "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render\n"
+        "  mrlib sample ckpt.pt --label walk_happy --path circle:2 --seconds 20\n"
+        "  mrlib sample ckpt.pt --parts upper=walk_happy,lower=walk_sad\n"
+        "  mrlib sample ckpt.pt --label walk_sad --loop --seconds 4\n"
+        "  mrlib sample ckpt.pt --label walk_sad --keyframes kf.npz --seconds 6\n"
+        "  mrlib sample ckpt.pt --label walk_sad --continue clip.bvh --seconds 5",
     )
     p.add_argument("checkpoint", type=Path)
     g = p.add_mutually_exclusive_group()
@@ -403,6 +408,38 @@ def _add_sample(sub):
         type=Path,
         default=None,
         help="speech-conditioned models: gestures for this audio file (.wav/.flac), as long as it",
+    )
+    g.add_argument(
+        "--parts",
+        type=_parse_parts,
+        default=None,
+        metavar="PART=LABEL,...",
+        help="a label per body part (upper, lower, left_arm, right_arm), e.g. "
+        "upper=walk_happy,lower=walk_sad",
+    )
+    c = p.add_mutually_exclusive_group()
+    c.add_argument(
+        "--path",
+        default=None,
+        metavar="SPEC",
+        help="walk a ground path: circle:R, circle-right:R, eight:R, line:L (metres) or a CSV "
+        "of x,z[,t]; --seconds defaults to the path's times or its length at the label's pace",
+    )
+    c.add_argument(
+        "--keyframes",
+        type=Path,
+        default=None,
+        metavar="NPZ",
+        help="hold these keyframes (mrlib.constraints.save_keyframes); needs --seconds",
+    )
+    c.add_argument("--loop", action="store_true", help="a seamless loop (the end joins the start)")
+    c.add_argument(
+        "--continue",
+        dest="prefix",
+        type=Path,
+        default=None,
+        metavar="MOTION",
+        help="continue this motion file for --seconds more",
     )
     p.add_argument(
         "--seconds",
@@ -432,16 +469,70 @@ def _add_sample(sub):
     p.set_defaults(func=_cmd_sample)
 
 
+def _parse_parts(text: str) -> dict[str, str]:
+    from mrlib.constraints import parse_parts
+
+    try:
+        return parse_parts(text)
+    except MrlibError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def _constrained(model, kw: dict, length: int | None, args) -> list:
+    """Samples under --path / --keyframes / --loop / --continue (one per seed)."""
+    from mrlib import constraints as C
+
+    out = []
+    for b in range(args.num):
+        seed = args.seed + b
+        if args.path is not None:
+            m = C.generate_on_path(model, args.path, seconds=args.seconds, seed=seed,
+                                   clean=not args.raw, **kw)  # fmt: skip
+        elif args.keyframes is not None:
+            if length is None:
+                raise MrlibError("--keyframes needs --seconds (the length of the motion)")
+            kfs = C.load_keyframes(args.keyframes)
+            m = C.generate_with_keyframes(model, kfs, length, seed=seed, clean=not args.raw, **kw)
+        elif args.loop:
+            m = C.generate_loop(model, length=length, seed=seed, fix_contacts=not args.raw, **kw)
+        else:
+            from mrlib.io import load_motion
+
+            if args.seconds is None:
+                raise MrlibError("--continue needs --seconds (how much to add)")
+            prefix = load_motion(args.prefix)
+            frames = max(1, round(args.seconds * model.fps))
+            m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **kw)
+        out.append(m)
+    return out
+
+
 def _cmd_sample(args) -> int:
     from mrlib.sample import generate, load_model
 
+    constrained = args.path or args.keyframes or args.loop or args.prefix
     if args.audio is not None:
+        if constrained and not args.path:
+            raise MrlibError("with --audio only --path applies (keyframes, loops and "
+                             "continuation need a label model)")  # fmt: skip
         motions, tag = _audio_samples(args)
+        if args.path:
+            from mrlib.constraints import follow_path
+
+            motions = [follow_path(m, args.path, clean=not args.raw) for m in motions]
         return _write_samples(motions, tag, args)
     model = load_model(args.checkpoint, device=args.device)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
     length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
+    if args.parts:
+        if constrained:
+            raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
+        from mrlib.constraints import generate_parts
+
+        motions = generate_parts(model, args.parts, length, seed=args.seed, num_samples=args.num,
+                                 fix_contacts=not args.raw)  # fmt: skip
+        return _write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
     kw = {}
     if args.crossover:
         kw["conditions"] = args.crossover
@@ -459,6 +550,17 @@ def _cmd_sample(args) -> int:
     else:
         kw["condition"] = args.label if args.label is not None else model.labels[0]
         tag = str(kw["condition"])
+    if constrained:
+        what = (
+            "path"
+            if args.path
+            else "keyframes"
+            if args.keyframes
+            else "loop"
+            if args.loop
+            else "continued"
+        )
+        return _write_samples(_constrained(model, kw, length, args), f"{tag}_{what}", args)
     motions = generate(
         model,
         length=length,

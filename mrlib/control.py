@@ -429,7 +429,9 @@ def crossover_evidence(
     _check_cutoff(model.fps, cutoff)
 
     def samples(seed_: int, **cond: Any) -> list[np.ndarray]:
-        ms = generate(model, length=length, seed=seed_, num_samples=num_samples, **cond)
+        ms = generate(
+            model, length=length, seed=seed_, num_samples=num_samples, fix_contacts=False, **cond
+        )
         return [
             metric_features(m, contacts=False) for m in ([ms] if isinstance(ms, Motion) else ms)
         ]

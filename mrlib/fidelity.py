@@ -233,7 +233,9 @@ def condition_fidelity_of_model(
     per_label, names = {}, list(refs)
     confusion = np.zeros((len(names), len(names)))
     for k, lab in enumerate(names):
-        ms = generate(model, lab, length=int(length), seed=seed, num_samples=num_samples)
+        ms = generate(
+            model, lab, length=int(length), seed=seed, num_samples=num_samples, fix_contacts=False
+        )
         ms = [ms] if isinstance(ms, Motion) else ms
         per_label[lab] = condition_fidelity(ms, refs, window=window)
         for m in ms:
@@ -284,7 +286,9 @@ def coverage_per_sequence(
     out: dict[float, dict[str, float]] = {e: {} for e in epss}
     for name, lab, ref in zip(names, labels, feats, strict=True):
         length = max(window, round(length_factor * len(ref)))
-        ms = generate(model, lab, length=length, seed=seed, num_samples=num_samples)
+        ms = generate(
+            model, lab, length=length, seed=seed, num_samples=num_samples, fix_contacts=False
+        )
         # coverage = mean over samples of the share of reference windows closer than eps
         # (mrlib.metrics.coverage); the profiles are computed once for all thresholds
         prof = np.stack(

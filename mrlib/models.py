@@ -23,7 +23,7 @@ import torch.nn.functional as F
 
 from mrlib.config import ModelConfig
 from mrlib.features import NUM_FEATURES, channel_joint
-from mrlib.pyramid import PackedLevels, resample_linear
+from mrlib.pyramid import PackedLevels, resample_linear, resample_periodic
 from mrlib.skeleton import NUM_JOINTS, PARENTS, graph_distances
 
 __all__ = [
@@ -90,11 +90,15 @@ class SkeletonConv1d(nn.Module):
             self.weight.uniform_(-1, 1).mul_(bound[:, None, None]).mul_(self.mask)
             self.bias.uniform_(-1, 1).mul_(bound)
 
-    def forward(self, x: torch.Tensor, pad_index: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, x: torch.Tensor, pad_index: torch.Tensor | None = None, circular: bool = False
+    ) -> torch.Tensor:
         """``x (B, C_in, T)``, ``pad_index (B, 1, T + 2p)`` -> ``(B, C_out, T)``. Without
-        ``pad_index`` every row of the batch is one sample, reflect-padded at its ends."""
+        ``pad_index`` every row of the batch is one sample, reflect-padded at its ends, or
+        wrapped around with ``circular`` (a periodic signal: a seamless loop)."""
         if pad_index is None:
-            xp = F.pad(x, (self.pad, self.pad), mode="reflect")
+            mode = "circular" if circular else "reflect"
+            xp = F.pad(x, (self.pad, self.pad), mode=mode)
         else:
             B, C, _ = x.shape
             xp = x.gather(2, pad_index.expand(B, C, -1))  # (B, C_in, T + 2p), reflect-padded
@@ -135,9 +139,11 @@ class ConvStack(nn.Module):
         self.slope = slope
         self.pad = (kernel_size - 1) // 2
 
-    def forward(self, x: torch.Tensor, pad_index: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, x: torch.Tensor, pad_index: torch.Tensor | None = None, circular: bool = False
+    ) -> torch.Tensor:
         for k, layer in enumerate(self.layers):
-            x = layer(x, pad_index)
+            x = layer(x, pad_index, circular)
             if k < len(self.layers) - 1:
                 x = F.leaky_relu(x, self.slope)
         return x
@@ -202,16 +208,30 @@ class LevelGenerator(nn.Module):
             mask = torch.from_numpy(np.isin(io, np.asarray(config.film_joints)))
         self.film = FiLM(cond_dim, NUM_FEATURES, config.film_dim, mask)
 
+    def modulate(self, u: torch.Tensor, cond) -> torch.Tensor:
+        """``FiLM(u, s)``; ``cond`` is ``(B, T|1, D)``, or a list of ``(mask (C,), cond)``
+        pairs whose masks partition the channels: each channel group is modulated by its
+        own condition (body-part composition, ``mrlib.constraints``)."""
+        if isinstance(cond, torch.Tensor):
+            return self.film(u, cond)
+        out = torch.zeros_like(u)
+        for mask, c in cond:
+            gamma, delta = self.film.params(c)
+            out = out + mask[:, None] * (gamma * u + delta)
+        return out
+
     def forward(
         self,
         x_up: torch.Tensor,
         z: torch.Tensor,
-        cond: torch.Tensor,
+        cond,
         pad_index: torch.Tensor | None = None,
+        circular: bool = False,
     ) -> torch.Tensor:
-        """``x_up (B, C, T)``, ``z (B, 1|C, T)``, ``cond (B, T|1, D)`` -> ``(B, C, T)``;
-        without ``pad_index`` each row of the batch is one sample."""
-        return self.body(self.film(x_up + z, cond), pad_index) + x_up
+        """``x_up (B, C, T)``, ``z (B, 1|C, T)``, ``cond (B, T|1, D)`` (or per channel
+        group, see :meth:`modulate`) -> ``(B, C, T)``; without ``pad_index`` each row of
+        the batch is one sample (``circular``: periodic, see ``SkeletonConv1d``)."""
+        return self.body(self.modulate(x_up + z, cond), pad_index, circular) + x_up
 
 
 class PatchCritic(nn.Module):
@@ -353,7 +373,11 @@ class MultiResGenerator(nn.Module):
         return self.run(layout, noises, conds, keep=keep)
 
     def run_batch(
-        self, noises: list[torch.Tensor], conds: list[torch.Tensor], keep: bool = False
+        self,
+        noises: list[torch.Tensor],
+        conds: list,
+        keep: bool = False,
+        circular: bool = False,
     ) -> torch.Tensor | list[torch.Tensor]:
         """All levels for a batch of samples of equal length, one per row: the sampling
         path. Reflect padding is ``F.pad`` and upsampling ``F.interpolate`` (the linear
@@ -363,7 +387,11 @@ class MultiResGenerator(nn.Module):
 
         Args:
             noises: per level ``(B, 1|C, T_i)``.
-            conds: per level ``(B, T_i|1, D)``.
+            conds: per level ``(B, T_i|1, D)``, or per level a list of ``(mask (C,),
+                cond)`` pairs (one condition per channel group, see
+                :meth:`LevelGenerator.modulate`).
+            circular: treat every level as periodic (wrap-around padding and
+                upsampling): the output loops seamlessly.
         Returns:
             ``(B, C, T_L)`` or the list of every level's output.
         """
@@ -372,9 +400,11 @@ class MultiResGenerator(nn.Module):
             z = noises[i]
             if i == 0:
                 x_up = z.new_zeros(z.shape[0], NUM_FEATURES, z.shape[-1])
+            elif circular:
+                x_up = resample_periodic(x, z.shape[-1])
             else:
                 x_up = resample_linear(x, z.shape[-1])
-            x = level(x_up, z, conds[i])
+            x = level(x_up, z, conds[i], None, circular)
             outs.append(x)
         return outs if keep else x
 

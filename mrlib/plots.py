@@ -44,6 +44,7 @@ __all__ = [
     "plot_condition_fidelity",
     "plot_contacts",
     "plot_evaluation",
+    "plot_ground_paths",
 ]
 
 # Colours of consecutive segments (tab10 without its grey, which reads as "missing").
@@ -524,3 +525,45 @@ def plot_evaluation(result: Any, path: str | Path | None = None):
     if path is not None:
         fig.savefig(path, dpi=110)
     return fig
+
+
+def plot_ground_paths(
+    path: Any, motions: Any, body: Any = None, ax: Any = None, *, title: str | None = None
+):
+    """Top-down view of a target path (dashed) and the pelvis tracks of ``motions``
+    (a ``{name: Motion}`` dict or a list), with each motion's planted heels as dots.
+
+    Args:
+        path: a ``mrlib.constraints.GroundPath`` or a spec (``"circle:2"``).
+        body: body model for the pelvis and feet (default: mrlib's).
+    Returns:
+        The Axes (x to the right, z up the page, metres, equal aspect).
+    """
+    import matplotlib.pyplot as plt
+
+    from mrlib.constraints import parse_path, path_error
+    from mrlib.plausibility import motion_kinematics
+
+    path = parse_path(path)
+    items = motions.items() if isinstance(motions, dict) else enumerate(motions)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(6, 6))
+    q = np.vstack([path.points, path.points[:1]]) if path.closed else path.points
+    ax.plot(q[:, 0], q[:, 1], "k--", lw=1.2, label=f"target: {path.name}")
+    for k, (name, m) in enumerate(items):
+        joints, feet = motion_kinematics(m, body)
+        colour = f"C{k}"
+        err = path_error(m, path, body)
+        ax.plot(joints[:, 0, 0], joints[:, 0, 2], color=colour, lw=1.5,
+                label=f"{name}: {100 * err['mean_m']:.1f} cm mean, {100 * err['max_m']:.0f} cm max")  # fmt: skip
+        if m.contacts is not None:
+            for v in (2, 5):  # heels
+                down = m.contacts[:, v] > 0.5
+                ax.plot(feet[down, v, 0], feet[down, v, 2], ".", ms=2, color=colour, alpha=0.5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("z (m)")
+    ax.legend(fontsize=8, loc="best")
+    if title:
+        ax.set_title(title, fontsize=10)
+    return ax

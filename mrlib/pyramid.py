@@ -27,6 +27,7 @@ __all__ = [
     "pyramid_lengths",
     "level_fps",
     "resample_linear",
+    "resample_periodic",
     "build_pyramid",
     "noise_amplitudes",
     "PackedLevels",
@@ -85,6 +86,23 @@ def resample_linear(x: torch.Tensor, size: int) -> torch.Tensor:
     if x.shape[-1] == size:
         return x
     return F.interpolate(x, size=size, mode="linear", align_corners=False)
+
+
+def resample_periodic(x: torch.Tensor, size: int) -> torch.Tensor:
+    """:func:`resample_linear` of a periodic signal ``(B, C, T) -> (B, C, size)``: the
+    same sample positions (``align_corners=False``), interpolated across the wrap from
+    the last frame to the first instead of clamped at the ends."""
+    if x.ndim != 3:
+        raise MotionValueError(f"expected (B, C, T), got shape {tuple(x.shape)}")
+    T = x.shape[-1]
+    if T == size:
+        return x
+    pos = (torch.arange(size, dtype=torch.float64, device=x.device) + 0.5) * T / size - 0.5
+    lo = torch.floor(pos)
+    w = (pos - lo).to(x.dtype)
+    i0 = lo.long() % T
+    i1 = (i0 + 1) % T
+    return x[..., i0] * (1 - w) + x[..., i1] * w
 
 
 def build_pyramid(x: torch.Tensor, lengths: list[int]) -> list[torch.Tensor]:

@@ -177,6 +177,7 @@ def sample_features(
     seed: int | None = None,
     num_samples: int = 1,
     keep: bool = False,
+    circular: bool = False,
 ) -> torch.Tensor | list[torch.Tensor]:
     """The generic sampler every other one builds on.
 
@@ -187,6 +188,7 @@ def sample_features(
         noise_amplitude: ``(L,)`` or ``(B, L)`` sigma of the noise z_i ~ N(0, sigma_i),
             shared across channels.
         keep: return every level's output.
+        circular: periodic levels: the output loops seamlessly (``mrlib.constraints``).
     Returns:
         normalised features ``(B, C, T_L)`` or the list of all levels ``[(B, C, T_i)]``.
     """
@@ -195,21 +197,53 @@ def sample_features(
         raise MotionValueError(
             f"need {L} lengths and {L} conditions, got {len(lengths)} and {len(conds)}"
         )
+    noises = draw_noise(lengths, noise_amplitude, seed, num_samples, model.device)
+    cs = check_conditions(model, conds, lengths, num_samples)
+    with torch.inference_mode():
+        outs = model.generator.run_batch(noises, cs, keep=True, circular=circular)
+    return outs if keep else outs[-1]
+
+
+def draw_noise(
+    lengths: Sequence[int],
+    noise_amplitude: torch.Tensor,
+    seed: int | None,
+    num_samples: int = 1,
+    device: str | torch.device = "cpu",
+) -> list[torch.Tensor]:
+    """The noise maps of :func:`sample_features`: per level ``(B, 1, T_i)``, sample ``b``
+    drawn from its own stream ``(seed, b)`` (a sample does not depend on the batch size
+    it was generated in) and scaled by its level's ``sigma_i``."""
+    L = len(lengths)
     base = int(seed) if seed is not None else int(torch.seed() % 2**63)
-    dev = model.device
     amp = torch.as_tensor(noise_amplitude, dtype=torch.float32)
     amp = amp.expand(num_samples, L) if amp.ndim == 1 else amp
-    # Sample b draws its noise from its own stream (seed, b): a sample does not depend on
-    # the batch size it was generated in.
     z = [torch.empty(num_samples, 1, n) for n in lengths]
     for b in range(num_samples):
         state = np.random.SeedSequence([base, b]).generate_state(2, np.uint32)
         g = torch.Generator().manual_seed(int(state[0]) << 32 | int(state[1]))
         for i in range(L):
             z[i][b, 0] = torch.randn(lengths[i], generator=g)
-    noises = [(z[i] * amp[:, i, None, None]).to(dev) for i in range(L)]  # (B, 1, T_i)
-    cs = []
+    return [(z[i] * amp[:, i, None, None]).to(device) for i in range(L)]  # (B, 1, T_i)
+
+
+def check_conditions(
+    model: GenerativeModel, conds: list, lengths: Sequence[int], num_samples: int = 1
+) -> list:
+    """Per-level conditions checked against the model and the level lengths and put on
+    its device; a condition constant over time becomes ``(B, 1, D)`` (its FiLM
+    parameters are then computed once per sample). A level's condition may also be a
+    list of ``(channel mask (C,), condition)`` pairs (``MultiResGenerator.run_batch``)."""
+    out = []
     for i, c in enumerate(conds):
+        if isinstance(c, (list, tuple)):
+            parts = []
+            for mask, cc in c:
+                (cc,) = check_conditions(model, [cc], lengths[i : i + 1], num_samples)
+                m = torch.as_tensor(mask, dtype=torch.float32, device=model.device)
+                parts.append((m, cc))
+            out.append(parts)
+            continue
         c = torch.as_tensor(c, dtype=torch.float32)
         if c.ndim != 3 or c.shape[1] != lengths[i] or c.shape[2] != model.generator.cond_dim:
             raise MotionValueError(
@@ -218,10 +252,8 @@ def sample_features(
             )
         if c.stride(1) == 0 or bool((c == c[:, :1]).all()):
             c = c[:, :1]  # constant over time (a label): FiLM once per sample
-        cs.append(c.expand(num_samples, -1, -1).to(dev))  # (B, T_i or 1, D)
-    with torch.inference_mode():
-        outs = model.generator.run_batch(noises, cs, keep=True)  # [(B, C, T_i)]
-    return outs if keep else outs[-1]
+        out.append(c.expand(num_samples, -1, -1).to(model.device))  # (B, T_i or 1, D)
+    return out
 
 
 def _layout(model: GenerativeModel, table: torch.Tensor) -> PackedLevels:
@@ -246,6 +278,28 @@ def _to_motions(
     )  # fmt: skip
 
 
+def label_inputs(
+    model: GenerativeModel, W: torch.Tensor, length: int | None = None
+) -> tuple[list[int], torch.Tensor, list[torch.Tensor]]:
+    """What :func:`sample_features` needs for label weights ``W (L, K)``
+    (:func:`label_weights`): the level lengths for ``length`` output frames (default:
+    the first training clip of the coarsest level's main label), the noise amplitude
+    ``(L,)`` of each level's label mix, and the per-level conditions ``(1, T_i, K)``."""
+    L = model.num_levels
+    main = int(W[0].argmax())
+    if length is None:
+        length = (
+            int(model.lengths[model.clip_labels.index(main), -1])
+            if main in model.clip_labels
+            else int(model.lengths[0, -1])
+        )
+    pad = (model.config.model.kernel_size - 1) // 2
+    lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
+    amp = (W * model.sigma.float().T).sum(1)  # (L,): sigma of each level's condition mix
+    conds = [W[i].expand(1, lengths[i], -1) for i in range(L)]
+    return lengths, amp, conds
+
+
 def generate(
     model: GenerativeModel,
     condition: str | int | None = None,
@@ -255,7 +309,7 @@ def generate(
     conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
     blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
     return_levels: bool = False,
-    fix_contacts: bool | str = False,
+    fix_contacts: bool | str = True,
     body=None,
 ):
     """Random motion under label conditions.
@@ -270,8 +324,10 @@ def generate(
         return_levels: also return every level's output as Motions at the level's frame
             rate (``fps * T_i / T_L``): ``(motion, [level 1, ..., level L])`` (lists per
             sample when ``num_samples > 1``).
-        fix_contacts: post-process with :func:`cleanup_foot_contacts`: True (its
-            default method, ``"ik"``) or a method name (``"ik"``, ``"optimise"``).
+        fix_contacts: plant the feet with :func:`cleanup_foot_contacts` (default: its
+            ``"ik"`` method, milliseconds per clip); a method name (``"ik"``,
+            ``"optimise"``), or False for the generator's raw output. Levels returned
+            with ``return_levels`` are always raw.
     Returns:
         ``Motion`` or ``list[Motion]`` (SMPL parameters at the training fps).
     """
@@ -279,17 +335,7 @@ def generate(
         raise MotionValueError(f"num_samples must be >= 1, got {num_samples}")
     W = label_weights(model, condition, conditions, blend)  # (L, K)
     L = model.num_levels
-    main = int(W[0].argmax())
-    if length is None:
-        length = (
-            int(model.lengths[model.clip_labels.index(main), -1])
-            if main in model.clip_labels
-            else int(model.lengths[0, -1])
-        )
-    pad = (model.config.model.kernel_size - 1) // 2
-    lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
-    amp = (W * model.sigma.float().T).sum(1)  # (L,): sigma of each level's condition mix
-    conds = [W[i].expand(1, lengths[i], -1) for i in range(L)]
+    lengths, amp, conds = label_inputs(model, W, length)
     outs = sample_features(
         model, conds, lengths, amp, seed=seed, num_samples=num_samples, keep=True
     )

@@ -27,7 +27,13 @@ from mrlib.plots import plot_nearest_sequence
 from mrlib.render import crop_to_bodies, evenly_spaced_frames, render_meshes
 from mrlib.sample import generate, label_weights
 
-__all__ = ["CrossoverView", "interactive_crossover"]
+__all__ = [
+    "CrossoverView",
+    "interactive_crossover",
+    "interactive_path",
+    "interactive_parts",
+    "interactive_inbetween",
+]
 
 
 @dataclass
@@ -145,3 +151,153 @@ def interactive_crossover(
         c.observe(lambda change: update(), names="value")
     box = w.VBox([w.HBox([coarse, fine]), w.HBox([level, weight]), seed, status, out])
     return box, update
+
+
+def interactive_path(
+    model: Any, body: Any = None, *, label: str | None = None, seconds: float = 20.0
+) -> tuple[Any, Callable[[], Motion]]:
+    """An ipywidgets UI for path following: path preset and size, label, seed and
+    method (``bend`` / ``optimise``); every change regenerates and redraws the top-down
+    plot of target and generated paths (``mrlib.plots.plot_ground_paths``).
+
+    Returns:
+        ``(widget, update)``; ``update()`` regenerates and returns the Motion.
+    """
+    import ipywidgets as w
+    import matplotlib.pyplot as plt
+    from IPython.display import display
+
+    from mrlib.constraints import generate_on_path
+    from mrlib.plots import plot_ground_paths
+
+    body = resolve_body(body, shared=True)
+    kind = w.Dropdown(options=["circle", "circle-right", "eight", "line"], value="circle",
+                      description="path")  # fmt: skip
+    size = w.FloatSlider(value=2.0, min=0.5, max=10.0, step=0.5, description="size (m)",
+                         continuous_update=False)  # fmt: skip
+    lab = w.Dropdown(
+        options=list(model.labels), value=label or model.labels[0], description="label"
+    )
+    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
+    method = w.ToggleButtons(options=["bend", "optimise"], value="bend", description="method")
+    out = w.Output()
+
+    def update(*_: Any) -> Motion:
+        spec = f"{kind.value}:{size.value:g}"
+        m = generate_on_path(model, spec, lab.value, seconds=seconds, seed=int(seed.value),
+                             method=method.value, body=body)  # fmt: skip
+        fig, ax = plt.subplots(figsize=(6, 6))
+        plot_ground_paths(spec, {f"{lab.value} ({method.value})": m}, body, ax)
+        with out:
+            out.clear_output(wait=True)
+            display(fig)
+        plt.close(fig)
+        return m
+
+    for c in (kind, size, lab, seed, method):
+        c.observe(lambda change: update(), names="value")
+    return w.VBox([w.HBox([kind, size]), w.HBox([lab, seed]), method, out]), update
+
+
+def interactive_parts(
+    model: Any, body: Any = None, *, frames: int = 5, length: int | None = None
+) -> tuple[Any, Callable[[], Motion]]:
+    """An ipywidgets UI for body-part composition: a label for the upper body, one for
+    the lower body, the method (``splice`` / ``film``) and the seed; every change
+    regenerates and shows a mesh render of ``frames`` frames."""
+    import ipywidgets as w
+    import matplotlib.pyplot as plt
+    from IPython.display import display
+
+    from mrlib.constraints import generate_parts
+
+    body = resolve_body(body, shared=True)
+    labels = list(model.labels)
+    upper = w.Dropdown(options=labels, value=labels[0], description="upper body")
+    lower = w.Dropdown(options=labels, value=labels[-1], description="lower body")
+    method = w.ToggleButtons(options=["splice", "film"], value="splice", description="method")
+    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
+    out = w.Output()
+
+    def update(*_: Any) -> Motion:
+        parts = {"upper": upper.value, "lower": lower.value}
+        m = generate_parts(model, parts, length, seed=int(seed.value), method=method.value,
+                           body=body)  # fmt: skip
+        image = crop_to_bodies(render_meshes(m, body, frames=evenly_spaced_frames(len(m), frames)))
+        fig, ax = plt.subplots(figsize=(10, 4))
+        ax.imshow(image)
+        ax.axis("off")
+        ax.set_title(
+            f"upper body {upper.value}, lower body {lower.value} ({method.value})", fontsize=10
+        )
+        with out:
+            out.clear_output(wait=True)
+            display(fig)
+        plt.close(fig)
+        return m
+
+    for c in (upper, lower, method, seed):
+        c.observe(lambda change: update(), names="value")
+    return w.VBox([w.HBox([upper, lower]), w.HBox([method, seed]), out]), update
+
+
+def interactive_inbetween(
+    model: Any, clips: dict[str, Motion], body: Any = None, *, seconds: float = 4.0,
+    steps: int = 100,
+) -> tuple[Any, Callable[[], Motion]]:  # fmt: skip
+    """An ipywidgets UI for in-betweening: a start frame of one clip and an end pose
+    of another (clip and frame pickers), the label of what lies between and the seed;
+    every change regenerates (``mrlib.constraints.generate_with_keyframes``) and shows
+    the mesh at the two keyframes and between them."""
+    import ipywidgets as w
+    import matplotlib.pyplot as plt
+    from IPython.display import display
+
+    from mrlib.constraints import Keyframe, generate_with_keyframes, keyframe_errors
+
+    body = resolve_body(body, shared=True)
+    names = list(clips)
+    a = w.Dropdown(options=names, value=names[0], description="from clip")
+    fa = w.IntSlider(value=0, min=0, max=clips[names[0]].num_frames - 1, description="frame",
+                     continuous_update=False)  # fmt: skip
+    b = w.Dropdown(options=names, value=names[-1], description="to clip")
+    fb = w.IntSlider(value=clips[names[-1]].num_frames - 1, min=0,
+                     max=clips[names[-1]].num_frames - 1, description="frame",
+                     continuous_update=False)  # fmt: skip
+    lab = w.Dropdown(options=list(model.labels), value=model.labels[0], description="between")
+    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
+    out = w.Output()
+    status = w.HTML()
+    N = max(2, round(seconds * model.fps))
+
+    def clamp(slider: Any, clip: Motion) -> None:
+        slider.max = clip.num_frames - 1
+        slider.value = min(slider.value, slider.max)
+
+    def update(*_: Any) -> Motion:
+        kfs = [
+            Keyframe.from_motion(clips[a.value], int(fa.value), 0),
+            Keyframe.from_motion(clips[b.value], int(fb.value), N - 1, root=False),
+        ]
+        m = generate_with_keyframes(model, kfs, N, lab.value, seed=int(seed.value),
+                                    steps=steps, body=body)  # fmt: skip
+        shown = [0, N // 4, N // 2, 3 * N // 4, N - 1]
+        image = crop_to_bodies(render_meshes(m, body, frames=shown))
+        fig, ax = plt.subplots(figsize=(10, 4))
+        ax.imshow(image)
+        ax.axis("off")
+        ax.set_title(f"{a.value}[{fa.value}] -> {lab.value} -> {b.value}[{fb.value}]: "
+                     f"frames {shown}, keyframes first and last", fontsize=10)  # fmt: skip
+        with out:
+            out.clear_output(wait=True)
+            display(fig)
+        plt.close(fig)
+        e = keyframe_errors(m, kfs)
+        status.value = f"keyframe error: {e['rotation_deg']:.3f} deg, {e['trans_cm']:.3f} cm"
+        return m
+
+    a.observe(lambda change: clamp(fa, clips[a.value]), names="value")
+    b.observe(lambda change: clamp(fb, clips[b.value]), names="value")
+    for c in (a, fa, b, fb, lab, seed):
+        c.observe(lambda change: update(), names="value")
+    return w.VBox([w.HBox([a, fa]), w.HBox([b, fb]), w.HBox([lab, seed]), status, out]), update

@@ -74,11 +74,16 @@ def test_condition_per_level_range_and_blend(model):
 
 
 def test_return_levels(model):
-    m, levels = generate(model, "walk_normal", length=40, seed=0, return_levels=True)
+    kw = dict(length=40, seed=0, return_levels=True)
+    m, levels = generate(model, "walk_normal", fix_contacts=False, **kw)
     assert len(levels) == 4 and levels[-1].num_frames == 40
     assert [lv.num_frames for lv in levels] == sorted(lv.num_frames for lv in levels)
     assert levels[0].fps == pytest.approx(10.0 * levels[0].num_frames / 40)
     assert np.allclose(levels[-1].poses, m.poses)
+    # by default the feet are planted; the levels stay the generator's raw output
+    clean, raw_levels = generate(model, "walk_normal", **kw)
+    assert "contact_cleanup" in clean.meta and "contact_cleanup" not in m.meta
+    assert np.array_equal(raw_levels[-1].poses, levels[-1].poses)
     ms, lv2 = generate(model, "walk_normal", seed=0, num_samples=2, return_levels=True)
     assert len(ms) == 2 and len(lv2) == 2 and len(lv2[0]) == 4
 

@@ -177,7 +177,7 @@ def generate_from_audio(
     sr: int | None = None,
     num_samples: int = 1,
     return_levels: bool = False,
-    fix_contacts: bool = False,
+    fix_contacts: bool = True,
     body=None,
 ):
     """Gestures for an utterance: one motion frame per ``1 / fps`` s of audio.

@@ -1,0 +1,230 @@
+"""Constraints on a trained model: paths, keyframes, body parts, loops (mrlib.constraints).
+
+Uses the `tutorial` model of ``bench/condition_control.py`` (4 Bandai walks:
+normal / happy / sad / angry_001, 30 fps), trained there or here on first use and reused
+after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
+
+* **path**: a 20 s circle (r = 2 m) and a 20 s figure-eight (r = 2 m) for every walk
+  label and ``--samples`` seeds, by ``bend`` (the default) and ``optimise`` (noise
+  optimisation, networks frozen): pelvis-to-path distance (mean / max), coverage of the
+  label's training clip (30-frame windows, eps = 2) and foot skating (share of contact
+  vertex-frames above the speed threshold) beside the training clip's;
+* **keyframes**: in-betweening from the first frame of one walk to the last frame of
+  another (full poses, root fixed at the start) plus a partial keyframe (right arm of a
+  third walk) in the middle, 4 s: largest rotation and root errors at the keyframes and
+  the jerk of the 1 s around each keyframe over the training clips' mean jerk;
+* **parts**: upper body from one label, lower body from another, for every ordered
+  pair, by ``film`` and ``splice``: condition fidelity per part;
+* **loop**: 4 s loops by ``circular`` and ``crossfade``, and raw samples closed on
+  themselves: seam step over the 95th percentile of the loop's own steps.
+
+    python bench/constraints.py                 # seed 0 model, 3 samples per case
+    python bench/constraints.py --samples 5 --threads 2
+
+Writes ``<run folder>/constraints.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "bench"))
+
+import mrlib  # noqa: E402
+from mrlib import constraints as C  # noqa: E402
+from mrlib.config import get_preset  # noqa: E402
+from mrlib.data import TrainingSet  # noqa: E402
+from mrlib.features import features_to_motion  # noqa: E402
+from mrlib.io import default_data_dir  # noqa: E402
+from mrlib.metrics import coverage, metric_features  # noqa: E402
+from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics  # noqa: E402
+from mrlib.sample import generate  # noqa: E402
+from mrlib.train import train_or_reuse  # noqa: E402
+
+CLIPS = ["walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001"]
+
+
+def skate_share(m, body) -> float:
+    _, feet = motion_kinematics(m, body)
+    return foot_skating(feet, m.contacts, m.fps)[1]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seed", type=int, default=0, help="training seed of the model [0]")
+    ap.add_argument("--samples", type=int, default=3, help="seeds per case [3]")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--steps", type=int, default=150, help="noise optimisation steps [150]")
+    a = ap.parse_args()
+    torch.set_num_threads(a.threads)
+    paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
+    if not all(p.is_file() for p in paths):
+        ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")
+    cfg = get_preset("tutorial").replace(seed=a.seed)
+    out = (
+        ROOT
+        / "outputs"
+        / "condition_control"
+        / f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
+    )
+    body = mrlib.load_body_model()
+    data = TrainingSet.from_motions([mrlib.load_motion(p) for p in paths], body=body)
+    model, record = train_or_reuse(data, cfg, out, body=body)
+    print(f"model: {out} ({'reused' if record.reused else 'trained'})", flush=True)
+    fps = model.fps
+    train = {
+        model.labels[model.clip_labels[k]]: features_to_motion(x, fps, betas=model.betas)
+        for k, x in enumerate(model.features)
+    }
+    ref_feats = {lab: metric_features(m) for lab, m in train.items()}
+    train_skate = {lab: skate_share(m, body) for lab, m in train.items()}
+    train_jerk = float(
+        np.mean([mean_jerk(motion_kinematics(m, body)[0], fps) for m in train.values()])
+    )
+    results: dict = {"model": str(out), "samples": a.samples}
+    seeds = range(a.samples)
+
+    # -- paths ----------------------------------------------------------------------------
+    print("\n## Path (20 s)\n")
+    print(
+        "| path | method | pelvis to path mean / max (cm) | coverage | skating (training) | s per sample |"
+    )
+    print("|---|---|---|---|---|---|")
+    results["path"] = []
+    for spec in ("circle:2", "eight:2"):
+        for method in ("bend", "optimise"):
+            err, emax, cov, sk, tsk, secs = [], [], [], [], [], []
+            for lab in model.labels:
+                for s in seeds:
+                    t0 = time.perf_counter()
+                    m = C.generate_on_path(model, spec, lab, seconds=20.0, seed=s, method=method,
+                                           steps=a.steps, body=body)  # fmt: skip
+                    secs.append(time.perf_counter() - t0)
+                    e = C.path_error(m, spec, body)
+                    err.append(e["mean_m"])
+                    emax.append(e["max_m"])
+                    cov.append(coverage(metric_features(m), ref_feats[lab]))
+                    sk.append(skate_share(m, body))
+                    tsk.append(train_skate[lab])
+            row = {
+                "path": spec, "method": method, "mean_cm": 100 * float(np.mean(err)),
+                "max_cm": 100 * float(np.max(emax)), "coverage": float(np.mean(cov)),
+                "min_coverage": float(np.min(cov)), "skate": float(np.mean(sk)),
+                "train_skate": float(np.mean(tsk)), "seconds": float(np.mean(secs)),
+            }  # fmt: skip
+            results["path"].append(row)
+            print(f"| {spec} | {method} | {row['mean_cm']:.1f} / {row['max_cm']:.1f} | "
+                  f"{100 * row['coverage']:.1f} % (min {100 * row['min_coverage']:.1f} %) | "
+                  f"{100 * row['skate']:.1f} % ({100 * row['train_skate']:.1f} %) | {row['seconds']:.1f} |",
+                  flush=True)  # fmt: skip
+
+    # -- keyframes ------------------------------------------------------------------------
+    print("\n## Keyframes (4 s in-between)\n")
+    print(f"training clips' mean jerk {train_jerk:.1f} m/s^3\n")
+    print(
+        "| from -> to (label) | steps | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) |"
+    )
+    print("|---|---|---|---|---|")
+    results["keyframes"] = []
+    N = int(4 * fps)
+    labs = model.labels
+    for i, (a_lab, b_lab) in enumerate(itertools.permutations(labs, 2)):
+        if i % 3:  # a third of the ordered pairs keeps the run short
+            continue
+        arm_from = train[labs[(labs.index(b_lab) + 1) % len(labs)]]
+        kfs = [
+            C.Keyframe.from_motion(train[a_lab], 0, 0),
+            C.Keyframe(N // 2, arm_from.poses[arm_from.num_frames // 2],
+                       joints=("right_shoulder", "right_elbow", "right_wrist")),
+            C.Keyframe.from_motion(train[b_lab], -1, N - 1, root=False),
+        ]  # fmt: skip
+        for steps in (0, a.steps):
+            rot, pos, jr = [], [], []
+            for s in seeds:
+                m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps, body=body)
+                e = C.keyframe_errors(m, kfs)
+                rot.append(e["rotation_deg"])
+                pos.append(e["trans_cm"])
+                J = motion_kinematics(m, body)[0]
+                h = int(fps // 2)
+                jr.append(
+                    [
+                        mean_jerk(J[max(0, k.frame - h) : k.frame + h + 1], fps) / train_jerk
+                        for k in kfs
+                    ]
+                )
+            jr = np.asarray(jr)
+            row = {"from": a_lab, "to": b_lab, "steps": steps, "rotation_deg": float(np.max(rot)),
+                   "trans_cm": float(np.max(pos)), "jerk_ratio_mean": jr.mean(0).tolist(),
+                   "jerk_ratio_max": jr.max(0).tolist()}  # fmt: skip
+            results["keyframes"].append(row)
+            print(f"| {a_lab} -> {b_lab} | {steps} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
+                  + " / ".join(f"{m_:.2f} (max {x_:.2f})" for m_, x_ in zip(jr.mean(0), jr.max(0), strict=True))
+                  + " |", flush=True)  # fmt: skip
+
+    # -- parts ----------------------------------------------------------------------------
+    print("\n## Body parts (upper / lower from different labels)\n")
+    print("| upper | lower | film: fidelity upper / lower | splice: fidelity upper / lower |")
+    print("|---|---|---|---|")
+    results["parts"] = []
+    length = 2 * int(model.lengths[:, -1].max())
+    for up, low in itertools.permutations(labs, 2):
+        parts = {"upper": up, "lower": low}
+        row = {"upper": up, "lower": low}
+        for method in ("film", "splice"):
+            ms = C.generate_parts(model, parts, length, seed=0, num_samples=a.samples,
+                                  method=method, body=body)  # fmt: skip
+            ms = ms if isinstance(ms, list) else [ms]
+            row[method] = C.part_fidelity(ms, model, parts)
+        results["parts"].append(row)
+        print(f"| {up} | {low} | {100 * row['film']['upper']:.1f} / {100 * row['film']['lower']:.1f} % | "
+              f"{100 * row['splice']['upper']:.1f} / {100 * row['splice']['lower']:.1f} % |", flush=True)  # fmt: skip
+    for method in ("film", "splice"):
+        f = [[r[method]["upper"], r[method]["lower"]] for r in results["parts"]]
+        print(
+            f"{method}: mean fidelity {100 * np.mean(f):.1f} %, worst part {100 * np.min(f):.1f} %"
+        )
+
+    # -- loops ----------------------------------------------------------------------------
+    print("\n## Loops (4 s): seam step / 95th percentile of own steps\n")
+    print("| label | circular | crossfade | raw sample closed on itself |")
+    print("|---|---|---|---|")
+    results["loop"] = []
+    N = int(4 * fps)
+    for lab in labs:
+        row = {"label": lab}
+        for method in ("circular", "crossfade"):
+            r = []
+            for s in seeds:
+                sm = C.loop_seam(
+                    C.generate_loop(model, lab, N, seed=s, method=method, body=body), body
+                )
+                r.append(sm["seam"] / sm["p95"])
+            row[method] = r
+        r = []
+        for s in seeds:
+            m = generate(model, lab, length=N, seed=s, body=body)
+            step = m.trans[-1] - m.trans[-2]
+            m.meta["loop_offset"] = (m.trans[-1] - m.trans[0] + step).tolist()
+            sm = C.loop_seam(m, body)
+            r.append(sm["seam"] / sm["p95"])
+        row["raw"] = r
+        results["loop"].append(row)
+        print(f"| {lab} | " + " | ".join(
+            f"{np.mean(row[k]):.2f} (max {np.max(row[k]):.2f})" for k in ("circular", "crossfade", "raw")
+        ) + " |", flush=True)  # fmt: skip
+    (out / "constraints.json").write_text(json.dumps(results, indent=1, default=float))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,72 @@
+"""Control beyond labels: root paths, keyframes and in-betweening, body-part
+composition, seamless loops and continuation.
+
+Each constraint is a function of a trained model (or, where it can be, of any motion),
+usable the same way for label and speech models wherever it works on the output:
+
+* :func:`generate_on_path` / :func:`follow_path` (``path``): walk a ground-plane path,
+  feet planted.
+* :func:`generate_with_keyframes` / :func:`apply_keyframes` (``keyframes``): hold full
+  or partial poses at given frames; :func:`continue_motion` extends a prefix.
+* :func:`generate_parts` / :func:`splice_parts` (``compose``): a condition per body part.
+* :func:`generate_loop` (``loop``): a loop whose end joins its start.
+
+How each works, and what was measured against what, is in the submodules' docstrings
+and ``docs/results.md``; ``notebooks/06_constraints.ipynb`` shows them with widgets.
+"""
+
+from mrlib.constraints.compose import (
+    PARTS,
+    generate_parts,
+    parse_parts,
+    part_fidelity,
+    part_joints,
+    splice_parts,
+)
+from mrlib.constraints.keyframes import (
+    Keyframe,
+    align_to_keyframes,
+    apply_keyframes,
+    continue_motion,
+    generate_with_keyframes,
+    keyframe_errors,
+    load_keyframes,
+    save_keyframes,
+)
+from mrlib.constraints.loop import generate_loop, loop_seam, tile_loop
+from mrlib.constraints.path import (
+    GroundPath,
+    follow_path,
+    generate_on_path,
+    ground_track,
+    natural_pace,
+    parse_path,
+    path_error,
+)
+
+__all__ = [
+    "GroundPath",
+    "parse_path",
+    "follow_path",
+    "generate_on_path",
+    "natural_pace",
+    "ground_track",
+    "path_error",
+    "Keyframe",
+    "save_keyframes",
+    "load_keyframes",
+    "align_to_keyframes",
+    "apply_keyframes",
+    "keyframe_errors",
+    "generate_with_keyframes",
+    "continue_motion",
+    "PARTS",
+    "part_joints",
+    "parse_parts",
+    "generate_parts",
+    "splice_parts",
+    "part_fidelity",
+    "generate_loop",
+    "loop_seam",
+    "tile_loop",
+]

@@ -1,0 +1,285 @@
+"""Constraints (mrlib.constraints): paths, keyframes, continuation, loops, body parts.
+
+Each constraint has a test that fails when the constraint is ignored. The models here
+are plumbing models (two iterations per block): the tests check what the constraints
+guarantee by construction; what they achieve with a trained model is measured by
+``bench/constraints.py`` (docs/results.md)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib import constraints as C
+from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.footik import contact_skating
+from mrlib.sample import generate, label_inputs, label_weights, sample_features
+from mrlib.synthetic import synthetic_walk, synthetic_wave
+
+
+@pytest.fixture(scope="module")
+def clips(body):
+    return [
+        synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=body),
+        synthetic_wave(seconds=3.6, fps=10.0, body=body),
+    ]
+
+
+@pytest.fixture(scope="module")
+def model(plumbing_model, clips):
+    return plumbing_model(clips, "walk_sad_wave")
+
+
+@pytest.fixture(scope="module")
+def walk(body):
+    """A straight synthetic walk along +Z, 20 s, with its contact labels."""
+    from mrlib.contacts import foot_contacts
+
+    w = synthetic_walk("walk_happy", seconds=20.0, fps=30.0, body=body)
+    return w.replace(contacts=foot_contacts(w, body))
+
+
+def _turn_steps(aa: np.ndarray) -> np.ndarray:
+    """Degrees turned from frame to frame by each joint of ``aa (T, J, 3)``."""
+    from mrlib.rotations import axis_angle_to_matrix, geodesic_distance
+
+    R = axis_angle_to_matrix(torch.from_numpy(np.asarray(aa, np.float64)))
+    return np.degrees(geodesic_distance(R[1:], R[:-1]).numpy())
+
+
+def _steps(motion, body) -> np.ndarray:
+    J = body.motion_joints(motion)
+    return np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)  # (T - 1,)
+
+
+# -- paths --------------------------------------------------------------------------------
+def test_path_presets_have_the_right_shape():
+    c = C.GroundPath.circle(2.0)
+    assert c.length == pytest.approx(2 * np.pi * 2.0, rel=1e-3) and c.closed
+    xz, h = c.at(np.array([0.0, c.length / 4, c.length / 2, 1.25 * c.length]))
+    assert np.allclose(xz, [[0, 0], [2, 2], [4, 0], [2, 2]], atol=1e-3)
+    assert np.allclose(np.degrees(h), [0, 90, 180, 450], atol=1.0)  # keeps turning lap after lap
+    e = C.GroundPath.figure_eight(2.0)
+    xz, h = e.at(np.array([e.length / 4, 3 * e.length / 4, e.length]))
+    assert np.allclose(xz, [[4, 0], [-4, 0], [0, 0]], atol=1e-3)  # left lap, right lap, home
+    assert abs(np.degrees(h[-1])) < 2.0  # no net turn after an eight
+    line = C.parse_path("line:5")
+    assert np.allclose(line.at(np.array([7.0]))[0], [[0, 7]])  # straight on past the end
+    assert C.GroundPath.circle(1.0).distance(np.array([[1.0, 1.0], [1.0, 0.0]])) == pytest.approx(
+        [0.0, 1.0], abs=1e-3
+    )
+
+
+def test_path_files_and_bad_specs(tmp_path):
+    f = tmp_path / "p.csv"
+    f.write_text("x,z,t\n0,0,0\n0,1,1\n1,2,2.5\n")
+    p = C.parse_path(f)
+    assert p.times is not None and p.duration == 2.5 and len(p.points) == 3
+    assert C.GroundPath.from_csv(f).arc_at_time(np.array([1.0]))[0] == pytest.approx(1.0)
+    (tmp_path / "bad.csv").write_text("x,z\n0,0\n0,zz\n")
+    with pytest.raises(MotionFileError, match="bad.csv"):
+        C.parse_path(tmp_path / "bad.csv")
+    for spec in ["circle:-1", "circle:x", "spiral:2"]:
+        with pytest.raises(MotionValueError):
+            C.parse_path(spec)
+    with pytest.raises(MotionValueError, match="same place"):
+        C.GroundPath(np.array([[0, 0], [0, 0], [1, 1]]))
+
+
+@pytest.mark.parametrize("spec", ["circle:2", "eight:2"])
+def test_a_walk_bent_onto_a_path_follows_it_with_feet_planted(walk, body, spec):
+    raw = C.path_error(walk, spec, body)
+    assert raw["mean_m"] > 3.0  # ignoring the path misses it by metres
+    m = C.follow_path(walk, spec, body=body)
+    err = C.path_error(m, spec, body)
+    assert err["mean_m"] < 0.10 and err["max_m"] < 0.30, err
+    assert contact_skating(m, body) <= contact_skating(walk, body) + 0.05
+    # it travels along the path: its heading is the tangent at the nearest path point
+    path = C.parse_path(spec)
+    grid, h = path.at(np.linspace(0, path.length, 4000, endpoint=False))
+    track = C.ground_track(m, body)
+    near = np.argmin(((track["travel"][:, None] - grid[None]) ** 2).sum(-1), axis=1)
+    d = np.degrees(np.angle(np.exp(1j * (track["heading"] - h[near]))))
+    assert np.median(np.abs(d)) < 10.0
+
+
+def test_a_timed_path_sets_the_pace_and_warns_when_it_is_far_from_the_motions(walk, body):
+    own = C.ground_track(walk, body)["arc"][-1] / walk.duration
+    pts = np.array([[0.0, 0.0], [0.0, 3 * own * walk.duration]])
+    fast = C.GroundPath(pts, times=np.array([0.0, walk.duration]))  # three times its pace
+    with pytest.warns(UserWarning, match="m/s"):
+        m = C.follow_path(walk, fast, body=body, clean=False)
+    assert C.ground_track(m, body)["arc"][-1] == pytest.approx(3 * own * walk.duration, rel=0.05)
+    slow = C.GroundPath(pts * 0.95 / 3, times=np.array([0.0, walk.duration]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # close to its own pace: no warning
+        C.follow_path(walk, slow, body=body, clean=False)
+
+
+def test_generate_on_path_with_a_model(model, body):
+    m = C.generate_on_path(model, "circle:2", "walk_sad", seconds=6.0, seed=0, body=body)
+    assert m.num_frames == 60 and m.meta["path"]["name"].startswith("circle")
+    assert C.path_error(m, "circle:2", body)["mean_m"] < 0.10
+
+
+# -- keyframes ----------------------------------------------------------------------------
+def test_keyframes_hold_exactly_and_without_a_pop(walk, body, clips):
+    m = walk.slice(0, 90)
+    other = clips[1].resample(30.0)  # a wave: a pose the walk never has
+    kfs = [
+        C.Keyframe(45, other.poses[10], joints=("right_shoulder", "right_elbow")),  # 17, 19
+        C.Keyframe(89, trans=m.trans[89] + [0.3, 0.0, 0.2]),
+    ]
+    before = C.keyframe_errors(m, kfs)
+    assert before["rotation_deg"] > 30 and before["trans_cm"] > 30  # ignored: far off
+    out = C.apply_keyframes(m, kfs)
+    after = C.keyframe_errors(out, kfs)
+    assert after["rotation_deg"] < 1e-3 and after["trans_cm"] < 1e-3
+    # no pop: a keyframe written into its frame alone jumps; eased, the arm turns a
+    # little every frame
+    popped = m.poses.copy()
+    popped[45, [17, 19]] = other.poses[10, [17, 19]]
+    pop = _turn_steps(popped[:, [17, 19]]).max()
+    eased = _turn_steps(out.poses[:, [17, 19]]).max()
+    assert pop > 20.0 and eased < 0.25 * pop, (pop, eased)
+
+
+def test_keyframes_round_trip_and_refuse_bad_input(tmp_path, walk):
+    kfs = [C.Keyframe.from_motion(walk, 3, 0), C.Keyframe(5, walk.poses[9], joints=(0, "head"))]
+    back = C.load_keyframes(C.save_keyframes(tmp_path / "kf.npz", kfs))
+    assert [k.frame for k in back] == [0, 5] and back[1].joints == (0, 15) and back[1].trans is None
+    assert np.allclose(back[0].trans, walk.trans[3])
+    with pytest.raises(MotionValueError, match="constrains nothing"):
+        C.Keyframe(3)
+    with pytest.raises(MotionValueError, match="unknown joint"):
+        C.Keyframe(3, walk.poses[0], joints=("tail",))
+    with pytest.raises(MotionValueError, match="beyond"):
+        C.apply_keyframes(walk.slice(0, 10), [C.Keyframe(12, trans=np.zeros(3))])
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(MotionFileError):
+        C.load_keyframes(tmp_path / "junk.npz")
+
+
+def test_generate_with_keyframes_meets_them(model, clips, body):
+    walk = clips[0]
+    kfs = [C.Keyframe.from_motion(walk, 0, 0), C.Keyframe.from_motion(walk, -1, 29, root=False)]
+    m = C.generate_with_keyframes(model, kfs, 30, "walk_sad", seed=0, steps=5, body=body)
+    err = C.keyframe_errors(m, kfs)
+    assert err["rotation_deg"] < 0.01 and err["trans_cm"] < 0.01
+    raw = generate(model, "walk_sad", length=30, seed=0)
+    assert C.keyframe_errors(raw, kfs)["rotation_deg"] > 5.0
+
+
+def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body):
+    prefix = clips[0].slice(0, 20)
+    m = C.continue_motion(model, prefix, 20, "walk_sad", seed=0, steps=5, body=body)
+    assert m.num_frames == 40 and np.array_equal(m.poses[:20], prefix.poses)
+    assert np.allclose(m.trans[:20], prefix.trans)
+    # the seam step is no larger than the generated part's own steps; gluing the raw
+    # sample on (placed at the prefix's end) jumps
+    steps = _steps(m, body)
+    assert steps[19] <= np.percentile(steps[20:], 95) + 1e-6
+    raw = generate(model, "walk_sad", length=20, seed=0)
+    raw = raw.replace(trans=raw.trans - raw.trans[0] + prefix.trans[-1])
+    glued = prefix.replace(
+        poses=np.concatenate([prefix.poses, raw.poses]),
+        trans=np.concatenate([prefix.trans, raw.trans]),
+        contacts=None,
+    )
+    assert _steps(glued, body)[19] > 2 * steps[19]
+
+
+# -- loops --------------------------------------------------------------------------------
+def test_circular_generation_is_periodic(model):
+    W = label_weights(model, "walk_sad")
+    lengths, amp, conds = label_inputs(model, W, 40)
+
+    def wrap_ratio(circular: bool) -> np.ndarray:
+        x = sample_features(model, conds, lengths, amp, seed=3, num_samples=8, circular=circular)
+        step = (x[..., 1:] - x[..., :-1]).norm(dim=1)  # (B, T - 1)
+        wrap = (x[..., 0] - x[..., -1]).norm(dim=1)  # (B,)
+        return (wrap / step.median(dim=1).values).numpy()
+
+    on, off = wrap_ratio(True), wrap_ratio(False)
+    assert np.median(on) < 2.0 and np.median(off) > 2 * np.median(on), (on, off)
+
+
+def test_periodic_upsampling_wraps_around():
+    from mrlib.pyramid import resample_linear, resample_periodic
+
+    t = torch.arange(12, dtype=torch.float64)
+    x = torch.sin(2 * np.pi * t / 12)[None, None]
+    up = resample_periodic(x, 16)[0, 0]
+    exact = torch.sin(2 * np.pi * ((torch.arange(16) + 0.5) * 12 / 16 - 0.5) / 12)
+    assert (up - exact).abs().max() < 0.05
+    # the same as resampling three periods and keeping the middle one
+    three = resample_linear(x.repeat(1, 1, 3), 48)[0, 0, 16:32]
+    assert torch.allclose(up, three, atol=1e-12)
+    assert not torch.allclose(resample_linear(x, 16)[0, 0], three, atol=1e-3)  # clamped ends
+
+
+def test_generate_loop_tiles_seamlessly(model, body):
+    m = C.generate_loop(model, "walk_sad", 40, seed=1, fix_contacts=False)
+    assert m.num_frames == 40 and len(m.meta["loop_offset"]) == 3
+    two = C.tile_loop(m, 2)
+    assert two.num_frames == 80 and np.allclose(two.poses[40:], two.poses[:40])
+    seam = C.loop_seam(m, body)
+    assert seam["seam"] < 2 * seam["median"]
+    with pytest.raises(MotionValueError, match="not a loop"):
+        C.tile_loop(generate(model, "walk_sad", length=20, seed=0), 2)
+
+
+# -- body parts ---------------------------------------------------------------------------
+def test_film_parts_with_one_label_are_that_label(model):
+    same = C.generate_parts(model, {"upper": "walk_sad", "lower": "walk_sad"}, 30, seed=2,
+                            fix_contacts=False)  # fmt: skip
+    plain = generate(model, "walk_sad", length=30, seed=2, fix_contacts=False)
+    assert np.allclose(same.poses, plain.poses, atol=1e-5)
+    mixed = C.generate_parts(model, {"upper": "wave", "lower": "walk_sad"}, 30, seed=2,
+                             fix_contacts=False)  # fmt: skip
+    assert not np.allclose(mixed.poses, plain.poses, atol=1e-3)
+    assert mixed.label == "upper=wave,lower=walk_sad"
+
+
+def test_spliced_parts_take_each_group_from_its_own_label(model):
+    parts = {"upper": "wave", "lower": "walk_sad"}
+    m = C.generate_parts(model, parts, 30, seed=2, method="splice", fix_contacts=False)
+    wave = generate(model, "wave", length=30, seed=2, fix_contacts=False)
+    sad = generate(model, "walk_sad", length=30, seed=2, fix_contacts=False)
+    up, low = list(C.part_joints("upper")), list(C.part_joints("lower"))
+    assert np.array_equal(m.poses[:, up], wave.poses[:, up])
+    assert np.array_equal(m.poses[:, low], sad.poses[:, low])
+    assert np.array_equal(m.trans, sad.trans)
+    with pytest.raises(MotionValueError, match="overlap"):
+        C.generate_parts(model, {"upper": "wave", "left_arm": "walk_sad"}, 30)
+    with pytest.raises(MotionValueError, match="part=label"):
+        C.parse_parts("upper")
+
+
+# -- command line -------------------------------------------------------------------------
+def test_sample_cli_constraints(tmp_path, clips):
+    from mrlib.cli import main
+    from mrlib.io import save_motion
+
+    files = [str(save_motion(c, tmp_path / f"{c.label}.npz")) for c in clips]
+    run = tmp_path / "run"
+    assert main(["train", *files, "--iterations", "1", "--levels", "2", "--no-progress",
+                 "--out", str(run)]) == 0  # fmt: skip
+    ckpt = str(run / "checkpoint.pt")
+    out = tmp_path / "o"
+    base = ["sample", ckpt, "--label", "walk_sad", "--out", str(out)]
+    assert main([*base, "--path", "circle:1.5", "--seconds", "3"]) == 0
+    assert main([*base, "--loop", "--seconds", "2"]) == 0
+    kf = C.save_keyframes(tmp_path / "kf.npz", [C.Keyframe.from_motion(clips[0], 0, 0)])
+    assert main([*base, "--keyframes", str(kf), "--seconds", "2"]) == 0
+    assert main([*base, "--continue", files[0], "--seconds", "1"]) == 0
+    assert main(["sample", ckpt, "--parts", "upper=wave,lower=walk_sad", "--out", str(out)]) == 0
+    names = sorted(p.name for p in out.glob("*.npz"))
+    assert len(names) == 5, names
+    assert [sum(w in n for n in names) for w in ("path", "loop", "keyframes", "continued")] == [
+        1
+    ] * 4
+    assert main([*base, "--keyframes", str(kf)]) == 1  # needs --seconds
