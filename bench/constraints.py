@@ -12,7 +12,8 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
 * **keyframes**: in-betweening from the first frame of one walk to the last frame of
   another (full poses, root fixed at the start) plus a partial keyframe (right arm of a
   third walk) in the middle, 4 s: largest rotation and root errors at the keyframes and
-  the jerk of the 1 s around each keyframe over the training clips' mean jerk;
+  the jerk of the 1 s around each keyframe over the training clips' mean jerk, beside
+  the same for unconstrained samples of the label (same seeds, same windows);
 * **parts**: upper body from one label, lower body from another, for every ordered
   pair, by ``film`` and ``splice``: condition fidelity per part;
 * **loop**: 4 s loops by ``circular`` and ``crossfade``, and raw samples closed on
@@ -131,9 +132,9 @@ def main() -> int:
     print("\n## Keyframes (4 s in-between)\n")
     print(f"training clips' mean jerk {train_jerk:.1f} m/s^3\n")
     print(
-        "| from -> to (label) | steps | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) |"
+        "| from -> to (label) | steps | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) | unconstrained samples, same windows |"
     )
-    print("|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|")
     results["keyframes"] = []
     N = int(4 * fps)
     labs = model.labels
@@ -147,6 +148,17 @@ def main() -> int:
                        joints=("right_shoulder", "right_elbow", "right_wrist")),
             C.Keyframe.from_motion(train[b_lab], -1, N - 1, root=False),
         ]  # fmt: skip
+        h = int(fps // 2)
+
+        def around(m, kfs=kfs, h=h):
+            J = motion_kinematics(m, body)[0]
+            return [
+                mean_jerk(J[max(0, k.frame - h) : k.frame + h + 1], fps) / train_jerk for k in kfs
+            ]
+
+        control = np.asarray(
+            [around(generate(model, b_lab, length=N, seed=s, body=body)) for s in seeds]
+        )
         for steps in (0, a.steps):
             rot, pos, jr = [], [], []
             for s in seeds:
@@ -154,22 +166,16 @@ def main() -> int:
                 e = C.keyframe_errors(m, kfs)
                 rot.append(e["rotation_deg"])
                 pos.append(e["trans_cm"])
-                J = motion_kinematics(m, body)[0]
-                h = int(fps // 2)
-                jr.append(
-                    [
-                        mean_jerk(J[max(0, k.frame - h) : k.frame + h + 1], fps) / train_jerk
-                        for k in kfs
-                    ]
-                )
+                jr.append(around(m))
             jr = np.asarray(jr)
             row = {"from": a_lab, "to": b_lab, "steps": steps, "rotation_deg": float(np.max(rot)),
                    "trans_cm": float(np.max(pos)), "jerk_ratio_mean": jr.mean(0).tolist(),
-                   "jerk_ratio_max": jr.max(0).tolist()}  # fmt: skip
+                   "jerk_ratio_max": jr.max(0).tolist(),
+                   "unconstrained_jerk_ratio_mean": control.mean(0).tolist()}  # fmt: skip
             results["keyframes"].append(row)
             print(f"| {a_lab} -> {b_lab} | {steps} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
                   + " / ".join(f"{m_:.2f} (max {x_:.2f})" for m_, x_ in zip(jr.mean(0), jr.max(0), strict=True))
-                  + " |", flush=True)  # fmt: skip
+                  + " | " + " / ".join(f"{c_:.2f}" for c_ in control.mean(0)) + " |", flush=True)  # fmt: skip
 
     # -- parts ----------------------------------------------------------------------------
     print("\n## Body parts (upper / lower from different labels)\n")

@@ -18,8 +18,10 @@ does, both with a per-frame optimisation. Here the same goal is reached in close
    target and the foot's new orientation: a foot that rolls while two of its vertices
    are planted turns back so both hold.
 4. **The root first.** The whole body moves by the feet's corrections, weighted by how
-   planted each foot is: a single planted foot is held by the root alone, which changes
-   no joint angle (so the pose metrics, which leave the root out, barely move).
+   planted each foot is and low-passed over ``ROOT_SMOOTH_S`` seconds: a single planted
+   foot is mostly held by the root alone, which changes no joint angle (so the pose
+   metrics, which leave the root out, barely move). Unsmoothed, the root's correction
+   switches from foot to foot at every step, which tripled the joints' jerk.
 5. **Two-bone IK** (hip - knee - ankle, law of cosines) for the rest: the knee angle
    sets the hip-ankle distance, then the thigh swings the ankle onto its target; bone
    lengths are kept, targets out of reach are clamped to the leg's length.
@@ -34,6 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from scipy.ndimage import gaussian_filter1d
 
 from mrlib.body import resolve_body
 from mrlib.errors import MotionValueError
@@ -44,6 +47,7 @@ from mrlib.skeleton import NUM_JOINTS, PARENTS
 __all__ = [
     "LEGS",
     "BLEND_S",
+    "ROOT_SMOOTH_S",
     "contact_runs",
     "pin_corrections",
     "two_bone_ik",
@@ -59,7 +63,8 @@ LEGS: tuple[tuple[tuple[int, int, int], tuple[int, int, int]], ...] = (
     ((2, 5, 8), (3, 4, 5)),
 )
 _EPS = 1e-6
-BLEND_S = 2 / 15  # seconds over which a planted foot eases in and out (4 frames at 30 fps)
+BLEND_S = 0.2  # seconds over which a planted foot eases in and out (6 frames at 30 fps)
+ROOT_SMOOTH_S = 0.1  # Gaussian sigma (s) of the root's share of the correction
 
 
 def contact_runs(c: np.ndarray) -> np.ndarray:
@@ -242,6 +247,7 @@ def plant_feet(
     *,
     rotate_foot: bool = True,
     move_root: bool = True,
+    root_smooth: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
     """Local rotations ``(T, 24, 3, 3)`` and a root offset ``(T, 3)`` that plant the
     contact vertices.
@@ -262,6 +268,7 @@ def plant_feet(
         feet: ``(T, 6, 3)`` positions of the six contact vertices.
         contacts: ``(T, 6)`` contact labels (> 0.5 is contact).
         blend: frames over which a correction eases in before and out after a run.
+        root_smooth: Gaussian sigma (frames) of the root offset; 0 leaves it raw.
     Returns:
         The new rotations, the root offset (add it to the translation), and
         ``{"runs": number of vertex contact runs planted}``.
@@ -309,6 +316,8 @@ def plant_feet(
         total = sum(p[4] for p in plans)  # (T,)
         moves = sum(p[4][:, None] * (p[5] - J[:, p[2]]) for p in plans)
         offset = moves / np.maximum(total, 1.0)[:, None]
+        if root_smooth > 0:  # a smooth root; the legs take what the smoothing leaves
+            offset = gaussian_filter1d(offset, root_smooth, axis=0, mode="nearest", truncate=3.0)
     # 3. leg IK for what is left
     for hip, knee, ankle, moved, _, target, foot_G in plans:
         if not moved.any():
@@ -347,8 +356,9 @@ def contact_skating(motion: Motion, body=None) -> float:
 
 
 def _cleanup_ik(
-    motion: Motion, body, blend: int, passes: int = 2, move_root: bool = True
-) -> Motion:
+    motion: Motion, body, blend: int, passes: int = 2, move_root: bool = True,
+    root_smooth: float = 0.0,
+) -> Motion:  # fmt: skip
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
     body = resolve_body(body)
@@ -361,12 +371,20 @@ def _cleanup_ik(
                 torch.from_numpy(Rn).float(), torch.from_numpy(tn).float(), betas, vertex_ids=ids
             )
         J, F = out.joints.double().numpy(), out.vertices.double().numpy()
-        Rn, offset, info = plant_feet(Rn, J, F, motion.contacts, blend, move_root=move_root)
+        Rn, offset, info = plant_feet(
+            Rn, J, F, motion.contacts, blend, move_root=move_root, root_smooth=root_smooth
+        )
         tn = tn + offset
     poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
     meta = dict(
         motion.meta,
-        contact_cleanup={"method": "ik", "blend": blend, "move_root": move_root, **info},
+        contact_cleanup={
+            "method": "ik",
+            "blend": blend,
+            "move_root": move_root,
+            "root_smooth": round(float(root_smooth), 3),
+            **info,
+        },  # fmt: skip
     )
     return motion.replace(poses=poses, trans=tn.astype(np.float32), meta=meta)
 
@@ -388,7 +406,8 @@ def cleanup_foot_contacts(
     ``method="ik"`` (default): vectorised over all frames (:func:`plant_feet`): every
     contact vertex is pinned to its mean position over each contact run, eased in and
     out over ``blend`` frames (default ``BLEND_S`` seconds); the body's root takes the
-    planted feet's common correction (``move_root``; it changes no joint angle) and
+    planted feet's common correction, low-passed (``move_root``; it changes no joint
+    angle) and
     analytic two-bone leg IK the rest, the foot turning as a rigid body so that all its
     planted vertices hold.
     Milliseconds per clip.
@@ -405,7 +424,9 @@ def cleanup_foot_contacts(
         raise MotionValueError(f"method must be 'ik' or 'optimise', got {method!r}")
     if method == "ik":
         frames = max(1, round(BLEND_S * motion.fps)) if blend is None else int(blend)
-        return _cleanup_ik(motion, body, frames, move_root=move_root)
+        return _cleanup_ik(
+            motion, body, frames, move_root=move_root, root_smooth=ROOT_SMOOTH_S * motion.fps
+        )
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
     body = resolve_body(body)

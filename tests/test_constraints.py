@@ -235,11 +235,11 @@ def test_generate_loop_tiles_seamlessly(model, body):
 # -- body parts ---------------------------------------------------------------------------
 def test_film_parts_with_one_label_are_that_label(model):
     same = C.generate_parts(model, {"upper": "walk_sad", "lower": "walk_sad"}, 30, seed=2,
-                            fix_contacts=False)  # fmt: skip
+                            method="film", fix_contacts=False)  # fmt: skip
     plain = generate(model, "walk_sad", length=30, seed=2, fix_contacts=False)
     assert np.allclose(same.poses, plain.poses, atol=1e-5)
     mixed = C.generate_parts(model, {"upper": "wave", "lower": "walk_sad"}, 30, seed=2,
-                             fix_contacts=False)  # fmt: skip
+                             method="film", fix_contacts=False)  # fmt: skip
     assert not np.allclose(mixed.poses, plain.poses, atol=1e-3)
     assert mixed.label == "upper=wave,lower=walk_sad"
 

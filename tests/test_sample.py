@@ -149,12 +149,16 @@ def test_ik_cleanup_pins_a_lone_contact_vertex_and_keeps_bone_lengths(body):
     """One toe in contact over a run: after the clean-up it stands still on the ground
     plane where it was on average, and the leg's bones keep their lengths."""
     from mrlib.contacts import foot_contacts
-    from mrlib.footik import contact_runs
+    from mrlib.footik import BLEND_S, ROOT_SMOOTH_S, contact_runs
 
     bad = _skating_walk()
     real = foot_contacts(synthetic_walk("walk_normal", seconds=2.0, fps=30.0), body)
     v = 3  # the right big toe, over one of its stance phases
-    s, e = next((s, e) for s, e in contact_runs(real[:, v] > 0.5) if s > 8 and e - s >= 4)
+    # how far a run's correction reaches: the blend, the pinned edge frame, and the
+    # root's smoothing (a Gaussian cut at 3 sigma)
+    reach = round(BLEND_S * 30) + 1 + int(np.ceil(3 * ROOT_SMOOTH_S * 30))
+    runs = contact_runs(real[:, v] > 0.5)
+    s, e = next((s, e) for s, e in runs if s > reach + 4 and e - s >= 4)
     contacts = np.zeros((bad.num_frames, 6), np.float32)
     contacts[s : e + 1, v] = 1
     fixed = cleanup_foot_contacts(bad.replace(contacts=contacts), body)
@@ -167,7 +171,7 @@ def test_ik_cleanup_pins_a_lone_contact_vertex_and_keeps_bone_lengths(body):
     assert np.abs(pinned - pinned.mean(0)).max() < 5e-3
     assert np.median(np.abs(pinned - pinned.mean(0))) < 1e-3
     assert np.abs(pinned.mean(0) - before[s : e + 1, v][:, [0, 2]].mean(0)).max() < 2e-3
-    far = slice(0, max(0, s - 6))
+    far = slice(0, s - reach)
     assert np.abs(after[far] - before[far]).max() < 1e-4  # away from the run nothing moves
     jb, ja = body.motion_joints(bad), body.motion_joints(fixed)
     for p, c in ((2, 5), (5, 8)):

@@ -400,8 +400,13 @@ def test_generate_from_audio_has_the_audio_duration(trained, tmp_path):
     assert np.array_equal(a.poses, b.poses)
     c = generate_from_audio(model, path, seed=4)
     assert not np.allclose(a.poses, c.poses)
-    many, levels = generate_from_audio(model, path, seed=3, num_samples=2, return_levels=True)
-    assert np.allclose(many[0].poses, a.poses, atol=1e-5)  # a sample does not depend on the batch
+    # a sample does not depend on the batch (the raw output: the foot clean-up turns on
+    # contact labels thresholded at 0.5, which float rounding can tip)
+    raw = generate_from_audio(model, path, seed=3, fix_contacts=False)
+    many, levels = generate_from_audio(
+        model, path, seed=3, num_samples=2, return_levels=True, fix_contacts=False
+    )
+    assert np.allclose(many[0].poses, raw.poses, atol=1e-5)
     assert [lv.num_frames for lv in levels[0]] == pyramid_lengths(38, 3, 4 / 3)
     with pytest.raises(ClipTooShortError):
         generate_from_audio(model, bursts(0.3, 1), sr=SR)  # 4 frames: too few for 3 levels

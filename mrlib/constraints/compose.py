@@ -1,16 +1,17 @@
 """Body-part composition: different conditions for different joint groups.
 
-``method="film"`` (default for a label model): every level's FiLM parameters are
-computed for each group's condition and applied to that group's channels
-(``LevelGenerator.modulate``; the channel-to-joint map of the skeleton-aware
-convolutions says which channels are a group's: the root displacement belongs to the
-pelvis, each contact label to its foot). One generator pass: the networks see the whole
-body, so arms and legs keep one rhythm.
+``method="splice"`` (default): one motion per condition with the same noise, each
+group's joint rotations taken from its own (the root and the contact labels from the
+group holding the pelvis). It works across models too (:func:`splice_parts`: upper
+body from a speech model, legs from a label model).
 
-``method="splice"``: one motion per condition with the same noise, each group's joint
-rotations taken from its own (the root and the contact labels from the group holding
-the pelvis). It works across models too (:func:`splice_parts`: upper body from a speech
-model, legs from a label model).
+``method="film"``: one generator pass, each group's channels modulated by its own
+condition's FiLM parameters at every level (``LevelGenerator.modulate``; the
+channel-to-joint map of the skeleton-aware convolutions says which channels are a
+group's: the root displacement belongs to the pelvis, each contact label to its foot).
+The networks see the whole body, so a part's label leaks into its neighbours through the
+convolutions: on the Bandai walks the parts kept their labels less often than spliced
+ones (``docs/results.md``, ``bench/constraints.py``), hence the default.
 """
 
 from __future__ import annotations
@@ -100,7 +101,7 @@ def generate_parts(
     *,
     seed: int | None = None,
     num_samples: int = 1,
-    method: str = "film",
+    method: str = "splice",
     fix_contacts: bool = True,
     body=None,
 ):
