@@ -400,14 +400,15 @@ def cleanup_foot_contacts(
     method: str = "ik",
     blend: int | None = None,
     move_root: bool = True,
+    root_smooth_s: float = ROOT_SMOOTH_S,
 ) -> Motion:
     """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
 
     ``method="ik"`` (default): vectorised over all frames (:func:`plant_feet`): every
     contact vertex is pinned to its mean position over each contact run, eased in and
     out over ``blend`` frames (default ``BLEND_S`` seconds); the body's root takes the
-    planted feet's common correction, low-passed (``move_root``; it changes no joint
-    angle) and
+    planted feet's common correction, low-passed over ``root_smooth_s`` seconds
+    (``move_root``; it changes no joint angle) and
     analytic two-bone leg IK the rest, the foot turning as a rigid body so that all its
     planted vertices hold.
     Milliseconds per clip.
@@ -425,7 +426,7 @@ def cleanup_foot_contacts(
     if method == "ik":
         frames = max(1, round(BLEND_S * motion.fps)) if blend is None else int(blend)
         return _cleanup_ik(
-            motion, body, frames, move_root=move_root, root_smooth=ROOT_SMOOTH_S * motion.fps
+            motion, body, frames, move_root=move_root, root_smooth=root_smooth_s * motion.fps
         )
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
