@@ -76,3 +76,21 @@ def plumbing_model(tmp_path_factory, default_body):
 
     make.config = cfg
     return make
+
+
+@pytest.fixture(scope="session")
+def sad_wave_clips(default_body):
+    """Two synthetic clips at 10 fps: a sad walk (4 s) and a wave (3.6 s)."""
+    from mrlib.synthetic import synthetic_walk, synthetic_wave
+
+    return [
+        synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=default_body),
+        synthetic_wave(seconds=3.6, fps=10.0, body=default_body),
+    ]
+
+
+@pytest.fixture(scope="session")
+def sad_wave_model(plumbing_model, sad_wave_clips):
+    """A plumbing model of ``sad_wave_clips`` (two iterations per block): its samples
+    mean nothing."""
+    return plumbing_model(sad_wave_clips, "walk_sad_wave")

@@ -17,20 +17,17 @@ from mrlib import constraints as C
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.footik import contact_skating
 from mrlib.sample import generate, label_inputs, label_weights, sample_features
-from mrlib.synthetic import synthetic_walk, synthetic_wave
+from mrlib.synthetic import synthetic_walk
 
 
 @pytest.fixture(scope="module")
-def clips(body):
-    return [
-        synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=body),
-        synthetic_wave(seconds=3.6, fps=10.0, body=body),
-    ]
+def clips(sad_wave_clips):
+    return sad_wave_clips
 
 
 @pytest.fixture(scope="module")
-def model(plumbing_model, clips):
-    return plumbing_model(clips, "walk_sad_wave")
+def model(sad_wave_model):
+    return sad_wave_model
 
 
 @pytest.fixture(scope="module")

@@ -38,17 +38,13 @@ from mrlib.widgets import CrossoverView, interactive_crossover
 
 
 @pytest.fixture(scope="module")
-def clips(body):
-    return [
-        synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=body),
-        synthetic_wave(seconds=3.6, fps=10.0, body=body),
-    ]
+def clips(sad_wave_clips):
+    return sad_wave_clips
 
 
 @pytest.fixture(scope="module")
-def model(plumbing_model, clips):
-    """A plumbing model (two iterations per block): its samples mean nothing."""
-    return plumbing_model(clips, "walk_sad_wave")
+def model(sad_wave_model):
+    return sad_wave_model
 
 
 # -- bands -------------------------------------------------------------------------------

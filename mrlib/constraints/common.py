@@ -10,7 +10,7 @@ from mrlib.errors import MotionValueError
 from mrlib.motion import Motion
 from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS
 
-__all__ = ["joint_ids", "label_setup", "features_motion", "pelvis_rest"]
+__all__ = ["joint_ids", "label_setup", "features_motion", "fitted_motion", "pelvis_rest"]
 
 
 def joint_ids(joints) -> tuple[int, ...]:
@@ -55,3 +55,24 @@ def pelvis_rest(motion: Motion, body) -> np.ndarray:
     from mrlib.io.bodyfit import rest_pelvis
 
     return rest_pelvis(body, motion.betas)
+
+
+def fitted_motion(
+    model, noises, conds, label: str | None, name: str, loss_fn=None, *, steps: int = 0,
+    clean: bool = True, body=None, progress: bool = False,
+) -> Motion:  # fmt: skip
+    """The model's motion for ``noises`` after ``steps`` of noise optimisation against
+    ``loss_fn`` (``mrlib.constraints.optimise``; none when ``steps`` is 0), with the feet
+    planted when ``clean``."""
+    if steps > 0 and loss_fn is not None:
+        from mrlib.constraints.optimise import optimise_noise
+
+        noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=steps, progress=progress)
+    with torch.no_grad():
+        x = model.generator.run_batch(noises, conds)
+    m = features_motion(model, x, label, name)
+    if clean and m.contacts is not None:
+        from mrlib.footik import cleanup_foot_contacts
+
+        m = cleanup_foot_contacts(m, body)
+    return m

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.constraints.common import features_motion, joint_ids, label_setup, pelvis_rest
+from mrlib.constraints.common import fitted_motion, joint_ids, label_setup, pelvis_rest
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.motion import Motion
 from mrlib.skeleton import NUM_JOINTS
@@ -308,7 +308,7 @@ def generate_with_keyframes(
     (method: module docstring). ``steps=0`` skips the noise optimisation; ``clean``
     plants the feet before the exact fit."""
     from mrlib.body import resolve_body
-    from mrlib.constraints.optimise import decode, optimise_noise
+    from mrlib.constraints.optimise import decode
     from mrlib.rotations import axis_angle_to_matrix
 
     body = resolve_body(body, shared=True)
@@ -319,7 +319,8 @@ def generate_with_keyframes(
     noises, conds, label = label_setup(model, condition, conditions, blend, length, seed)
     posed = [kf for kf in keyframes if kf.poses is not None]
     roots = sorted((kf for kf in keyframes if kf.trans is not None), key=lambda k: k.frame)
-    if steps > 0 and (posed or len(roots) >= 2):
+    loss_fn = None
+    if posed or len(roots) >= 2:
         tgt = [
             (kf.frame, [j for j in kf.joints if j > 0],
              _sixd(axis_angle_to_matrix(torch.from_numpy(kf.poses))).float())
@@ -341,14 +342,9 @@ def generate_with_keyframes(
                 loss = loss + (step.norm() - dist).pow(2)
             return loss
 
-        noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=steps, progress=progress)
-    with torch.no_grad():
-        x = model.generator.run_batch(noises, conds)
-    m = features_motion(model, x, label, f"{label}_keyframes_seed{seed}")
-    if clean and m.contacts is not None:
-        from mrlib.footik import cleanup_foot_contacts
-
-        m = cleanup_foot_contacts(m, body)
+    name = f"{label}_keyframes_seed{seed}"
+    m = fitted_motion(model, noises, conds, label, name, loss_fn, steps=steps, clean=clean,
+                      body=body, progress=progress)  # fmt: skip
     m = align_to_keyframes(m, keyframes, body)
     return apply_keyframes(m, keyframes, blend_s=blend_s)
 
@@ -371,7 +367,7 @@ def continue_motion(
     """``prefix`` followed by ``frames`` new frames in the model's style (method: module
     docstring). The prefix is resampled to the model's frame rate first."""
     from mrlib.body import resolve_body
-    from mrlib.constraints.optimise import decode, optimise_noise
+    from mrlib.constraints.optimise import decode
     from mrlib.rotations import axis_angle_to_matrix
 
     body = resolve_body(body, shared=True)
@@ -388,24 +384,18 @@ def continue_motion(
     speed = torch.from_numpy(
         np.linalg.norm(np.gradient(prefix.trans[:, [0, 2]], axis=0), axis=1).astype(np.float32)
     )
-    if steps > 0:
 
-        def loss_fn(x: torch.Tensor) -> torch.Tensor:
-            d = decode(model, x)
-            rot = (_sixd(d["rotations"][0, :K, 1:]) - six).pow(2).mean()
-            tr = d["trans"][0, :K]
-            sp = torch.linalg.vector_norm(tr[1:, [0, 2]] - tr[:-1, [0, 2]], dim=-1)
-            root = (tr[:, 1] - height).pow(2).mean() + (sp - speed[1:]).pow(2).mean()
-            return rot + root
+    def loss_fn(x: torch.Tensor) -> torch.Tensor:
+        d = decode(model, x)
+        rot = (_sixd(d["rotations"][0, :K, 1:]) - six).pow(2).mean()
+        tr = d["trans"][0, :K]
+        sp = torch.linalg.vector_norm(tr[1:, [0, 2]] - tr[:-1, [0, 2]], dim=-1)
+        root = (tr[:, 1] - height).pow(2).mean() + (sp - speed[1:]).pow(2).mean()
+        return rot + root
 
-        noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=steps, progress=progress)
-    with torch.no_grad():
-        x = model.generator.run_batch(noises, conds)
-    m = features_motion(model, x, label, f"{prefix.name or 'prefix'}_continued")
-    if clean and m.contacts is not None:
-        from mrlib.footik import cleanup_foot_contacts
-
-        m = cleanup_foot_contacts(m, body)
+    name = f"{prefix.name or 'prefix'}_continued"
+    m = fitted_motion(model, noises, conds, label, name, loss_fn, steps=steps, clean=clean,
+                      body=body, progress=progress)  # fmt: skip
     anchors = [Keyframe(f, prefix.poses[f], (0,), prefix.trans[f]) for f in range(K)]
     m = align_to_keyframes(m, anchors, body)
     # keep the prefix; ease the rest from the prefix's last pose and velocity

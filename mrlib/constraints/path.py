@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from mrlib.constraints.common import features_motion, label_setup, pelvis_rest
+from mrlib.constraints.common import fitted_motion, label_setup, pelvis_rest
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.motion import Motion
 
@@ -445,7 +445,7 @@ def _optimise_onto_path(model, path, condition, conditions, blend, length, seed,
     import torch
 
     from mrlib.body import resolve_body
-    from mrlib.constraints.optimise import decode, optimise_noise
+    from mrlib.constraints.optimise import decode
 
     body = resolve_body(body, shared=True)
     noises, conds, label = label_setup(model, condition, conditions, blend, length, seed)
@@ -462,16 +462,9 @@ def _optimise_onto_path(model, path, condition, conditions, blend, length, seed,
     def loss_fn(x: torch.Tensor) -> torch.Tensor:
         return (decode(model, x)["trans"][0, :, [0, 2]] - target).pow(2).sum(-1).mean()
 
-    noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=steps, progress=progress)
-    with torch.no_grad():
-        x = model.generator.run_batch(noises, conds)
-    m = features_motion(model, x, label, f"{label}_path_seed{seed}")
+    m = fitted_motion(model, noises, conds, label, f"{label}_path_seed{seed}", loss_fn,
+                      steps=steps, clean=clean, body=body, progress=progress)  # fmt: skip
     # the path starts where the pelvis starts: move the motion there
     trans = m.trans.astype(np.float64).copy()
     trans[:, [0, 2]] += xz[0] - trans[0, [0, 2]] - pelvis_rest(m, body)[[0, 2]]
-    m = m.replace(trans=trans, meta=dict(m.meta, path={"name": path.name, "method": "optimise"}))
-    if clean and m.contacts is not None:
-        from mrlib.footik import cleanup_foot_contacts
-
-        m = cleanup_foot_contacts(m, body)
-    return m
+    return m.replace(trans=trans, meta=dict(m.meta, path={"name": path.name, "method": "optimise"}))
