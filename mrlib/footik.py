@@ -63,7 +63,7 @@ LEGS: tuple[tuple[tuple[int, int, int], tuple[int, int, int]], ...] = (
     ((2, 5, 8), (3, 4, 5)),
 )
 _EPS = 1e-6
-BLEND_S = 0.2  # seconds over which a planted foot eases in and out (6 frames at 30 fps)
+BLEND_S = 2 / 15  # seconds over which a planted foot eases in and out (4 frames at 30 fps)
 ROOT_SMOOTH_S = 0.1  # Gaussian sigma (s) of the root's share of the correction
 
 
