@@ -77,51 +77,30 @@ def _rig(name, rows, **kw) -> Rig:
     return Rig(name, tuple(_mirror_offsets(_sides(rows))), **kw)
 
 
+# Bandai Namco's skeleton, the same in both of its datasets (they differ in channels)
+BANDAI_ROWS = [
+    ("joint_Root", None, ("ground", "pelvis")),
+    ("Hips", "joint_Root", "pelvis"),
+    ("Spine", "Hips", "spine2"),
+    ("Chest", "Spine", "spine3"),
+    ("Neck", "Chest", "neck"),
+    ("Head", "Neck", "head"),
+    ("Shoulder_{s}", "Chest", "{side}_collar"),
+    ("UpperArm_{s}", "Shoulder_{s}", "{side}_shoulder"),
+    ("LowerArm_{s}", "UpperArm_{s}", "{side}_elbow"),
+    ("Hand_{s}", "LowerArm_{s}", "{side}_wrist"),
+    ("UpperLeg_{s}", "Hips", "{side}_hip"),
+    ("LowerLeg_{s}", "UpperLeg_{s}", "{side}_knee"),
+    ("Foot_{s}", "LowerLeg_{s}", "{side}_ankle"),
+    ("Toes_{s}", "Foot_{s}", "{side}_foot"),
+]
+
 RIGS: dict[str, Rig] = {
     # Bandai Namco Research Motion Dataset 1: 6 channels on every joint, bone-aligned frames
-    "bandai_namco_1": _rig(
-        "bandai_namco_1",
-        [
-            ("joint_Root", None, ("ground", "pelvis")),
-            ("Hips", "joint_Root", "pelvis"),
-            ("Spine", "Hips", "spine2"),
-            ("Chest", "Spine", "spine3"),
-            ("Neck", "Chest", "neck"),
-            ("Head", "Neck", "head"),
-            ("Shoulder_{s}", "Chest", "{side}_collar"),
-            ("UpperArm_{s}", "Shoulder_{s}", "{side}_shoulder"),
-            ("LowerArm_{s}", "UpperArm_{s}", "{side}_elbow"),
-            ("Hand_{s}", "LowerArm_{s}", "{side}_wrist"),
-            ("UpperLeg_{s}", "Hips", "{side}_hip"),
-            ("LowerLeg_{s}", "UpperLeg_{s}", "{side}_knee"),
-            ("Foot_{s}", "LowerLeg_{s}", "{side}_ankle"),
-            ("Toes_{s}", "Foot_{s}", "{side}_foot"),
-        ],
-        rest="bone",
-        position_channels="all",
-    ),
-    # the same skeleton as Bandai's dataset 2 ships it: rotations only below the hips
+    "bandai_namco_1": _rig("bandai_namco_1", BANDAI_ROWS, rest="bone", position_channels="all"),
+    # dataset 2: rotations only below the hips, another Euler order
     "bandai_namco_2": _rig(
-        "bandai_namco_2",
-        [
-            ("joint_Root", None, ("ground", "pelvis")),
-            ("Hips", "joint_Root", "pelvis"),
-            ("Spine", "Hips", "spine2"),
-            ("Chest", "Spine", "spine3"),
-            ("Neck", "Chest", "neck"),
-            ("Head", "Neck", "head"),
-            ("Shoulder_{s}", "Chest", "{side}_collar"),
-            ("UpperArm_{s}", "Shoulder_{s}", "{side}_shoulder"),
-            ("LowerArm_{s}", "UpperArm_{s}", "{side}_elbow"),
-            ("Hand_{s}", "LowerArm_{s}", "{side}_wrist"),
-            ("UpperLeg_{s}", "Hips", "{side}_hip"),
-            ("LowerLeg_{s}", "UpperLeg_{s}", "{side}_knee"),
-            ("Foot_{s}", "LowerLeg_{s}", "{side}_ankle"),
-            ("Toes_{s}", "Foot_{s}", "{side}_foot"),
-        ],
-        rest="bone",
-        order="YXZ",
-        position_channels=("Hips",),
+        "bandai_namco_2", BANDAI_ROWS, rest="bone", order="YXZ", position_channels=("Hips",)
     ),
     # CMU, the common BVH conversion (31 joints, units of 1/0.45 inch)
     "cmu": _rig(
