@@ -33,12 +33,11 @@ import numpy as np
 
 from mrlib.io import load_motion
 from mrlib.io.bvh import format_bvh, parse_bvh, read_bvh
+from mrlib.io.paths import default_data_dir
 from mrlib.io.retarget import default_body, retarget_bvh
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = Path(
-    os.environ.get("MRLIB_DATA_DIR", ROOT.parent / "shared" / "data" / "bandai-namco-motion-1")
-)
+DATA_DIR = default_data_dir()
 
 
 def one_minute_file(src: Path, frames: int, out_dir: Path) -> Path:

@@ -41,10 +41,10 @@ from pathlib import Path
 
 import torch
 
+from mrlib.io.paths import default_data_dir
+
 ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = Path(
-    os.environ.get("MRLIB_DATA_DIR", ROOT.parent / "shared" / "data" / "bandai-namco-motion-1")
-)
+DATA_DIR = default_data_dir()
 STYLES = ("normal", "happy", "sad", "angry")
 
 

@@ -3,24 +3,17 @@ their real counterparts, and the calibration rows."""
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 import torch
 
 from mrlib import calibration as cal
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.io.paths import default_data_dir
 from mrlib.motion import Motion
 from mrlib.rotations import axis_angle_to_matrix
 
-DATA_DIR = Path(
-    os.environ.get(
-        "MRLIB_DATA_DIR",
-        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
-    )
-)
+DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
     not (DATA_DIR / "data").is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
 )

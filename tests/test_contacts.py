@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import matplotlib
 
 matplotlib.use("Agg")
@@ -23,6 +20,7 @@ from mrlib.contacts import (
     plot_contacts,
 )
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.io.paths import default_data_dir
 from mrlib.motion import Motion
 from mrlib.rotations import axis_angle_to_matrix
 
@@ -151,12 +149,7 @@ def test_plot_contacts():
 
 
 # -- real data: Bandai-Namco walking clips -------------------------------------------------
-DATA_DIR = Path(
-    os.environ.get(
-        "MRLIB_DATA_DIR",
-        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
-    )
-)
+DATA_DIR = default_data_dir()
 
 
 def rising_edges(c: np.ndarray) -> np.ndarray:

@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import csv
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,14 +13,10 @@ from test_calibration import turning_walk
 from mrlib import evaluate as ev
 from mrlib.body import load_body_model
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.io.paths import default_data_dir
 from mrlib.motion import Motion
 
-DATA_DIR = Path(
-    os.environ.get(
-        "MRLIB_DATA_DIR",
-        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
-    )
-)
+DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
     not (DATA_DIR / "data").is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
 )

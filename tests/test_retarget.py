@@ -1,8 +1,6 @@
 """Tests for mrlib.io.retarget and the BVH side of mrlib.io (load_motion/save_motion)."""
 
-import os
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +10,7 @@ import torch
 from mrlib.errors import JointMapError, MotionFileError, UnsupportedFormatError
 from mrlib.io import load_bvh, load_label, load_motion, save_motion
 from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, matrix_to_euler, parse_bvh, read_bvh
+from mrlib.io.paths import default_data_dir
 from mrlib.io.retarget import (
     UNITS,
     _solve_offset,
@@ -34,12 +33,7 @@ from mrlib.rotations import (
 )
 from mrlib.skeleton import JOINT_NAMES, PARENTS
 
-DATA_DIR = Path(
-    os.environ.get(
-        "MRLIB_DATA_DIR",
-        Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bandai-namco-motion-1",
-    )
-)
+DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
     not DATA_DIR.is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
 )

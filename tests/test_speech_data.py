@@ -1,8 +1,5 @@
 """The synthetic co-speech set (mrlib.speech.synthetic) and the folder loaders (.data)."""
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 import soundfile
@@ -11,6 +8,7 @@ import mrlib.speech.synthetic as sd
 from mrlib.body import load_body_model
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.io import load_motion, save_motion
+from mrlib.io.paths import default_data_dir
 from mrlib.skeleton import JOINT_NAMES
 from mrlib.speech import (
     AudioFileError,
@@ -32,11 +30,7 @@ from mrlib.speech import (
 from mrlib.speech.synthetic import SENTENCES, VOICES, corpus_text, loop_motion, quiet_window
 
 SR = 16_000
-DATA = Path(
-    os.environ.get(
-        "MRLIB_DATA_DIR", Path(__file__).resolve().parents[2] / "shared/data/bandai-namco-motion-1"
-    )
-)
+DATA = default_data_dir()
 needs_espeak = pytest.mark.skipif(
     not sd.espeak_available(),
     reason="eSpeak NG is not installed (pip install espeakng-loader, part of mrlib[speech])",
