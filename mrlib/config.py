@@ -106,6 +106,10 @@ class ModelConfig:
     # "level" = a branch that sees only the band the level adds over the level below,
     # ``x - up(down(x))`` with the pyramid's own resampling (``PackedLevels.level_band``).
     critic_band: str = "full"
+    # Beyond the paper: critics that also see, per contact vertex, its ground-plane speed
+    # from the body model gated by its contact label (``mrlib.losses.foot_slide``), so
+    # a planted foot that slides is as visible to them as a wrong pose.
+    critic_contacts: bool = False
 
     def __post_init__(self):
         if self.num_levels < 1:
@@ -151,11 +155,18 @@ class LossWeights:
     # (Gatys et al. 2016; Huang & Belongie 2017), so a crossover's fine levels carry the
     # fine label's amount of detail per joint. 0: off.
     detail: float = 0.0
+    # How L_con weighs a foot's speed: "squared" is the paper's ||v||^2 (Eq. 9); "speed"
+    # is ||v||, whose gradient does not fade as a planted foot's slide gets small.
+    con_norm: str = "squared"
+    # Also apply L_con to the reconstructions (the paper applies it to random samples).
+    con_on_rec: bool = False
 
     def __post_init__(self):
         for name in ("adv", "con", "rec", "smooth", "gp", "mismatch", "detail"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"loss weight {name} must be >= 0, got {getattr(self, name)}")
+        if self.con_norm not in ("squared", "speed"):
+            raise ConfigError(f"con_norm must be 'squared' or 'speed', got {self.con_norm!r}")
 
 
 @dataclass(frozen=True)

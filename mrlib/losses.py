@@ -34,6 +34,7 @@ __all__ = [
     "detail_statistics_loss",
     "reconstruction_loss",
     "contact_consistency_loss",
+    "foot_slide",
     "smoothness_loss",
     "backward_velocity",
     "interior_mask",
@@ -211,9 +212,13 @@ def backward_velocity(pos: torch.Tensor, fps: torch.Tensor | float) -> torch.Ten
 
 
 def contact_consistency_loss(
-    foot_velocity: torch.Tensor, contacts: torch.Tensor, weights: torch.Tensor
+    foot_velocity: torch.Tensor,
+    contacts: torch.Tensor,
+    weights: torch.Tensor,
+    norm: str = "squared",
 ) -> torch.Tensor:
-    """Paper Eq. 9: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``.
+    """Paper Eq. 9: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``; with ``norm="speed"``,
+    ``||v_j^t||`` instead of its square.
 
     Args:
         foot_velocity: ``(B, T, 6, 3)`` m/s of the contact vertices.
@@ -221,8 +226,38 @@ def contact_consistency_loss(
         weights: ``(B, T)``, zero where the velocity is undefined (each sequence's first
             frame) and on padding.
     """
-    cost = foot_velocity.pow(2).sum(-1) * contact_sigmoid(contacts)  # (B, T, 6)
+    sq = foot_velocity.pow(2).sum(-1)  # (B, T, 6)
+    if norm == "speed":
+        sq = (sq + 1e-12).sqrt()  # the epsilon keeps the gradient finite at rest
+    elif norm != "squared":
+        raise ValueError(f"norm must be 'squared' or 'speed', got {norm!r}")
+    cost = sq * contact_sigmoid(contacts)
     return weighted_mean(cost, weights)
+
+
+SLIDE_UNIT = 0.1  # m/s: foot_slide's unit, so a sliding foot reads ~1 like the other channels
+
+
+def foot_slide(
+    feet: torch.Tensor, contacts: torch.Tensor, fps: torch.Tensor | float, first: torch.Tensor
+) -> torch.Tensor:
+    """Per contact vertex, its ground-plane speed gated by its contact label,
+    ``|v_xz| * sig(c)`` in units of ``SLIDE_UNIT``: ~0 on a planted or lifted foot,
+    large where a foot labelled in contact moves. The extra critic channels of
+    ``ModelConfig.critic_contacts``.
+
+    Args:
+        feet: ``(B, T, 6, 3)`` foot-vertex positions (metres); contacts ``(B, T, 6)``.
+        fps: as in ``backward_velocity``.
+        first: ``(B, T)`` bool, True on frames without a predecessor (each packed
+            sample's first frame and the gaps); their slide is 0.
+    Returns:
+        ``(B, 6, T)``, channels first like the features.
+    """
+    v = backward_velocity(feet, fps)[..., [0, 2]]
+    speed = (v.pow(2).sum(-1) + 1e-12).sqrt()
+    slide = speed * contact_sigmoid(contacts) / SLIDE_UNIT
+    return slide.masked_fill(first[..., None], 0.0).transpose(1, 2)
 
 
 def smoothness_loss(joints: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:

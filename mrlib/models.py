@@ -24,7 +24,7 @@ import torch.nn.functional as F
 from mrlib.config import ModelConfig
 from mrlib.features import NUM_FEATURES, channel_joint
 from mrlib.pyramid import PackedLevels, resample_linear, resample_periodic
-from mrlib.skeleton import NUM_JOINTS, PARENTS, graph_distances
+from mrlib.skeleton import CONTACT_JOINTS, NUM_JOINTS, PARENTS, graph_distances
 
 __all__ = [
     "hidden_channel_joint",
@@ -234,6 +234,15 @@ class LevelGenerator(nn.Module):
         return self.body(self.modulate(x_up + z, cond), pad_index, circular) + x_up
 
 
+def critic_channel_joint(config: ModelConfig) -> np.ndarray:
+    """The joint of every critic input channel: the features' (``channel_joint``), then
+    with ``critic_contacts`` one foot-slide channel per contact vertex on its foot."""
+    owner = channel_joint()
+    if not config.critic_contacts:
+        return owner
+    return np.concatenate([owner, np.asarray(CONTACT_JOINTS)])
+
+
 class PatchCritic(nn.Module):
     """WGAN critic D_i: a small fully convolutional skeleton-aware net (receptive field
     ``n_layers * (K - 1) + 1`` frames) that scores every temporal patch; no sigmoid.
@@ -256,7 +265,8 @@ class PatchCritic(nn.Module):
 
     def __init__(self, config: ModelConfig, cond_dim: int = 0):
         super().__init__()
-        joints = [channel_joint()] + [hidden_channel_joint(w) for w in config.disc_hidden]
+        joints = [critic_channel_joint(config)]
+        joints += [hidden_channel_joint(w) for w in config.disc_hidden]
         joints.append(np.zeros(1, np.int64))
         self.body = ConvStack(
             joints, config.kernel_size, config.neighbour_radius, config.leaky_slope, dense_last=True

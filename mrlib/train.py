@@ -54,12 +54,13 @@ from mrlib.checkpoint import (
 from mrlib.config import ConfigError, TrainConfig, config_from_json, config_to_json
 from mrlib.data import TrainingSet
 from mrlib.errors import ClipTooShortError, MrlibError
-from mrlib.features import NUM_FEATURES, FeatureNormalizer
+from mrlib.features import NUM_FEATURES, FeatureNormalizer, split_features
 from mrlib.losses import (
     backward_velocity,
     body_kinematics,
     contact_consistency_loss,
     detail_statistics_loss,
+    foot_slide,
     generator_adversarial_loss,
     mismatch_critic_loss,
     reconstruction_loss,
@@ -235,6 +236,16 @@ class Trainer:
         self.w_rand = [lay.weights(i) for i in range(L)]
         self.w_vel = [lay.weights(i, lay.trimmed(i, start=1)) for i in range(L)]
         self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
+        rl = self.rec_layout
+        self.rec_fps = [rl.per_sample(fps_table[:, i].float(), i)[None] for i in range(L)]
+        self.w_vel_rec = [rl.weights(i, rl.trimmed(i, start=1)) for i in range(L)]
+        # critic_contacts: frames without a predecessor, and the real clips as the critics
+        # see them (features + foot slides), fixed for the whole run
+        self.first_rand = [~lay.trimmed(i, start=1) for i in range(L)]
+        self.real_critic = self.real_rand
+        if config.model.critic_contacts:
+            with torch.no_grad():
+                self.real_critic = [self.critic_input(r, i) for i, r in enumerate(self.real_rand)]
         self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, 1 or C, S_1)
         self._rec_cache: tuple[int, torch.Tensor] | None = None
         # loss.detail only: per label and level, the per-channel RMS of the detail the level
@@ -323,6 +334,18 @@ class Trainer:
         ``level`` adds, over the training clips of the label driving each sample there."""
         return self.detail_rms[level].to(self.device)[draw.labels[:, level]]
 
+    def critic_input(self, x: torch.Tensor, level: int, kinematics=None) -> torch.Tensor:
+        """What a critic of ``level`` reads of ``x (1, C, S)`` in the random layout: ``x``,
+        and with ``ModelConfig.critic_contacts`` its foot slides (``losses.foot_slide``)
+        as 6 more channels. ``kinematics``: ``body_kinematics`` of ``x`` if at hand."""
+        if not self.config.model.critic_contacts:
+            return x
+        fps = self.rand_fps[level]
+        if kinematics is None:
+            kinematics = body_kinematics(x, self.data_normalizer, fps, self.body, self.betas)
+        _, feet, contacts = kinematics
+        return torch.cat([x, foot_slide(feet, contacts, fps, self.first_rand[level])], 1)
+
     def _band_of(self, layout, level: int) -> Callable[[torch.Tensor], torch.Tensor] | None:
         """``x -> layout.level_band(x, level)`` for a critic that reads the level band."""
         if self.critics[level].band != "level":
@@ -409,9 +432,11 @@ class Trainer:
                     self.rand_layout.pad_index(i, G.pad),
                     self.critic_layout.pad_index(i, G.pad),
                 )
+                if self.config.model.critic_contacts:
+                    fake = self.critic_input(fake, i)
                 wl, gp = wgan_gp_critic_loss(
                     self.critics[i],
-                    self.real_rand[i],
+                    self.real_critic[i],
                     fake,
                     self.w_rand[i],
                     alpha,
@@ -428,7 +453,7 @@ class Trainer:
                     wrong = self.mismatched_real_conditions(i) * k_j[None, :, None]
                     mis = mismatch_critic_loss(
                         self.critics[i],
-                        self.real_rand[i],
+                        self.real_critic[i],
                         cond_real,
                         wrong,
                         self.w_rand[i],
@@ -470,29 +495,50 @@ class Trainer:
             cut = self.g_layout.split(i, self.N)
             out_rec, out_rand = outs[k][..., :cut], outs[k][..., cut:]
             terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
-            if c.n_critic > 0 and w.adv:
+            need_con = w.con and i + 1 >= c.contact_from_level
+            need_smooth = w.smooth and i + 1 >= c.smooth_start
+            need_adv = c.n_critic > 0 and w.adv
+            fps, kin = self.rand_fps[i], None
+            if need_adv and c.model.critic_contacts:
+                kin = body_kinematics(out_rand, self.data_normalizer, fps, self.body, self.betas)
+            if need_adv:
                 cond = None if critic_conds is None else critic_conds[i]
+                seen = self.critic_input(out_rand, i, kin)
                 score = self.critics[i](
-                    out_rand,
+                    seen,
                     self.rand_layout.pad_index(i, G.pad),
                     cond,
-                    self._band(self.rand_layout, i, out_rand),
+                    self._band(self.rand_layout, i, seen),
                 )
                 terms["adv"] = generator_adversarial_loss(score, self.w_rand[i])
             if w.detail and i > 0:
                 lay = self.rand_layout
                 rms = lay.per_sample_rms(lay.level_band(out_rand, i), i)  # (B, C)
                 terms["detail"] = detail_statistics_loss(rms, self.detail_targets(draw, i))
-            need_con = w.con and i + 1 >= c.contact_from_level
-            need_smooth = w.smooth and i + 1 >= c.smooth_start
             if need_con or need_smooth:
-                fps = self.rand_fps[i]
-                joints, feet, contacts = body_kinematics(
-                    out_rand, self.data_normalizer, fps, self.body, self.betas
-                )
+                if kin is None:
+                    kin = body_kinematics(
+                        out_rand, self.data_normalizer, fps, self.body, self.betas
+                    )
+                joints, feet, contacts = kin
                 if need_con:
                     vel = backward_velocity(feet, fps)
-                    terms["con"] = contact_consistency_loss(vel, contacts, self.w_vel[i])
+                    terms["con"] = contact_consistency_loss(
+                        vel, contacts, self.w_vel[i], w.con_norm
+                    )
+                    if w.con_on_rec:  # the clip's own contacts on its reconstruction
+                        _, feet_r, _ = body_kinematics(
+                            out_rec, self.data_normalizer, self.rec_fps[i], self.body, self.betas
+                        )
+                        real_c = split_features(
+                            self.data_normalizer.denormalize(self.real[i].transpose(1, 2))
+                        )[2]
+                        terms["con"] = terms["con"] + contact_consistency_loss(
+                            backward_velocity(feet_r, self.rec_fps[i]),
+                            real_c,
+                            self.w_vel_rec[i],
+                            w.con_norm,
+                        )
                 if need_smooth:
                     terms["smooth"] = smoothness_loss(joints, self.w_smooth[i])
             for name, value in terms.items():

@@ -549,3 +549,44 @@ def test_a_failed_write_keeps_the_previous_checkpoint(tmp_path, monkeypatch):
         save_checkpoint(path, {"w": torch.zeros(3)})
     assert path.read_bytes() == before
     assert not any(".tmp" in p.name for p in tmp_path.iterdir())
+
+
+def test_critics_with_contacts_see_a_sliding_planted_foot_and_resume(data, body, tmp_path):
+    model = dataclasses.replace(
+        TINY_MODEL, critic_condition=True, critic_band="level", critic_contacts=True
+    )
+    cfg = tiny(model=model)
+    tr = Trainer(data, cfg, tmp_path, body=body)
+    top = cfg.model.num_levels - 1
+    real = tr.real_rand[top]
+    seen = tr.critic_input(real, top)
+    assert torch.equal(tr.real_critic[top], seen)
+    assert seen.shape[1] == real.shape[1] + 6 and torch.equal(seen[:, : real.shape[1]], real)
+    # the same clips with the root moving 1.5x as fast: planted feet slide
+    fast = real.clone()
+    root = tr.data_normalizer.denormalize(real.transpose(1, 2))
+    root[..., [144, 146]] *= 1.5
+    fast = tr.data_normalizer.normalize(root).transpose(1, 2)
+    planted = tr.data_normalizer.denormalize(real.transpose(1, 2))[0, :, 147:] > 0.5  # (S, 6)
+    slide_real = seen[0, -6:].T[planted].mean()
+    slide_fast = tr.critic_input(fast, top)[0, -6:].T[planted].mean()
+    assert slide_fast > 3 * slide_real
+    res = train(data, cfg, tmp_path / "run", body=body, progress=False)
+    state = load_checkpoint(res.checkpoint)
+    first = next(v for k, v in state["critics"].items() if k.startswith("0.") and v.ndim == 3)
+    assert first.shape[1] == 153 + 6
+    again = Trainer.from_checkpoint(res.checkpoint)
+    assert again.config.model.critic_contacts
+
+
+def test_contact_term_on_reconstructions_adds_the_clips_own_contacts(data, body, tmp_path):
+    def first_step(**loss):
+        cfg = tiny(loss=dataclasses.replace(LossWeights(), **loss))
+        tr = Trainer(data, cfg, tmp_path / str(sorted(loss.items())), body=body)
+        tr.start_block()
+        return {i: v["con"].item() for i, v in tr.step().items()}
+
+    plain, both = first_step(), first_step(con_on_rec=True)
+    assert plain.keys() == both.keys()
+    # same draws, same weights: the term on reconstructions only adds
+    assert all(both[i] > plain[i] > 0 for i in plain)
