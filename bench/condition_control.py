@@ -59,6 +59,8 @@ def main(argv=None) -> int:
         "--detail", type=float, default=None, help="LossWeights.detail (overrides the preset)"
     )
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
+    p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
+    p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
     p.add_argument("--iterations", type=int, default=None, help="per block (smoke tests)")
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
@@ -79,10 +81,18 @@ def main(argv=None) -> int:
         loss = dataclasses.replace(loss, detail=a.detail)
     if a.mismatch is not None:
         loss = dataclasses.replace(loss, mismatch=a.mismatch)
+    if a.con is not None:
+        loss = dataclasses.replace(loss, con=a.con)
     cfg = cfg.replace(loss=loss)
+    if a.lr is not None:
+        cfg = cfg.replace(lr=a.lr)
     if a.iterations is not None:
         cfg = cfg.replace(block_iterations=(a.iterations,) * cfg.num_blocks, checkpoint_every=0)
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
+    if a.con is not None:
+        name += f"_con{a.con:g}"
+    if a.lr is not None:
+        name += f"_lr{a.lr:g}"
     if a.iterations is not None:
         name += f"_it{a.iterations}"
     out = a.out or ROOT / "outputs" / "condition_control" / name
