@@ -38,6 +38,11 @@ Beyond the paper, on in the ``tutorial`` presets and off in ``paper``:
 * for speech, the mismatch term (``LossWeights.mismatch``, Reed et al. 2016): what ties
   gestures to the audio rather than to any speech.
 
+Beyond the paper and off in every preset, for studies of raw foot skating (measured
+in ``docs/results.md``, "Why raw samples slide"; none brings it to the training clips'
+level on its own): ``LossWeights.con_norm`` and ``LossWeights.con_on_rec`` (forms of the
+contact term) and ``ModelConfig.critic_contacts`` (critics that see foot slides).
+
 Every measured figure behind these choices is in ``docs/results.md``, with the command
 that measures it (``bench/condition_control.py``, ``bench/speech_sync.py``,
 ``bench/demo_budget.py``).
