@@ -432,8 +432,7 @@ class Trainer:
                     self.rand_layout.pad_index(i, G.pad),
                     self.critic_layout.pad_index(i, G.pad),
                 )
-                if self.config.model.critic_contacts:
-                    fake = self.critic_input(fake, i)
+                fake = self.critic_input(fake, i)
                 wl, gp = wgan_gp_critic_loss(
                     self.critics[i],
                     self.real_critic[i],
