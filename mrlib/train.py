@@ -239,6 +239,15 @@ class Trainer:
         rl = self.rec_layout
         self.rec_fps = [rl.per_sample(fps_table[:, i].float(), i)[None] for i in range(L)]
         self.w_vel_rec = [rl.weights(i, rl.trimmed(i, start=1)) for i in range(L)]
+        # loss.con_on_rec: the clips' own contact labels per level, (1, S_i, 6)
+        self.real_contacts = (
+            [
+                split_features(self.data_normalizer.denormalize(r.transpose(1, 2)))[2]
+                for r in self.real
+            ]
+            if config.loss.con_on_rec
+            else None
+        )
         # critic_contacts: frames without a predecessor, and the real clips as the critics
         # see them (features + foot slides), fixed for the whole run
         self.first_rand = [~lay.trimmed(i, start=1) for i in range(L)]
@@ -529,12 +538,9 @@ class Trainer:
                         _, feet_r, _ = body_kinematics(
                             out_rec, self.data_normalizer, self.rec_fps[i], self.body, self.betas
                         )
-                        real_c = split_features(
-                            self.data_normalizer.denormalize(self.real[i].transpose(1, 2))
-                        )[2]
                         terms["con"] = terms["con"] + contact_consistency_loss(
                             backward_velocity(feet_r, self.rec_fps[i]),
-                            real_c,
+                            self.real_contacts[i],
                             self.w_vel_rec[i],
                             w.con_norm,
                         )
