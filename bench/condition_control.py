@@ -62,6 +62,10 @@ def main(argv=None) -> int:
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
     p.add_argument("--iterations", type=int, default=None, help="per block (smoke tests)")
+    p.add_argument(
+        "--fine-noise", type=float, default=None,
+        help="sample with this GenerativeModel.fine_noise [default: mrlib's]",
+    )  # fmt: skip
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
     p.add_argument(
@@ -102,6 +106,9 @@ def main(argv=None) -> int:
     print(f"{data}\npreset {a.preset}, seed {a.seed}, {loss}\nrun folder {out}", flush=True)
     model, record = train_or_reuse(data, cfg, out, body=body)
     how = "reused a finished run" if record.reused else "trained"
+    if a.fine_noise is not None:
+        model.fine_noise = a.fine_noise
+    print(f"sampling with fine_noise={model.fine_noise:g}")
     print(f"{how}: {record.wall_time_s:.0f} s of training", flush=True)
 
     t = time.perf_counter()
@@ -143,6 +150,7 @@ def main(argv=None) -> int:
         "iterations": a.iterations,
         "train_s": record.wall_time_s,
         "reused": record.reused,
+        "fine_noise": model.fine_noise,
         "fidelity": fid.overall,
         "fidelity_per_label": fid.per_label,
         "crossover": [
@@ -160,7 +168,10 @@ def main(argv=None) -> int:
         "counts": {"cases": len(cases), "low": low, "high": high, "both": both},
         "coverage": {f"{eps:g}": c for eps, c in cov.items()},
     }
-    (Path(out) / "condition_control.json").write_text(json.dumps(result, indent=1, default=float))
+    tag = "" if a.fine_noise is None else f"_fine{a.fine_noise:g}"
+    (Path(out) / f"condition_control{tag}.json").write_text(
+        json.dumps(result, indent=1, default=float)
+    )
     return 0
 
 

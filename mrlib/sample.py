@@ -30,7 +30,9 @@ __all__ = [
     "load_model",
     "model_from_state",
     "model_from_trainer",
+    "FINE_NOISE",
     "label_weights",
+    "noise_amplitude",
     "sample_features",
     "generate",
     "reconstruct",
@@ -41,9 +43,24 @@ __all__ = [
 ]
 
 
+# Amplitude of the finest level's noise at sampling, as a share of its training sigma_L
+# (the paper's sampler: 1). That noise, modulated by the fine label's FiLM parameters,
+# carries the fine label's detail into a crossover; it also reaches the output as
+# frame-to-frame jitter. On the Bandai walks, 0 made samples as smooth as the capture
+# (jerk 1.51x -> 1.04x the clip's) at the same coverage and fidelity, but crossovers
+# took the fine label's detail in 20 of 24 cases instead of 24 (docs/results.md,
+# "Jitter and the finest level's noise").
+FINE_NOISE = 1.0
+
+
 @dataclass
 class GenerativeModel:
-    """A trained generator and what it needs to sample (see ``mrlib.checkpoint`` keys)."""
+    """A trained generator and what it needs to sample (see ``mrlib.checkpoint`` keys).
+
+    ``fine_noise`` scales the finest level's noise at sampling (``FINE_NOISE``, the
+    paper's sampler, by default; 0 for the smoothest single-label motion); training and
+    reconstructions do not use it.
+    """
 
     generator: MultiResGenerator
     config: TrainConfig
@@ -58,6 +75,7 @@ class GenerativeModel:
     zstar: list[torch.Tensor]  # N x (1 or C, T_1,k)
     features: list[torch.Tensor]  # N x (T_k, C) training clips, unnormalised
     trained_levels: int  # levels whose training finished (all of them for a done run)
+    fine_noise: float = FINE_NOISE
 
     @property
     def num_levels(self) -> int:
@@ -169,6 +187,19 @@ def label_weights(
 
 
 # -- sampling -----------------------------------------------------------------------------
+def noise_amplitude(model: GenerativeModel, W: torch.Tensor | None = None) -> torch.Tensor:
+    """``(L,)`` sigma of each level's sampling noise: the training ``sigma_i`` of the
+    level's label mix ``W (L, K)`` (:func:`label_weights`; default: the first label),
+    the finest level's scaled by ``model.fine_noise``."""
+    fine = float(model.fine_noise)
+    if not (np.isfinite(fine) and fine >= 0):
+        raise MotionValueError(f"fine_noise must be a number >= 0, got {model.fine_noise!r}")
+    sigma = model.sigma.float()  # (K, L)
+    amp = sigma[0].clone() if W is None else (W.float() * sigma.T).sum(1)
+    amp[-1] = amp[-1] * fine
+    return amp
+
+
 def sample_features(
     model: GenerativeModel,
     conds: list[torch.Tensor],
@@ -284,7 +315,8 @@ def label_inputs(
     """What :func:`sample_features` needs for label weights ``W (L, K)``
     (:func:`label_weights`): the level lengths for ``length`` output frames (default:
     the first training clip of the coarsest level's main label), the noise amplitude
-    ``(L,)`` of each level's label mix, and the per-level conditions ``(1, T_i, K)``."""
+    ``(L,)`` of each level's label mix (:func:`noise_amplitude`), and the per-level
+    conditions ``(1, T_i, K)``."""
     L = model.num_levels
     main = int(W[0].argmax())
     if length is None:
@@ -295,7 +327,7 @@ def label_inputs(
         )
     pad = (model.config.model.kernel_size - 1) // 2
     lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
-    amp = (W * model.sigma.float().T).sum(1)  # (L,): sigma of each level's condition mix
+    amp = noise_amplitude(model, W)
     conds = [W[i].expand(1, lengths[i], -1) for i in range(L)]
     return lengths, amp, conds
 

@@ -212,6 +212,12 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
         "sample --seconds nan": (["sample", str(ckpt), "--seconds", "nan"], 2, "--seconds"),
         "sample --seconds inf": (["sample", str(ckpt), "--seconds", "inf"], 2, "--seconds"),
         "sample --seconds 0": (["sample", str(ckpt), "--seconds", "0"], 2, "--seconds"),
+        "sample --fine-noise -1": (["sample", str(ckpt), "--fine-noise", "-1"], 2, "--fine-noise"),
+        "evaluate --fine-noise x": (
+            ["evaluate", str(ckpt), "--fine-noise", "x"],
+            2,
+            "--fine-noise",
+        ),
         "sample --blend abc": (
             ["sample", str(ckpt), "--blend", "walk_sad", "walk_sad", "abc", "--out", str(tmp)],
             1,
@@ -272,3 +278,21 @@ def test_cli_sweep(checkpoint, tmp_path, capsys):
         assert got == code, f"{case}: exit {got}, stderr {err!r}"
         assert "Traceback" not in err, case
         assert message in err, f"{case}: {err!r}"
+
+
+def test_cli_fine_noise_reaches_the_sampler(checkpoint, tmp_path):
+    from mrlib.io import load_motion
+    from mrlib.sample import FINE_NOISE
+
+    default_value = f"{FINE_NOISE:g}"
+    poses = {}
+    for value in (default_value, "0" if FINE_NOISE else "1"):
+        out = tmp_path / value
+        argv = ["sample", str(checkpoint), "--raw", "--fine-noise", value, "--out", str(out)]
+        assert main(argv) == 0
+        poses[value] = load_motion(next(out.glob("*.npz"))).poses
+    default = tmp_path / "default"
+    assert main(["sample", str(checkpoint), "--raw", "--out", str(default)]) == 0
+    assert np.array_equal(load_motion(next(default.glob("*.npz"))).poses, poses[default_value])
+    a, b = poses.values()
+    assert np.abs(a - b).max() > 1e-4

@@ -3,14 +3,19 @@ import pytest
 import torch
 
 from mrlib.errors import MotionValueError
+from mrlib.features import features_to_motion
 from mrlib.motion import Motion
 from mrlib.sample import (
+    FINE_NOISE,
     cleanup_foot_contacts,
     contact_skating,
     generate,
+    label_inputs,
     label_weights,
+    noise_amplitude,
     reconstruct,
     reconstruction_error,
+    sample_features,
 )
 from mrlib.synthetic import synthetic_walk
 
@@ -86,6 +91,35 @@ def test_return_levels(model):
     assert np.array_equal(raw_levels[-1].poses, levels[-1].poses)
     ms, lv2 = generate(model, "walk_normal", seed=0, num_samples=2, return_levels=True)
     assert len(ms) == 2 and len(lv2) == 2 and len(lv2[0]) == 4
+
+
+def test_fine_noise_scales_only_the_finest_levels_noise(model):
+    W = label_weights(model, blend=("walk_normal", "walk_sad", 0.25))
+    mix = (W * model.sigma.T).sum(1)  # each level's sigma of the label mix
+    assert model.fine_noise == FINE_NOISE
+    try:
+        model.fine_noise = 1.0  # the paper's sampler
+        assert torch.allclose(noise_amplitude(model, W), mix)
+        loud = generate(model, "walk_sad", seed=0, fix_contacts=False)
+        model.fine_noise = 0.5
+        amp = noise_amplitude(model, W)
+        assert torch.allclose(amp[:-1], mix[:-1]) and amp[-1] == pytest.approx(0.5 * mix[-1])
+        lengths, amp, conds = label_inputs(model, label_weights(model, "walk_sad"), 36)
+        amp[-1] = 0.0  # the paper's sigmas with the finest level's zeroed by hand
+        x = sample_features(model, conds, lengths, amp, seed=0)
+        by_hand = features_to_motion(
+            x[0].T, model.fps, betas=model.betas, normalizer=model.normalizer
+        )
+        model.fine_noise = 0.0
+        quiet = generate(model, "walk_sad", seed=0, fix_contacts=False)
+        assert np.allclose(quiet.poses, by_hand.poses, atol=1e-6)
+        assert np.abs(quiet.poses - loud.poses).max() > 1e-4  # the finest noise reaches the output
+        for bad in (-0.5, float("nan")):
+            model.fine_noise = bad
+            with pytest.raises(MotionValueError, match="fine_noise"):
+                generate(model, "walk_sad", seed=0)
+    finally:
+        model.fine_noise = FINE_NOISE
 
 
 def test_reconstruct_uses_the_fixed_noise(model):

@@ -117,6 +117,7 @@ def generate_parts(
         generate,
         label_inputs,
         label_weights,
+        noise_amplitude,
         sample_features,
     )
 
@@ -140,7 +141,7 @@ def generate_parts(
     else:
         Ws = [label_weights(model, c) for _, c in groups]
         lengths, _, _ = label_inputs(model, Ws[0], length)
-        amp = torch.stack([(W * model.sigma.float().T).sum(1) for W in Ws]).mean(0)
+        amp = torch.stack([noise_amplitude(model, W) for W in Ws]).mean(0)
         masks = _channel_masks(groups)
         conds = [
             [(m, W[i].expand(1, lengths[i], -1)) for m, W in zip(masks, Ws, strict=True)]

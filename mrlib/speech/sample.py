@@ -31,6 +31,7 @@ from mrlib.sample import (
     GenerativeModel,
     cleanup_foot_contacts,
     model_from_state,
+    noise_amplitude,
     sample_features,
 )
 from mrlib.speech.align import SpeechNormalizer, level_lengths, speech_conditions
@@ -201,7 +202,7 @@ def generate_from_audio(
     name = Path(audio).stem if isinstance(audio, (str, Path)) else "audio"
     conds, lengths, wav, rate = audio_conditions(model, audio, sr)
     gm = model.model
-    amp = gm.sigma[0].float()  # (L,)
+    amp = noise_amplitude(gm)  # (L,)
     outs = sample_features(
         gm, [c[None] for c in conds], lengths, amp, seed=seed, num_samples=num_samples, keep=True
     )
