@@ -13,7 +13,8 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
   another (full poses, root fixed at the start) plus a partial keyframe (right arm of a
   third walk) in the middle, 4 s: largest rotation and root errors at the keyframes and
   the jerk of the 1 s around each keyframe over the training clips' mean jerk, beside
-  the same for unconstrained samples of the label (same seeds, same windows);
+  the same for unconstrained samples of the label (same seeds, same windows), without
+  the noise fit, with it for the keyframes alone (``still=0``) and with its jerk term;
 * **parts**: upper body from one label, lower body from another, for every ordered
   pair, by ``film`` and ``splice``: condition fidelity per part;
 * **loop**: 4 s loops by ``circular`` and ``crossfade``, and raw samples closed on
@@ -21,6 +22,7 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
 
     python bench/constraints.py                 # seed 0 model, 3 samples per case
     python bench/constraints.py --samples 5 --threads 2
+    python bench/constraints.py --only keyframes loop
 
 Writes ``<run folder>/constraints.json``.
 """
@@ -52,6 +54,7 @@ from mrlib.sample import generate  # noqa: E402
 from mrlib.train import train_or_reuse  # noqa: E402
 
 CLIPS = ["walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001"]
+SECTIONS = ("path", "keyframes", "parts", "loop")
 
 
 def skate_share(m, body) -> float:
@@ -65,6 +68,10 @@ def main() -> int:
     ap.add_argument("--samples", type=int, default=3, help="seeds per case [3]")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--steps", type=int, default=150, help="noise optimisation steps [150]")
+    ap.add_argument("--still", type=float, default=C.keyframes.STILL,
+                    help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
+    ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
+                    help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
     torch.set_num_threads(a.threads)
     paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
@@ -91,10 +98,25 @@ def main() -> int:
     train_jerk = float(
         np.mean([mean_jerk(motion_kinematics(m, body)[0], fps) for m in train.values()])
     )
-    results: dict = {"model": str(out), "samples": a.samples}
+    saved = out / "constraints.json"
+    results: dict = json.loads(saved.read_text()) if saved.is_file() else {}
+    results.update(model=str(out), samples=a.samples, fine_noise=model.fine_noise)
     seeds = range(a.samples)
 
     # -- paths ----------------------------------------------------------------------------
+    if "path" in a.only:
+        run_paths(model, body, a, ref_feats, train_skate, seeds, results)
+    if "keyframes" in a.only:
+        run_keyframes(model, body, a, train, train_jerk, seeds, results)
+    if "parts" in a.only:
+        run_parts(model, body, a, seeds, results)
+    if "loop" in a.only:
+        run_loops(model, body, seeds, results)
+    saved.write_text(json.dumps(results, indent=1, default=float))
+    return 0
+
+
+def run_paths(model, body, a, ref_feats, train_skate, seeds, results) -> None:
     print("\n## Path (20 s)\n")
     print(
         "| path | method | pelvis to path mean / max (cm) | coverage | skating (training) | s per sample |"
@@ -128,13 +150,15 @@ def main() -> int:
                   f"{100 * row['skate']:.1f} % ({100 * row['train_skate']:.1f} %) | {row['seconds']:.1f} |",
                   flush=True)  # fmt: skip
 
-    # -- keyframes ------------------------------------------------------------------------
+
+def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
+    fps = model.fps
     print("\n## Keyframes (4 s in-between)\n")
     print(f"training clips' mean jerk {train_jerk:.1f} m/s^3\n")
     print(
-        "| from -> to (label) | steps | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) | unconstrained samples, same windows |"
+        "| from -> to (label) | steps | still | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) | unconstrained samples, same windows | the label's training clip |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     results["keyframes"] = []
     N = int(4 * fps)
     labs = model.labels
@@ -159,25 +183,32 @@ def main() -> int:
         control = np.asarray(
             [around(generate(model, b_lab, length=N, seed=s, body=body)) for s in seeds]
         )
-        for steps in (0, a.steps):
+        own = mean_jerk(motion_kinematics(train[b_lab], body)[0], fps) / train_jerk
+        for steps, still in ((0, 0.0), (a.steps, 0.0), (a.steps, a.still)):
             rot, pos, jr = [], [], []
             for s in seeds:
-                m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps, body=body)
+                m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps,
+                                              still=still, body=body)  # fmt: skip
                 e = C.keyframe_errors(m, kfs)
                 rot.append(e["rotation_deg"])
                 pos.append(e["trans_cm"])
                 jr.append(around(m))
             jr = np.asarray(jr)
-            row = {"from": a_lab, "to": b_lab, "steps": steps, "rotation_deg": float(np.max(rot)),
+            row = {"from": a_lab, "to": b_lab, "steps": steps, "still": still,
+                   "rotation_deg": float(np.max(rot)),
                    "trans_cm": float(np.max(pos)), "jerk_ratio_mean": jr.mean(0).tolist(),
                    "jerk_ratio_max": jr.max(0).tolist(),
-                   "unconstrained_jerk_ratio_mean": control.mean(0).tolist()}  # fmt: skip
+                   "unconstrained_jerk_ratio_mean": control.mean(0).tolist(),
+                   "label_clip_jerk_ratio": float(own)}  # fmt: skip
             results["keyframes"].append(row)
-            print(f"| {a_lab} -> {b_lab} | {steps} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
+            print(f"| {a_lab} -> {b_lab} | {steps} | {still:g} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
                   + " / ".join(f"{m_:.2f} (max {x_:.2f})" for m_, x_ in zip(jr.mean(0), jr.max(0), strict=True))
-                  + " | " + " / ".join(f"{c_:.2f}" for c_ in control.mean(0)) + " |", flush=True)  # fmt: skip
+                  + " | " + " / ".join(f"{c_:.2f}" for c_ in control.mean(0))
+                  + f" | {own:.2f} |", flush=True)  # fmt: skip
 
-    # -- parts ----------------------------------------------------------------------------
+
+def run_parts(model, body, a, seeds, results) -> None:
+    labs = model.labels
     print("\n## Body parts (upper / lower from different labels)\n")
     print("| upper | lower | film: fidelity upper / lower | splice: fidelity upper / lower |")
     print("|---|---|---|---|")
@@ -200,7 +231,9 @@ def main() -> int:
             f"{method}: mean fidelity {100 * np.mean(f):.1f} %, worst part {100 * np.min(f):.1f} %"
         )
 
-    # -- loops ----------------------------------------------------------------------------
+
+def run_loops(model, body, seeds, results) -> None:
+    fps, labs = model.fps, model.labels
     print("\n## Loops (4 s): seam step / 95th percentile of own steps\n")
     print("| label | circular | crossfade | raw sample closed on itself |")
     print("|---|---|---|---|")
@@ -228,8 +261,6 @@ def main() -> int:
         print(f"| {lab} | " + " | ".join(
             f"{np.mean(row[k]):.2f} (max {np.max(row[k]):.2f})" for k in ("circular", "crossfade", "raw")
         ) + " |", flush=True)  # fmt: skip
-    (out / "constraints.json").write_text(json.dumps(results, indent=1, default=float))
-    return 0
 
 
 if __name__ == "__main__":

@@ -170,6 +170,38 @@ def test_generate_with_keyframes_meets_them(model, clips, body):
     assert C.keyframe_errors(raw, kfs)["rotation_deg"] > 5.0
 
 
+def test_the_noise_fit_weighs_jitter_near_keyframes_only(model, clips):
+    walk = clips[0]
+    smooth = model.normalizer.normalize(model.features[0])[None].transpose(1, 2)  # (1, C, T)
+    T = smooth.shape[-1]
+    kfs = [
+        C.Keyframe(0, walk.poses[0], joints=("right_elbow",)),
+        C.Keyframe(T - 1, trans=walk.trans[5]),
+    ]
+    reach = C.keyframes.STILL_S * model.fps  # frames
+    assert T > 4 * reach
+    rng = np.random.default_rng(0)
+
+    def jittered(frames):
+        x = smooth.clone()
+        x[0, :, frames] += (
+            0.3 * torch.from_numpy(rng.normal(size=(x.shape[1], len(frames)))).float()
+        )
+        return x
+
+    near = jittered([max(2, int(reach) // 2 + 1)])  # in the first keyframe's window, not on it
+    far = jittered([T // 2])
+    plain = C.keyframe_objective(model, kfs, T, still=0.0)
+    weighted = C.keyframe_objective(model, kfs, T, still=C.keyframes.STILL)
+    assert float(plain(near)) == pytest.approx(float(plain(far)), abs=1e-6)
+    base = float(weighted(smooth) - plain(smooth))  # the clip's own jerk near the keyframes
+    assert float(weighted(far) - plain(far)) == pytest.approx(base, abs=1e-6)  # far: nothing
+    assert float(weighted(near) - plain(near)) > base + 0.1
+    assert C.keyframe_objective(model, [C.Keyframe(5, trans=walk.trans[0])], T, still=0.0) is None
+    with pytest.raises(MotionValueError, match="still"):
+        C.keyframe_objective(model, kfs, T, still=-1.0)
+
+
 def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body):
     prefix = clips[0].slice(0, 20)
     m = C.continue_motion(model, prefix, 20, "walk_sad", seed=0, steps=5, body=body)

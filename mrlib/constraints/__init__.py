@@ -30,6 +30,7 @@ from mrlib.constraints.keyframes import (
     continue_motion,
     generate_with_keyframes,
     keyframe_errors,
+    keyframe_objective,
     load_keyframes,
     save_keyframes,
 )
@@ -58,6 +59,7 @@ __all__ = [
     "align_to_keyframes",
     "apply_keyframes",
     "keyframe_errors",
+    "keyframe_objective",
     "generate_with_keyframes",
     "continue_motion",
     "PARTS",

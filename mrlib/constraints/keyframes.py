@@ -4,8 +4,11 @@ A :class:`Keyframe` fixes a full or partial pose (some joints' rotations, the ro
 position) at one frame. :func:`generate_with_keyframes` meets keyframes in three steps:
 
 1. **Noise.** The noise maps are optimised with the networks frozen
-   (``mrlib.constraints.optimise``) towards the keyframes' joint rotations and the
-   distances between root keyframes, so the model's own motion comes close by itself.
+   (``mrlib.constraints.optimise``, :func:`keyframe_objective`) towards the keyframes'
+   joint rotations and the distances between root keyframes, so the model's own motion
+   comes close by itself, and towards a low jerk within ``STILL_S`` seconds of each
+   keyframe: the finest levels' noise reaches the output as frame-to-frame jitter,
+   which the fit takes out where a pop would show.
 2. **Placement.** The motion is turned about the vertical and moved on the ground
    (one rigid motion for the whole clip) to fit the root keyframes best.
 3. **Exact fit.** What is left at each keyframe, a rotation per constrained joint and a
@@ -30,6 +33,7 @@ import torch
 
 from mrlib.constraints.common import fitted_motion, joint_ids, label_setup, pelvis_rest
 from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.features import ROOT_SLICE
 from mrlib.motion import Motion
 from mrlib.skeleton import NUM_JOINTS
 
@@ -40,11 +44,14 @@ __all__ = [
     "align_to_keyframes",
     "apply_keyframes",
     "keyframe_errors",
+    "keyframe_objective",
     "generate_with_keyframes",
     "continue_motion",
 ]
 
 BLEND_S = 1.0  # seconds over which a residual eases out before the first / after the last keyframe
+STILL_S = 0.5  # the window on either side of a keyframe whose jerk the noise fit lowers
+STILL = 5.0  # weight of that jerk in the noise fit (generate_with_keyframes)
 
 
 @dataclass(frozen=True)
@@ -289,6 +296,55 @@ def _sixd(R: torch.Tensor) -> torch.Tensor:
     return R[..., :, :2].transpose(-1, -2).reshape(*R.shape[:-2], 6)
 
 
+def keyframe_objective(model, keyframes: Sequence[Keyframe], length: int, still: float = STILL):
+    """The noise fit's loss of generator output ``x (1, C, length)`` (normalised): the
+    squared 6D error of the keyframes' joint rotations (the root's own is placed
+    afterwards), the error of the ground distance between consecutive root keyframes,
+    and ``still`` times the mean squared third difference of the pose and root channels
+    within ``STILL_S`` seconds of a keyframe. None when there is nothing to fit."""
+    from mrlib.constraints.optimise import decode
+    from mrlib.rotations import axis_angle_to_matrix
+
+    if not (np.isfinite(still) and still >= 0):
+        raise MotionValueError(f"still must be a number >= 0, got {still!r}")
+    posed = [kf for kf in keyframes if kf.poses is not None]
+    roots = sorted((kf for kf in keyframes if kf.trans is not None), key=lambda k: k.frame)
+    centre = np.arange(max(length - 3, 0)) + 1.5  # the frame each third difference is about
+    near = np.zeros(len(centre), bool)
+    for kf in keyframes:
+        near |= np.abs(centre - kf.frame) <= STILL_S * model.fps
+    near_t = torch.from_numpy(near)
+    still = float(still) if near.any() else 0.0
+    if not (posed or len(roots) >= 2 or still > 0):
+        return None
+    tgt = [
+        (kf.frame, [j for j in kf.joints if j > 0],
+         _sixd(axis_angle_to_matrix(torch.from_numpy(kf.poses))).float())
+        for kf in posed
+    ]  # fmt: skip
+    gaps = [
+        (a.frame, b.frame, float(np.linalg.norm((b.trans - a.trans)[[0, 2]])))
+        for a, b in zip(roots, roots[1:], strict=False)
+    ]
+
+    def loss_fn(x: torch.Tensor) -> torch.Tensor:
+        d = decode(model, x)
+        loss = x.new_zeros(())
+        for f, js, six in tgt:
+            if js:
+                loss = loss + (_sixd(d["rotations"][0, f, js]) - six[js]).pow(2).mean()
+        for a, b, dist in gaps:
+            step = d["trans"][0, b, [0, 2]] - d["trans"][0, a, [0, 2]]
+            loss = loss + (step.norm() - dist).pow(2)
+        if still > 0:
+            y = x[:, : ROOT_SLICE.stop]  # pose and root channels, normalised
+            jerk = y[..., 3:] - 3 * y[..., 2:-1] + 3 * y[..., 1:-2] - y[..., :-3]
+            loss = loss + still * jerk[..., near_t].pow(2).mean()
+        return loss
+
+    return loss_fn
+
+
 def generate_with_keyframes(
     model,
     keyframes: Sequence[Keyframe],
@@ -300,16 +356,17 @@ def generate_with_keyframes(
     seed: int | None = None,
     steps: int = 100,
     blend_s: float = BLEND_S,
+    still: float = STILL,
     clean: bool = True,
     body=None,
     progress: bool = False,
 ) -> Motion:
     """A motion of ``length`` frames under a label condition that holds ``keyframes``
-    (method: module docstring). ``steps=0`` skips the noise optimisation; ``clean``
-    plants the feet before the exact fit."""
+    (method: module docstring). ``steps=0`` skips the noise optimisation; ``still``
+    weighs the jerk of the pose and root channels within ``STILL_S`` seconds of a
+    keyframe in it (0: the keyframes alone); ``clean`` plants the feet before the exact
+    fit."""
     from mrlib.body import resolve_body
-    from mrlib.constraints.optimise import decode
-    from mrlib.rotations import axis_angle_to_matrix
 
     body = resolve_body(body, shared=True)
     if length < 2:
@@ -317,31 +374,7 @@ def generate_with_keyframes(
     probe = Motion(np.zeros((length, NUM_JOINTS, 3)), np.zeros((length, 3)), model.fps)
     _check_frames(probe, keyframes)
     noises, conds, label = label_setup(model, condition, conditions, blend, length, seed)
-    posed = [kf for kf in keyframes if kf.poses is not None]
-    roots = sorted((kf for kf in keyframes if kf.trans is not None), key=lambda k: k.frame)
-    loss_fn = None
-    if posed or len(roots) >= 2:
-        tgt = [
-            (kf.frame, [j for j in kf.joints if j > 0],
-             _sixd(axis_angle_to_matrix(torch.from_numpy(kf.poses))).float())
-            for kf in posed
-        ]  # fmt: skip
-        gaps = [
-            (a.frame, b.frame, float(np.linalg.norm((b.trans - a.trans)[[0, 2]])))
-            for a, b in zip(roots, roots[1:], strict=False)
-        ]
-
-        def loss_fn(x: torch.Tensor) -> torch.Tensor:
-            d = decode(model, x)
-            loss = x.new_zeros(())
-            for f, js, six in tgt:
-                if js:
-                    loss = loss + (_sixd(d["rotations"][0, f, js]) - six[js]).pow(2).mean()
-            for a, b, dist in gaps:
-                step = d["trans"][0, b, [0, 2]] - d["trans"][0, a, [0, 2]]
-                loss = loss + (step.norm() - dist).pow(2)
-            return loss
-
+    loss_fn = keyframe_objective(model, keyframes, length, still)
     name = f"{label}_keyframes_seed{seed}"
     m = fitted_motion(model, noises, conds, label, name, loss_fn, steps=steps, clean=clean,
                       body=body, progress=progress)  # fmt: skip
