@@ -456,15 +456,7 @@ def _add_sample(sub):
         "they are labelled in contact; on by default)",
     )
     p.add_argument("--fix-contacts", action="store_true", help=argparse.SUPPRESS)  # the default now
-    p.add_argument(
-        "--fine-noise",
-        type=_fine_noise,
-        default=None,
-        metavar="S",
-        help="the finest level's noise as a share of its training sigma [default: 1, the "
-        "paper's sampler]; lower: less frame-to-frame jitter and less of the fine label's "
-        "detail in crossovers (0: as smooth as the training clips)",
-    )
+    _add_fine_noise(p)
     p.add_argument(
         "--render", action="store_true", help="also write a mesh render (PNG) per sample"
     )
@@ -514,6 +506,18 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
             m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **kw)
         out.append(m)
     return out
+
+
+def _add_fine_noise(p) -> None:
+    p.add_argument(
+        "--fine-noise",
+        type=_fine_noise,
+        default=None,
+        metavar="S",
+        help="the finest level's noise as a share of its training sigma [default: 1, the "
+        "paper's sampler]; lower: less frame-to-frame jitter and less of the fine label's "
+        "detail in crossovers (0: as smooth as the training clips)",
+    )
 
 
 def _fine_noise(text: str) -> float:
@@ -667,15 +671,7 @@ def _add_evaluate(sub):
     )
     p.add_argument("--baseline-name", default="GANimator-mode")
     p.add_argument("--no-calibration", action="store_true", help="leave out the calibration rows")
-    p.add_argument(
-        "--fine-noise",
-        type=_fine_noise,
-        default=None,
-        metavar="S",
-        help="the finest level's noise as a share of its training sigma [default: 1, the "
-        "paper's sampler]; lower: less frame-to-frame jitter and less of the fine label's "
-        "detail in crossovers (0: as smooth as the training clips)",
-    )
+    _add_fine_noise(p)
     p.add_argument(
         "--raw",
         action="store_true",
