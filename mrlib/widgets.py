@@ -8,7 +8,7 @@ The measurements behind the views are ``mrlib.control``'s, their pictures
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -67,7 +67,9 @@ def interactive_crossover(
     interpolates the two labels' embeddings; see ``mrlib.sample.label_weights``), the
     coarse levels stay pure. ``w = 1`` is the plain crossover of the paper, ``w = 0`` the
     coarse label alone; one number per control keeps the UI readable (per-level weights
-    are available through ``generate(blend=(a, b, [w_1, ..., w_L]))``).
+    are available through ``generate(blend=(a, b, [w_1, ..., w_L]))``). *fine noise* sets
+    the sampler's ``fine_noise`` for this view (the model itself is left as it is): lower
+    is smoother and carries less of the fine label's detail.
 
     Every change regenerates the sample and redraws, into an ``Output`` widget, a mesh
     render of ``frames`` frames (``mrlib.render_meshes``) titled with the labels and the
@@ -112,6 +114,10 @@ def interactive_crossover(
     weight = w.FloatSlider(
         value=1.0, min=0.0, max=1.0, step=0.05, description="fine weight", continuous_update=False
     )
+    noise = w.FloatSlider(
+        value=float(model.fine_noise), min=0.0, max=max(1.0, float(model.fine_noise)), step=0.1,
+        description="fine noise", continuous_update=False,
+    )  # fmt: skip
     out = w.Output()
     status = w.HTML()
 
@@ -119,7 +125,8 @@ def interactive_crossover(
         a, b, i, wt = coarse.value, fine.value, int(level.value), float(weight.value)
         blend = crossover_blend(model, a, b, i, wt)
         W = label_weights(model, blend=blend).numpy()
-        motion = generate(model, blend=blend, length=length, seed=int(seed.value))
+        sampler = replace(model, fine_noise=float(noise.value))  # shares the networks
+        motion = generate(sampler, blend=blend, length=length, seed=int(seed.value))
         strip = nearest_sequence_strip(motion, references, window)
         fine_txt = b if wt == 1.0 else f"{1 - wt:.2f} {a} + {wt:.2f} {b}"
         title = f"coarse '{a}' at levels 1-{i}, fine '{fine_txt}' at levels {i + 1}-{L} (seed {seed.value})"
@@ -147,9 +154,11 @@ def interactive_crossover(
         status.value = f"nearest-window labels: {shares}"
         return CrossoverView(motion=motion, weights=W, strip=strip, image=image, title=title)
 
-    for c in (coarse, fine, level, seed, weight):
+    for c in (coarse, fine, level, seed, weight, noise):
         c.observe(lambda change: update(), names="value")
-    box = w.VBox([w.HBox([coarse, fine]), w.HBox([level, weight]), seed, status, out])
+    box = w.VBox(
+        [w.HBox([coarse, fine]), w.HBox([level, weight]), w.HBox([seed, noise]), status, out]
+    )
     return box, update
 
 

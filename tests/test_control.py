@@ -253,11 +253,22 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
     assert view.weights.shape == (4, 2) and "walk_sad" in view.title and "wave" in view.title
     assert len(view.strip.index) == view.motion.num_frames - 9
     # the controls drive the callback: fine weight 0 is the coarse label alone
-    controls = {c.description: c for row in box.children[:2] for c in row.children}
+    controls = {c.description: c for row in box.children[:3] for c in row.children}
     controls["fine weight"].value = 0.0
     view0 = update()
     pure = generate(model, "walk_sad", length=view0.motion.num_frames, seed=0)
     assert np.allclose(view0.motion.poses, pure.poses, atol=1e-5)
+    # fine noise: this view's sampler only
+    controls["fine noise"].value = 0.0
+    quiet = update().motion
+    assert model.fine_noise == 1.0 and np.abs(quiet.poses - view0.motion.poses).max() > 1e-4
+    model.fine_noise = 0.0
+    try:
+        same = generate(model, "walk_sad", length=quiet.num_frames, seed=0)
+    finally:
+        model.fine_noise = 1.0
+    assert np.allclose(quiet.poses, same.poses, atol=1e-5)
+    controls["fine noise"].value = 1.0
     controls["crossover i"].value = 3
     assert update().weights[:3, 0].tolist() == [1.0, 1.0, 1.0]
 
