@@ -35,6 +35,7 @@ import random
 import signal
 import threading
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -826,7 +827,8 @@ def train_or_reuse(
     """Train with :func:`train` unless ``out_dir`` already holds a finished run with the
     same config (field for field, as saved next to the checkpoint) and the same clips;
     then load it. Notebooks and benchmarks use this so that a long run is not repeated
-    on every execution.
+    on every execution. A run there that cannot be reused is not overwritten: its files
+    move to ``out_dir/previous-<time>/``, with a warning saying why.
 
     Returns:
         ``(model, record)``: the ``GenerativeModel`` and a :class:`TrainRecord`; for a
@@ -835,16 +837,38 @@ def train_or_reuse(
     """
     out = Path(out_dir)
     ckpt, log = out / "checkpoint.pt", out / "losses.csv"
-    if ckpt.exists() and ckpt.with_suffix(".pt.json").exists() and log.exists():
+    meta = ckpt.with_suffix(".pt.json")
+    why = None
+    if ckpt.exists() and meta.exists() and log.exists():
         # Compare the JSON itself: a field missing from it means an older mrlib wrote the
         # run, whose defaults may differ from today's.
-        saved = json.loads(ckpt.with_suffix(".pt.json").read_text())
-        if saved == json.loads(config_to_json(config)):
+        saved, wanted = json.loads(meta.read_text()), json.loads(config_to_json(config))
+        if saved == wanted:
             model = load_model(ckpt)
             if model.trained_levels == model.num_levels and model.clip_names == list(data.names):
                 with open(log, newline="") as fh:
                     rows = list(csv.DictReader(fh))
                 wall = float(rows[-1]["time_s"]) if rows else float("nan")
                 return model, TrainRecord(ckpt, wall, True)
+            why = "unfinished" if model.trained_levels < model.num_levels else "other clips"
+        else:
+            keys = sorted(k for k in saved.keys() | wanted.keys() if saved.get(k) != wanted.get(k))
+            why = "another config: " + ", ".join(
+                f"{k} {'missing' if k not in saved else 'differs'}" for k in keys
+            )
+    elif ckpt.exists():
+        why = "no config or loss log beside it"
+    if why is not None:
+        stamp = time.strftime("previous-%Y%m%d-%H%M%S")
+        keep, k = out / stamp, 1
+        while keep.exists():
+            keep, k = out / f"{stamp}-{k}", k + 1
+        keep.mkdir()
+        for f in (ckpt, meta, log):
+            if f.exists():
+                f.rename(keep / f.name)
+        warnings.warn(
+            f"{out} held a run that is not reused ({why}); moved it to {keep}", stacklevel=2
+        )
     res = train(data, config, out, body=body, progress=progress)
     return load_model(res.checkpoint), TrainRecord(res.checkpoint, res.wall_time_s, False)

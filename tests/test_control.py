@@ -322,15 +322,22 @@ def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips, plumbing_m
     assert r2.reused and 0 < r2.wall_time_s <= r1.wall_time_s  # last logged iteration
     for p, q in zip(m1.generator.parameters(), m2.generator.parameters(), strict=True):
         assert torch.equal(p, q)
-    _, r3 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
+    first = r1.checkpoint.read_bytes()
+    with pytest.warns(UserWarning, match="mix_prob differs"):
+        _, r3 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
     assert not r3.reused  # another config trains again
+    # ... and the run it replaced is kept, not overwritten
+    (kept,) = tmp_path.glob("previous-*")
+    assert (kept / "checkpoint.pt").read_bytes() == first
+    assert {p.name for p in kept.iterdir()} == {"checkpoint.pt", "checkpoint.pt.json", "losses.csv"}
     # a run written by an older mrlib (a config field missing from its JSON) is not reused
     meta = r3.checkpoint.with_suffix(".pt.json")
     saved = json.loads(meta.read_text())
     saved.pop("samples_per_clip")  # today's default, the same value as in cfg
     meta.write_text(json.dumps(saved))
-    _, r4 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
-    assert not r4.reused
+    with pytest.warns(UserWarning, match="samples_per_clip missing"):
+        _, r4 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
+    assert not r4.reused and len(list(tmp_path.glob("previous-*"))) == 2
 
 
 def test_crop_to_bodies_keeps_the_coloured_pixels():
