@@ -13,34 +13,23 @@ defaults (``mrlib.footik.BLEND_S``, ``ROOT_SMOOTH_S``); the training clips on th
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
-import torch
+from tutorial_checkpoint import add_checkpoint_arg, load
 
-import mrlib
 from mrlib.features import features_to_motion
 from mrlib.footik import cleanup_foot_contacts
 from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics
-from mrlib.sample import generate, load_model
-
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT / "outputs/condition_control/tutorial_seed0_detail100_mismatch0/checkpoint.pt"
+from mrlib.sample import generate
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--checkpoint", type=Path, default=DEFAULT)
+    add_checkpoint_arg(ap)
     ap.add_argument("--samples", type=int, default=2, help="seeds per label [2]")
     ap.add_argument("--frames", type=int, default=400, help="frames at 30 fps per sample [400]")
     a = ap.parse_args()
-    if not a.checkpoint.is_file():
-        ap.error(
-            f"{a.checkpoint} not found: run bench/condition_control.py first or pass --checkpoint"
-        )
-    torch.set_num_threads(1)
-    model = load_model(a.checkpoint)
-    body = mrlib.load_body_model()
+    model, body = load(ap, a.checkpoint)
     fps = model.fps
     train = [features_to_motion(x, fps, betas=model.betas) for x in model.features]
     jerk0 = np.mean([mean_jerk(motion_kinematics(m, body)[0], fps) for m in train])

@@ -14,12 +14,10 @@ condition fidelity and the skating share. Crossover figures at each value:
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
-import torch
+from tutorial_checkpoint import add_checkpoint_arg, load
 
-import mrlib
 from mrlib.features import features_to_motion
 from mrlib.footik import cleanup_foot_contacts
 from mrlib.metrics import (
@@ -30,23 +28,16 @@ from mrlib.metrics import (
     metric_features,
 )
 from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics
-from mrlib.sample import generate, load_model
-
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT / "outputs/condition_control/tutorial_seed0_detail100_mismatch0/checkpoint.pt"
+from mrlib.sample import generate
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--checkpoint", type=Path, default=DEFAULT)
+    add_checkpoint_arg(ap)
     ap.add_argument("--fine", default="1,0.5,0", help="fine_noise values [1,0.5,0]")
     ap.add_argument("--samples", type=int, default=5, help="samples per label [5]")
     a = ap.parse_args()
-    if not a.checkpoint.is_file():
-        ap.error(f"{a.checkpoint} not found: run bench/condition_control.py or pass --checkpoint")
-    torch.set_num_threads(1)
-    model = load_model(a.checkpoint)
-    body = mrlib.load_body_model()
+    model, body = load(ap, a.checkpoint)
     fps = model.fps
     train = {
         model.labels[model.clip_labels[k]]: features_to_motion(x, fps, betas=model.betas)

@@ -19,36 +19,29 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import torch
 from scipy.ndimage import gaussian_filter1d
+from tutorial_checkpoint import add_checkpoint_arg, load
 
-import mrlib
 from mrlib.features import features_to_motion
 from mrlib.plausibility import foot_skating, motion_kinematics
 from mrlib.pyramid import build_pyramid, level_fps
 from mrlib.rotations import axis_angle_to_6d, axis_angle_to_matrix, sixd_to_axis_angle
-from mrlib.sample import generate, load_model, reconstruct
+from mrlib.sample import generate, reconstruct
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT / "outputs/condition_control/tutorial_seed0_detail100_mismatch0/checkpoint.pt"
 LEGS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
 LEGS_AND_PELVIS = (0, *LEGS)
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--checkpoint", type=Path, default=DEFAULT)
+    add_checkpoint_arg(ap)
     ap.add_argument("--samples", type=int, default=2, help="random samples per label [2]")
     ap.add_argument("--frames", type=int, default=400, help="frames per random sample [400]")
     a = ap.parse_args()
-    if not a.checkpoint.is_file():
-        ap.error(f"{a.checkpoint} not found: run bench/condition_control.py or pass --checkpoint")
-    torch.set_num_threads(1)
-    model = load_model(a.checkpoint)
-    body = mrlib.load_body_model()
+    model, body = load(ap, a.checkpoint)
     fps, L = model.fps, model.num_levels
 
     def skate(m) -> np.ndarray:
