@@ -456,7 +456,7 @@ def _add_sample(sub):
         "they are labelled in contact; on by default)",
     )
     p.add_argument("--fix-contacts", action="store_true", help=argparse.SUPPRESS)  # the default now
-    _add_fine_noise(p)
+    _add_sampler_options(p)
     p.add_argument(
         "--render", action="store_true", help="also write a mesh render (PNG) per sample"
     )
@@ -508,19 +508,29 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
     return out
 
 
-def _add_fine_noise(p) -> None:
+def _add_sampler_options(p) -> None:
     p.add_argument(
         "--fine-noise",
-        type=_fine_noise,
+        type=_non_negative,
         default=None,
         metavar="S",
         help="the finest level's noise as a share of its training sigma [default: 1, the "
         "paper's sampler]; lower: less frame-to-frame jitter and less of the fine label's "
         "detail in crossovers (0: as smooth as the training clips)",
     )
+    p.add_argument(
+        "--guidance",
+        type=_non_negative,
+        default=None,
+        metavar="G",
+        help="label models: exaggerate the label, each level's condition pushed G times "
+        "its distance away from the mean of all labels [default: 0, the paper's sampler]; "
+        "0.25 sharpens the label at about the same coverage, 1 and more leave the training "
+        "poses",
+    )
 
 
-def _fine_noise(text: str) -> float:
+def _non_negative(text: str) -> float:
     try:
         value = float(text)
     except ValueError:
@@ -530,10 +540,15 @@ def _fine_noise(text: str) -> float:
     return value
 
 
-def _with_fine_noise(model, args):
-    """``model`` with ``--fine-noise`` applied where given (``GenerativeModel.fine_noise``)."""
+def _with_sampler(model, args):
+    """``model`` with ``--fine-noise`` and ``--guidance`` applied where given
+    (``GenerativeModel.fine_noise``, ``.guidance``; a speech model takes the first only)."""
     if args.fine_noise is not None:
         model.fine_noise = args.fine_noise
+    if getattr(args, "guidance", None) is not None:
+        if model.generator.cond_dim != len(model.labels):
+            raise MrlibError("--guidance applies to label models only")
+        model.guidance = args.guidance
     return model
 
 
@@ -551,7 +566,7 @@ def _cmd_sample(args) -> int:
 
             motions = [follow_path(m, args.path, clean=not args.raw) for m in motions]
         return _write_samples(motions, tag, args)
-    model = _with_fine_noise(load_model(args.checkpoint, device=args.device), args)
+    model = _with_sampler(load_model(args.checkpoint, device=args.device), args)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
     length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
@@ -610,7 +625,7 @@ def _audio_samples(args):
             "--seconds does not apply to --audio: the motion lasts as long as the audio"
         )
     model = load_speech_model(args.checkpoint, device=args.device)
-    _with_fine_noise(model.model, args)
+    _with_sampler(model.model, args)
     motions = generate_from_audio(
         model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=not args.raw
     )
@@ -671,7 +686,7 @@ def _add_evaluate(sub):
     )
     p.add_argument("--baseline-name", default="GANimator-mode")
     p.add_argument("--no-calibration", action="store_true", help="leave out the calibration rows")
-    _add_fine_noise(p)
+    _add_sampler_options(p)
     p.add_argument(
         "--raw",
         action="store_true",
@@ -687,13 +702,13 @@ def _cmd_evaluate(args) -> int:
     from mrlib.evaluate import evaluate_model, model_references
     from mrlib.sample import load_model
 
-    model = _with_fine_noise(load_model(args.checkpoint, device=args.device), args)
+    model = _with_sampler(load_model(args.checkpoint, device=args.device), args)
     baselines = None
     if args.baseline is not None:
         per_key = {}
         refs = model_references(model)
         for path in sorted(args.baseline.glob("*/checkpoint.pt")):
-            m = _with_fine_noise(load_model(path, device=args.device), args)
+            m = _with_sampler(load_model(path, device=args.device), args)
             for key in refs:
                 if key in m.clip_names or key in m.labels:
                     per_key[key] = m

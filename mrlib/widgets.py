@@ -69,7 +69,8 @@ def interactive_crossover(
     coarse label alone; one number per control keeps the UI readable (per-level weights
     are available through ``generate(blend=(a, b, [w_1, ..., w_L]))``). *fine noise* sets
     the sampler's ``fine_noise`` for this view (the model itself is left as it is): lower
-    is smoother and carries less of the fine label's detail.
+    is smoother and carries less of the fine label's detail; *guidance* its ``guidance``
+    (``mrlib.sample.guided_weights``): above 0 the labels are exaggerated.
 
     Every change regenerates the sample and redraws, into an ``Output`` widget, a mesh
     render of ``frames`` frames (``mrlib.render_meshes``) titled with the labels and the
@@ -118,6 +119,10 @@ def interactive_crossover(
         value=float(model.fine_noise), min=0.0, max=max(1.0, float(model.fine_noise)), step=0.1,
         description="fine noise", continuous_update=False,
     )  # fmt: skip
+    guidance = w.FloatSlider(
+        value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
+        description="guidance", continuous_update=False,
+    )  # fmt: skip
     out = w.Output()
     status = w.HTML()
 
@@ -125,7 +130,8 @@ def interactive_crossover(
         a, b, i, wt = coarse.value, fine.value, int(level.value), float(weight.value)
         blend = crossover_blend(model, a, b, i, wt)
         W = label_weights(model, blend=blend).numpy()
-        sampler = replace(model, fine_noise=float(noise.value))  # shares the networks
+        # a view of the model with this UI's sampler settings; it shares the networks
+        sampler = replace(model, fine_noise=float(noise.value), guidance=float(guidance.value))
         motion = generate(sampler, blend=blend, length=length, seed=int(seed.value))
         strip = nearest_sequence_strip(motion, references, window)
         fine_txt = b if wt == 1.0 else f"{1 - wt:.2f} {a} + {wt:.2f} {b}"
@@ -154,10 +160,16 @@ def interactive_crossover(
         status.value = f"nearest-window labels: {shares}"
         return CrossoverView(motion=motion, weights=W, strip=strip, image=image, title=title)
 
-    for c in (coarse, fine, level, seed, weight, noise):
+    for c in (coarse, fine, level, seed, weight, noise, guidance):
         c.observe(lambda change: update(), names="value")
     box = w.VBox(
-        [w.HBox([coarse, fine]), w.HBox([level, weight]), w.HBox([seed, noise]), status, out]
+        [
+            w.HBox([coarse, fine]),
+            w.HBox([level, weight]),
+            w.HBox([seed, noise, guidance]),
+            status,
+            out,
+        ]
     )
     return box, update
 

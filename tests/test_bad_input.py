@@ -213,6 +213,7 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
         "sample --seconds inf": (["sample", str(ckpt), "--seconds", "inf"], 2, "--seconds"),
         "sample --seconds 0": (["sample", str(ckpt), "--seconds", "0"], 2, "--seconds"),
         "sample --fine-noise -1": (["sample", str(ckpt), "--fine-noise", "-1"], 2, "--fine-noise"),
+        "sample --guidance nan": (["sample", str(ckpt), "--guidance", "nan"], 2, "--guidance"),
         "evaluate --fine-noise x": (
             ["evaluate", str(ckpt), "--fine-noise", "x"],
             2,
@@ -296,3 +297,19 @@ def test_cli_fine_noise_reaches_the_sampler(checkpoint, tmp_path):
     assert np.array_equal(load_motion(next(default.glob("*.npz"))).poses, poses[default_value])
     a, b = poses.values()
     assert np.abs(a - b).max() > 1e-4
+
+
+def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
+    import mrlib.sample
+
+    seen, plain = [], mrlib.sample.guided_weights
+
+    def spy(model, W):
+        seen.append(model.guidance)
+        return plain(model, W)
+
+    monkeypatch.setattr(mrlib.sample, "guided_weights", spy)
+    assert main(["sample", str(checkpoint), "--raw", "--out", str(tmp_path / "a")]) == 0
+    argv = ["sample", str(checkpoint), "--raw", "--guidance", "0.5", "--out", str(tmp_path / "b")]
+    assert main(argv) == 0
+    assert seen == [mrlib.sample.GUIDANCE, 0.5]

@@ -269,6 +269,17 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
         model.fine_noise = 1.0
     assert np.allclose(quiet.poses, same.poses, atol=1e-5)
     controls["fine noise"].value = 1.0
+    # guidance: this view's sampler only, as the model's own guidance would sample
+    controls["guidance"].value = 0.5
+    pushed = update().motion
+    assert model.guidance == 0.0 and np.abs(pushed.poses - view0.motion.poses).max() > 1e-4
+    model.guidance = 0.5
+    try:
+        same = generate(model, "walk_sad", length=pushed.num_frames, seed=0)
+    finally:
+        model.guidance = 0.0
+    assert np.allclose(pushed.poses, same.poses, atol=1e-5)
+    controls["guidance"].value = 0.0
     controls["crossover i"].value = 3
     assert update().weights[:3, 0].tolist() == [1.0, 1.0, 1.0]
 

@@ -7,6 +7,7 @@ from mrlib.features import features_to_motion
 from mrlib.motion import Motion
 from mrlib.sample import (
     FINE_NOISE,
+    GUIDANCE,
     cleanup_foot_contacts,
     contact_skating,
     generate,
@@ -123,6 +124,33 @@ def test_fine_noise_scales_only_the_finest_levels_noise(model):
                 generate(model, "walk_sad", seed=0)
     finally:
         model.fine_noise = FINE_NOISE
+
+
+def test_guidance_pushes_each_levels_condition_away_from_the_label_mean(model):
+    W = label_weights(model, conditions=[("walk_sad", (1, 2)), ("walk_normal", (3, 4))])
+    assert model.guidance == GUIDANCE == 0.0
+    lengths, amp, conds = label_inputs(model, W, 36)
+    assert all(torch.equal(c[0, 0], w) for c, w in zip(conds, W, strict=True))
+    plain = generate(model, "walk_sad", seed=0, fix_contacts=False)
+    try:
+        model.guidance = 0.5
+        _, amp_g, conds_g = label_inputs(model, W, 36)
+        assert torch.equal(amp_g, amp)  # the noise keeps the label's own sigma
+        for c, w in zip(conds_g, W, strict=True):
+            # two labels: (1, 0) -> (1.25, -0.25), rows still summing to one
+            assert torch.allclose(c[0, 0], w + 0.5 * (w - 0.5))
+            assert c[0, 0].sum() == pytest.approx(1.0)
+        pushed = generate(model, "walk_sad", seed=0, fix_contacts=False)
+        assert np.abs(pushed.poses - plain.poses).max() > 1e-4
+        model.guidance = 0.0
+        again = generate(model, "walk_sad", seed=0, fix_contacts=False)
+        assert np.array_equal(again.poses, plain.poses)
+        for bad in (-0.1, float("inf")):
+            model.guidance = bad
+            with pytest.raises(MotionValueError, match="guidance"):
+                generate(model, "walk_sad", seed=0)
+    finally:
+        model.guidance = GUIDANCE
 
 
 def test_reconstruct_uses_the_fixed_noise(model):

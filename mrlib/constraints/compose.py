@@ -115,6 +115,7 @@ def generate_parts(
     from mrlib.sample import (
         cleanup_foot_contacts,
         generate,
+        guided_weights,
         label_inputs,
         label_weights,
         noise_amplitude,
@@ -143,8 +144,9 @@ def generate_parts(
         lengths, _, _ = label_inputs(model, Ws[0], length)
         amp = torch.stack([noise_amplitude(model, W) for W in Ws]).mean(0)
         masks = _channel_masks(groups)
+        Gs = [guided_weights(model, W) for W in Ws]
         conds = [
-            [(m, W[i].expand(1, lengths[i], -1)) for m, W in zip(masks, Ws, strict=True)]
+            [(m, G[i].expand(1, lengths[i], -1)) for m, G in zip(masks, Gs, strict=True)]
             for i in range(model.num_levels)
         ]
         x = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num_samples)
