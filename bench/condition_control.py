@@ -66,6 +66,10 @@ def main(argv=None) -> int:
         "--fine-noise", type=float, default=None,
         help="sample with this GenerativeModel.fine_noise [default: mrlib's]",
     )  # fmt: skip
+    p.add_argument(
+        "--guidance", type=float, default=None,
+        help="sample with this GenerativeModel.guidance [default: mrlib's]",
+    )  # fmt: skip
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
     p.add_argument(
@@ -108,7 +112,9 @@ def main(argv=None) -> int:
     how = "reused a finished run" if record.reused else "trained"
     if a.fine_noise is not None:
         model.fine_noise = a.fine_noise
-    print(f"sampling with fine_noise={model.fine_noise:g}")
+    if a.guidance is not None:
+        model.guidance = a.guidance
+    print(f"sampling with fine_noise={model.fine_noise:g}, guidance={model.guidance:g}")
     print(f"{how}: {record.wall_time_s:.0f} s of training", flush=True)
 
     t = time.perf_counter()
@@ -151,6 +157,7 @@ def main(argv=None) -> int:
         "train_s": record.wall_time_s,
         "reused": record.reused,
         "fine_noise": model.fine_noise,
+        "guidance": model.guidance,
         "fidelity": fid.overall,
         "fidelity_per_label": fid.per_label,
         "crossover": [
@@ -169,6 +176,7 @@ def main(argv=None) -> int:
         "coverage": {f"{eps:g}": c for eps, c in cov.items()},
     }
     tag = "" if a.fine_noise is None else f"_fine{a.fine_noise:g}"
+    tag += "" if a.guidance is None else f"_guidance{a.guidance:g}"
     (Path(out) / f"condition_control{tag}.json").write_text(
         json.dumps(result, indent=1, default=float)
     )

@@ -16,15 +16,17 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
   the same for unconstrained samples of the label (same seeds, same windows), without
   the noise fit, with it for the keyframes alone (``still=0``) and with its jerk term;
 * **parts**: upper body from one label, lower body from another, for every ordered
-  pair, by ``film`` and ``splice``: condition fidelity per part;
+  pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
+  on each label's second capture take, which the model never saw;
 * **loop**: 4 s loops by ``circular`` and ``crossfade``, and raw samples closed on
   themselves: seam step over the 95th percentile of the loop's own steps.
 
     python bench/constraints.py                 # seed 0 model, 3 samples per case
     python bench/constraints.py --samples 5 --threads 2
     python bench/constraints.py --only keyframes loop
+    python bench/constraints.py --only parts --guidance 0.5
 
-Writes ``<run folder>/constraints.json``.
+Writes ``<run folder>/constraints.json`` (``constraints_guidance<G>.json`` with ``--guidance``).
 """
 
 from __future__ import annotations
@@ -70,6 +72,8 @@ def main() -> int:
     ap.add_argument("--steps", type=int, default=150, help="noise optimisation steps [150]")
     ap.add_argument("--still", type=float, default=C.keyframes.STILL,
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
+    ap.add_argument("--guidance", type=float, default=None,
+                    help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
@@ -98,9 +102,15 @@ def main() -> int:
     train_jerk = float(
         np.mean([mean_jerk(motion_kinematics(m, body)[0], fps) for m in train.values()])
     )
-    saved = out / "constraints.json"
+    saved = out / (
+        "constraints.json" if a.guidance is None else f"constraints_guidance{a.guidance:g}.json"
+    )
     results: dict = json.loads(saved.read_text()) if saved.is_file() else {}
-    results.update(model=str(out), samples=a.samples, fine_noise=model.fine_noise)
+    if a.guidance is not None:
+        model.guidance = a.guidance
+    results.update(
+        model=str(out), samples=a.samples, fine_noise=model.fine_noise, guidance=model.guidance
+    )
     seeds = range(a.samples)
 
     # -- paths ----------------------------------------------------------------------------
@@ -230,6 +240,39 @@ def run_parts(model, body, a, seeds, results) -> None:
         print(
             f"{method}: mean fidelity {100 * np.mean(f):.1f} %, worst part {100 * np.min(f):.1f} %"
         )
+    second_takes(model, body, results)
+
+
+def second_takes(model, body, results) -> None:
+    """The same measure on capture the model never saw: each label's second Bandai take
+    (``_002``), whole body and per part, against the model's training clips."""
+    from mrlib.fidelity import model_references, nearest_sequence_strip
+    from mrlib.metrics import condition_fidelity
+
+    print("\n### The measure on each label's second capture take (not trained on)\n")
+    print("| take | frames | whole body | upper | lower | nearest label, whole body |")
+    print("|---|---:|---:|---:|---:|---|")
+    _, labels, feats = model_references(model)
+    refs = {lab: np.concatenate([f for f, lb in zip(feats, labels, strict=True) if lb == lab])
+            for lab in dict.fromkeys(labels)}  # fmt: skip
+    results["second_takes"] = []
+    for lab in model.labels:
+        path = default_data_dir() / "data" / f"dataset-1_{lab}_002.bvh"
+        if not path.is_file():
+            continue
+        m = mrlib.load_motion(path)
+        m = m.replace(contacts=mrlib.foot_contacts(m, body), label=lab)
+        if m.num_frames < 30:
+            continue
+        whole = condition_fidelity([(metric_features(m), lab)], refs)
+        part = C.part_fidelity([m], model, {"upper": lab, "lower": lab})
+        near = nearest_sequence_strip(m, model).label_shares()
+        top = max(near, key=near.get)
+        results["second_takes"].append(
+            dict(take=path.stem, frames=m.num_frames, whole=whole, **part)
+        )
+        print(f"| {path.stem} | {m.num_frames} | {100 * whole:.1f} % | {100 * part['upper']:.1f} % | "
+              f"{100 * part['lower']:.1f} % | {top} ({100 * near[top]:.0f} %) |", flush=True)  # fmt: skip
 
 
 def run_loops(model, body, seeds, results) -> None:
