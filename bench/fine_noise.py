@@ -15,20 +15,7 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-from tutorial_checkpoint import add_checkpoint_arg, load
-
-from mrlib.features import features_to_motion
-from mrlib.footik import cleanup_foot_contacts
-from mrlib.metrics import (
-    condition_fidelity,
-    coverage,
-    global_diversity,
-    local_diversity,
-    metric_features,
-)
-from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics
-from mrlib.sample import generate
+from tutorial_checkpoint import LabelClips, add_checkpoint_arg, load
 
 
 def main() -> int:
@@ -38,44 +25,18 @@ def main() -> int:
     ap.add_argument("--samples", type=int, default=5, help="samples per label [5]")
     a = ap.parse_args()
     model, body = load(ap, a.checkpoint)
-    fps = model.fps
-    train = {
-        model.labels[model.clip_labels[k]]: features_to_motion(x, fps, betas=model.betas)
-        for k, x in enumerate(model.features)
-    }
-    refs = {lab: metric_features(m) for lab, m in train.items()}
-
-    def jerk(m):
-        return mean_jerk(motion_kinematics(m, body)[0], fps)
-
-    def skate(m):
-        return foot_skating(motion_kinematics(m, body)[1], m.contacts, fps)[1]
-
-    own = {lab: jerk(m) for lab, m in train.items()}
+    clips = LabelClips(model, body)
     print(f"{a.checkpoint}: {a.samples} samples per label, twice the label's clip\n")
     print("| fine_noise | jerk raw | jerk cleaned | coverage eps 2 / 1 % | global div. | "
           "local div. | cond. fidelity % | skating raw / cleaned % |")  # fmt: skip
     print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     for fine in (float(x) for x in a.fine.split(",")):
         model.fine_noise = fine
-        rows = []
-        for lab in model.labels:
-            raw = generate(model, lab, length=2 * train[lab].num_frames, seed=0,
-                           num_samples=a.samples, fix_contacts=False)  # fmt: skip
-            clean = [cleanup_foot_contacts(m, body) for m in raw]
-            f = [metric_features(m) for m in clean]
-            rows.append([
-                np.mean([jerk(m) for m in raw]) / own[lab],
-                np.mean([jerk(m) for m in clean]) / own[lab],
-                coverage(f, refs[lab]), coverage(f, refs[lab], eps=1.0),
-                global_diversity(f, refs[lab]), local_diversity(f, refs[lab]),
-                condition_fidelity([(g, lab) for g in f], refs),
-                np.mean([skate(m) for m in raw]), np.mean([skate(m) for m in clean]),
-            ])  # fmt: skip
-        r = np.mean(rows, 0)
-        print(f"| {fine:g} | {r[0]:.2f} | {r[1]:.2f} | {100 * r[2]:.1f} / {100 * r[3]:.1f} | "
-              f"{r[4]:.3f} | {r[5]:.3f} | {100 * r[6]:.1f} | {100 * r[7]:.1f} / {100 * r[8]:.1f} |",
-              flush=True)  # fmt: skip
+        r = clips.measure(model, a.samples)
+        print(f"| {fine:g} | {r['jerk_raw']:.2f} | {r['jerk_clean']:.2f} | "
+              f"{100 * r['coverage']:.1f} / {100 * r['coverage_eps1']:.1f} | "
+              f"{r['global_div']:.3f} | {r['local_div']:.3f} | {100 * r['fidelity']:.1f} | "
+              f"{100 * r['skating_raw']:.1f} / {100 * r['skating_clean']:.1f} |", flush=True)  # fmt: skip
     return 0
 
 

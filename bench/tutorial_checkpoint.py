@@ -6,10 +6,23 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
 import torch
 
 import mrlib
-from mrlib.sample import GenerativeModel, load_model
+from mrlib.constraints import part_fidelity
+from mrlib.features import features_to_motion
+from mrlib.footik import cleanup_foot_contacts
+from mrlib.metrics import (
+    condition_fidelity,
+    coverage,
+    global_diversity,
+    local_diversity,
+    metric_features,
+)
+from mrlib.motion import Motion
+from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics
+from mrlib.sample import GenerativeModel, generate, load_model
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "outputs/condition_control/tutorial_seed0_detail100_mismatch0/checkpoint.pt"
@@ -25,3 +38,53 @@ def load(ap: argparse.ArgumentParser, path: Path) -> tuple[GenerativeModel, obje
         ap.error(f"{path} not found: run bench/condition_control.py first or pass --checkpoint")
     torch.set_num_threads(1)
     return load_model(path), mrlib.load_body_model()
+
+
+class LabelClips:
+    """A label model's training clips by label, with what the sampler benchmarks compare
+    samples against: the clips' metric features, and jerk and skating of any motion."""
+
+    def __init__(self, model: GenerativeModel, body) -> None:
+        self.body, self.fps = body, model.fps
+        self.clips: dict[str, Motion] = {
+            model.labels[model.clip_labels[k]]: features_to_motion(x, model.fps, betas=model.betas)
+            for k, x in enumerate(model.features)
+        }
+        self.refs = {lab: metric_features(m) for lab, m in self.clips.items()}
+        self.own_jerk = {lab: self.jerk(m) for lab, m in self.clips.items()}
+
+    def jerk(self, m: Motion) -> float:
+        """Mean joint jerk (m/s^3)."""
+        return mean_jerk(motion_kinematics(m, self.body)[0], self.fps)
+
+    def skating(self, m: Motion) -> float:
+        """Share of contact vertex-frames sliding above the threshold."""
+        return foot_skating(motion_kinematics(m, self.body)[1], m.contacts, self.fps)[1]
+
+    def measure(self, model: GenerativeModel, samples: int) -> dict[str, float]:
+        """``samples`` samples per label of twice the label's clip (seed 0) under the
+        model's current sampler settings, raw and after the foot-contact clean-up; every
+        figure is the mean over the labels, except ``worst_part`` (the lowest per-part
+        fidelity). Jerk is over the label's own clip's; the rest is of the cleaned samples
+        against the label's clip, but ``*_raw``."""
+        rows = []
+        for lab, clip in self.clips.items():
+            raw = generate(model, lab, length=2 * clip.num_frames, seed=0,
+                           num_samples=samples, fix_contacts=False)  # fmt: skip
+            clean = [cleanup_foot_contacts(m, self.body) for m in raw]
+            f = [metric_features(m) for m in clean]
+            ref = self.refs[lab]
+            part = part_fidelity(clean, model, {"upper": lab, "lower": lab})
+            rows.append({
+                "jerk_raw": np.mean([self.jerk(m) for m in raw]) / self.own_jerk[lab],
+                "jerk_clean": np.mean([self.jerk(m) for m in clean]) / self.own_jerk[lab],
+                "coverage": coverage(f, ref), "coverage_eps1": coverage(f, ref, eps=1.0),
+                "global_div": global_diversity(f, ref), "local_div": local_diversity(f, ref),
+                "fidelity": condition_fidelity([(h, lab) for h in f], self.refs),
+                "upper": part["upper"], "lower": part["lower"],
+                "skating_raw": np.mean([self.skating(m) for m in raw]),
+                "skating_clean": np.mean([self.skating(m) for m in clean]),
+            })  # fmt: skip
+        out = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+        out["worst_part"] = float(min(min(r["upper"], r["lower"]) for r in rows))
+        return out
