@@ -60,7 +60,6 @@ def main(argv=None) -> int:
     )
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
-    p.add_argument("--feet", type=float, default=None, help="LossWeights.feet (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
     p.add_argument("--iterations", type=int, default=None, help="per block (smoke tests)")
     p.add_argument(
@@ -92,8 +91,6 @@ def main(argv=None) -> int:
         loss = dataclasses.replace(loss, mismatch=a.mismatch)
     if a.con is not None:
         loss = dataclasses.replace(loss, con=a.con)
-    if a.feet is not None:
-        loss = dataclasses.replace(loss, feet=a.feet)
     cfg = cfg.replace(loss=loss)
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
@@ -102,8 +99,6 @@ def main(argv=None) -> int:
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
     if a.con is not None:
         name += f"_con{a.con:g}"
-    if a.feet is not None:
-        name += f"_feet{a.feet:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
     if a.iterations is not None:

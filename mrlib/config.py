@@ -165,14 +165,9 @@ class LossWeights:
     con_norm: str = "squared"
     # Also apply L_con to the reconstructions (the paper applies it to random samples).
     con_on_rec: bool = False
-    # Beyond the paper: weight of an L1 term on the reconstructions' foot-vertex
-    # velocities against the clips' own (m/s, every frame): the rotation L1 of L_rec
-    # weighs each normalised channel alike, while a stance foot stays put only if the
-    # whole leg chain's error holds still. 0: off.
-    feet: float = 0.0
 
     def __post_init__(self):
-        for name in ("adv", "con", "rec", "smooth", "gp", "mismatch", "detail", "feet"):
+        for name in ("adv", "con", "rec", "smooth", "gp", "mismatch", "detail"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"loss weight {name} must be >= 0, got {getattr(self, name)}")
         if self.con_norm not in ("squared", "speed"):

@@ -39,7 +39,6 @@ __all__ = [
     "backward_velocity",
     "interior_mask",
     "body_kinematics",
-    "foot_velocity_loss",
 ]
 
 
@@ -234,15 +233,6 @@ def contact_consistency_loss(
         raise ValueError(f"norm must be 'squared' or 'speed', got {norm!r}")
     cost = sq * contact_sigmoid(contacts)
     return weighted_mean(cost, weights)
-
-
-def foot_velocity_loss(
-    foot_velocity: torch.Tensor, target: torch.Tensor, weights: torch.Tensor
-) -> torch.Tensor:
-    """Mean norm of the difference of two foot-vertex velocities ``(B, T, 6, 3)`` (m/s),
-    weighted per frame by ``weights (B, T)`` (zero where a velocity is undefined)."""
-    err = ((foot_velocity - target).pow(2).sum(-1) + 1e-12).sqrt()  # (B, T, 6)
-    return weighted_mean(err, weights)
 
 
 SLIDE_UNIT = 0.1  # m/s: foot_slide's unit, so a sliding foot reads ~1 like the other channels

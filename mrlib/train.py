@@ -62,7 +62,6 @@ from mrlib.losses import (
     contact_consistency_loss,
     detail_statistics_loss,
     foot_slide,
-    foot_velocity_loss,
     generator_adversarial_loss,
     mismatch_critic_loss,
     reconstruction_loss,
@@ -89,7 +88,7 @@ class TrainingDivergedError(MrlibError, FloatingPointError):
     """A loss or a weight became NaN or infinite during training."""
 
 
-LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth", "mis", "detail", "feet")
+LOSS_NAMES = ("D", "gp", "adv", "rec", "con", "smooth", "mis", "detail")
 CSV_FIELDS = ["time_s", "block", "iteration", "level", *LOSS_NAMES]
 
 
@@ -250,23 +249,6 @@ class Trainer:
             if config.loss.con_on_rec
             else None
         )
-        # loss.feet: the clips' own foot-vertex velocities per level, (1, S_i, 6, 3)
-        self.real_foot_velocity = None
-        if config.loss.feet:
-            with torch.no_grad():
-                # padding between the packed clips has no pose (NaN); it has zero weight
-                self.real_foot_velocity = [
-                    torch.nan_to_num(
-                        backward_velocity(
-                            body_kinematics(
-                                r, self.data_normalizer, self.rec_fps[i], self.body, self.betas
-                            )[1],
-                            self.rec_fps[i],
-                        ),
-                        nan=0.0,
-                    )
-                    for i, r in enumerate(self.real)
-                ]
         # critic_contacts: frames without a predecessor, and the real clips as the critics
         # see them (features + foot slides), fixed for the whole run
         self.first_rand = [~lay.trimmed(i, start=1) for i in range(L)]
@@ -565,15 +547,6 @@ class Trainer:
                         )
                 if need_smooth:
                     terms["smooth"] = smoothness_loss(joints, self.w_smooth[i])
-            if w.feet and i + 1 >= c.contact_from_level:
-                _, feet_r, _ = body_kinematics(
-                    out_rec, self.data_normalizer, self.rec_fps[i], self.body, self.betas
-                )
-                terms["feet"] = foot_velocity_loss(
-                    backward_velocity(feet_r, self.rec_fps[i]),
-                    self.real_foot_velocity[i],
-                    self.w_vel_rec[i],
-                )
             for name, value in terms.items():
                 total = total + getattr(w, name) * value
                 losses[i][name] = value.detach()

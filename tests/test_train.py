@@ -579,23 +579,6 @@ def test_critics_with_contacts_see_a_sliding_planted_foot_and_resume(data, body,
     assert again.config.model.critic_contacts
 
 
-def test_foot_velocity_term_is_zero_on_the_clips_and_positive_on_a_reconstruction(
-    data, body, tmp_path
-):
-    from mrlib.losses import backward_velocity, body_kinematics, foot_velocity_loss
-
-    cfg = tiny(loss=dataclasses.replace(LossWeights(), feet=50.0))
-    tr = Trainer(data, cfg, tmp_path / "feet", body=body)
-    tr.start_block()
-    i = 1
-    _, feet, _ = body_kinematics(tr.real[i], tr.data_normalizer, tr.rec_fps[i], body, tr.betas)
-    v = torch.nan_to_num(backward_velocity(feet, tr.rec_fps[i]))  # padding: NaN
-    assert torch.allclose(v, tr.real_foot_velocity[i])
-    assert foot_velocity_loss(v, tr.real_foot_velocity[i], tr.w_vel_rec[i]) < 1e-5
-    losses = tr.step()
-    assert all(losses[k]["feet"].item() > 1e-3 for k in tr.block_levels)  # untrained
-
-
 def test_contact_term_on_reconstructions_adds_the_clips_own_contacts(data, body, tmp_path):
     def first_step(**loss):
         cfg = tiny(loss=dataclasses.replace(LossWeights(), **loss))
