@@ -224,13 +224,16 @@ def interactive_parts(
     model: Any, body: Any = None, *, frames: int = 5, length: int | None = None
 ) -> tuple[Any, Callable[[], Motion]]:
     """An ipywidgets UI for body-part composition: a label for the upper body, one for
-    the lower body, the method (``splice`` / ``film``) and the seed; every change
-    regenerates and shows a mesh render of ``frames`` frames."""
+    the lower body, the method (``splice`` / ``film``), the seed and the sampler's label
+    ``guidance`` for this view (``mrlib.sample.guided_weights``: above 0 each part keeps
+    its label more often, at some distance from the training motion); every change
+    regenerates and shows a mesh render of ``frames`` frames, titled with each part's
+    condition fidelity (``mrlib.constraints.part_fidelity``)."""
     import ipywidgets as w
     import matplotlib.pyplot as plt
     from IPython.display import display
 
-    from mrlib.constraints import generate_parts
+    from mrlib.constraints import generate_parts, part_fidelity
 
     body = resolve_body(body, shared=True)
     labels = list(model.labels)
@@ -238,18 +241,28 @@ def interactive_parts(
     lower = w.Dropdown(options=labels, value=labels[-1], description="lower body")
     method = w.ToggleButtons(options=["splice", "film"], value="splice", description="method")
     seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
+    guidance = w.FloatSlider(
+        value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
+        description="guidance", continuous_update=False,
+    )  # fmt: skip
     out = w.Output()
 
     def update(*_: Any) -> Motion:
         parts = {"upper": upper.value, "lower": lower.value}
-        m = generate_parts(model, parts, length, seed=int(seed.value), method=method.value,
+        sampler = replace(model, guidance=float(guidance.value))  # shares the networks
+        m = generate_parts(sampler, parts, length, seed=int(seed.value), method=method.value,
                            body=body)  # fmt: skip
+        windows = min(len(m), int(model.lengths[:, -1].min())) >= 30
+        fid = part_fidelity([m], model, parts) if windows else {}
         image = crop_to_bodies(render_meshes(m, body, frames=evenly_spaced_frames(len(m), frames)))
         fig, ax = plt.subplots(figsize=(10, 4))
         ax.imshow(image)
         ax.axis("off")
+        kept = ", ".join(f"{p} {100 * f:.0f}%" for p, f in fid.items())
         ax.set_title(
-            f"upper body {upper.value}, lower body {lower.value} ({method.value})", fontsize=10
+            f"upper body {upper.value}, lower body {lower.value} ({method.value})"
+            + (f"; windows keeping their part's label: {kept}" if kept else ""),
+            fontsize=10,
         )
         with out:
             out.clear_output(wait=True)
@@ -257,9 +270,9 @@ def interactive_parts(
         plt.close(fig)
         return m
 
-    for c in (upper, lower, method, seed):
+    for c in (upper, lower, method, seed, guidance):
         c.observe(lambda change: update(), names="value")
-    return w.VBox([w.HBox([upper, lower]), w.HBox([method, seed]), out]), update
+    return w.VBox([w.HBox([upper, lower]), w.HBox([method, seed, guidance]), out]), update
 
 
 def interactive_inbetween(

@@ -288,6 +288,33 @@ def test_spliced_parts_take_each_group_from_its_own_label(model):
         C.parse_parts("upper")
 
 
+def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, body, monkeypatch):
+    pytest.importorskip("ipywidgets")
+    import mrlib.widgets
+
+    monkeypatch.setattr(
+        mrlib.widgets, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
+    )  # the real one takes seconds
+    box, update = mrlib.widgets.interactive_parts(model, body=body, length=40)
+    controls = {c.description: c for row in box.children[:2] for c in row.children}
+    assert controls["guidance"].value == 0.0
+    for method in ("splice", "film"):
+        controls["method"].value = method
+        controls["guidance"].value = 0.0
+        plain = update()
+        controls["guidance"].value = 0.5
+        pushed = update()
+        assert model.guidance == 0.0
+        assert np.abs(pushed.poses - plain.poses).max() > 1e-4, method
+        model.guidance = 0.5
+        try:
+            same = C.generate_parts(model, {"upper": "walk_sad", "lower": "wave"}, 40,
+                                    seed=0, method=method, body=body)  # fmt: skip
+        finally:
+            model.guidance = 0.0
+        assert np.allclose(same.poses, pushed.poses, atol=1e-5), method
+
+
 # -- command line -------------------------------------------------------------------------
 def test_sample_cli_constraints(tmp_path, clips):
     from mrlib.cli import main
