@@ -388,7 +388,9 @@ def generate(
             ``"optimise"``), or False for the generator's raw output. Levels returned
             with ``return_levels`` are always raw.
     Returns:
-        ``Motion`` or ``list[Motion]`` (SMPL parameters at the training fps).
+        ``Motion`` or ``list[Motion]`` (SMPL parameters at the training fps). Each one's
+        ``meta["sampler"]`` records what made it (seed, index in the batch, fine_noise,
+        guidance, the per-level label weights); ``save_motion`` keeps it in the .npz.
     """
     if num_samples < 1:
         raise MotionValueError(f"num_samples must be >= 1, got {num_samples}")
@@ -406,6 +408,12 @@ def generate(
     )
     names = [f"{label}_seed{seed}_{b}" for b in range(num_samples)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
+    for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)
+        m.meta["sampler"] = {
+            "seed": seed, "index": b, "fine_noise": float(model.fine_noise),
+            "guidance": float(model.guidance), "labels": list(model.labels),
+            "label_weights": W.tolist(),
+        }  # fmt: skip
     if fix_contacts:
         method = fix_contacts if isinstance(fix_contacts, str) else "ik"
         motions = [cleanup_foot_contacts(m, body, method=method) for m in motions]

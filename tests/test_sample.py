@@ -153,6 +153,22 @@ def test_guidance_pushes_each_levels_condition_away_from_the_label_mean(model):
         model.guidance = GUIDANCE
 
 
+def test_samples_record_the_sampler_settings_and_keep_them_in_npz(model, tmp_path):
+    from mrlib.io import load_motion, save_motion
+
+    try:
+        model.guidance = 0.25
+        ms = generate(model, blend=("walk_normal", "walk_sad", 0.5), seed=7, num_samples=2)
+    finally:
+        model.guidance = GUIDANCE
+    rec = ms[1].meta["sampler"]
+    assert rec["seed"] == 7 and rec["index"] == 1 and rec["guidance"] == 0.25
+    assert rec["fine_noise"] == model.fine_noise and rec["labels"] == model.labels
+    assert rec["label_weights"] == [[0.5, 0.5]] * model.num_levels
+    back = load_motion(save_motion(ms[1], tmp_path / "s.npz"))
+    assert back.meta["sampler"] == rec
+
+
 def test_reconstruct_uses_the_fixed_noise(model):
     r1, levels = reconstruct(model, 1, return_levels=True)
     r2 = reconstruct(model, 1)
