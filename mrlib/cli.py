@@ -540,12 +540,13 @@ def _non_negative(text: str) -> float:
     return value
 
 
-def _with_sampler(model, args):
-    """``model`` with ``--fine-noise`` and ``--guidance`` applied where given
-    (``GenerativeModel.fine_noise``, ``.guidance``; a speech model takes the first only)."""
+def _with_sampler(model, args, guidance: bool = True):
+    """``model`` with ``--fine-noise`` and (unless ``guidance=False``) ``--guidance``
+    applied where given (``GenerativeModel.fine_noise``, ``.guidance``; a speech model
+    takes the first only)."""
     if args.fine_noise is not None:
         model.fine_noise = args.fine_noise
-    if getattr(args, "guidance", None) is not None:
+    if guidance and getattr(args, "guidance", None) is not None:
         if model.generator.cond_dim != len(model.labels):
             raise MrlibError("--guidance applies to label models only")
         model.guidance = args.guidance
@@ -708,7 +709,8 @@ def _cmd_evaluate(args) -> int:
         per_key = {}
         refs = model_references(model)
         for path in sorted(args.baseline.glob("*/checkpoint.pt")):
-            m = _with_sampler(load_model(path, device=args.device), args)
+            # the baselines sample as the model does, but a one-label model has no guidance
+            m = _with_sampler(load_model(path, device=args.device), args, guidance=False)
             for key in refs:
                 if key in m.clip_names or key in m.labels:
                     per_key[key] = m
@@ -727,6 +729,7 @@ def _cmd_evaluate(args) -> int:
         contacts="raw" if args.raw else "both",
     )
     result.save(args.out)
+    print(f"sampler: fine_noise={model.fine_noise:g}, guidance={model.guidance:g}\n")
     print(result.to_markdown())
     print(f"\nwrote {args.out}/")
     return 0

@@ -299,6 +299,16 @@ def test_cli_fine_noise_reaches_the_sampler(checkpoint, tmp_path):
     assert np.abs(a - b).max() > 1e-4
 
 
+def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
+    # clips long enough for the metrics' windows (59 frames)
+    data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=6.5, fps=10.0)])
+    checkpoint = train(data, TINY, tmp_path / "run", progress=False).checkpoint
+    argv = ["evaluate", str(checkpoint), "--samples", "1", "--no-calibration",
+            "--fine-noise", "0.5", "--guidance", "0.25", "--out", str(tmp_path / "eval")]  # fmt: skip
+    assert main(argv) == 0
+    assert "sampler: fine_noise=0.5, guidance=0.25" in capsys.readouterr().out
+
+
 def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
     import mrlib.sample
 
