@@ -258,28 +258,21 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
     view0 = update()
     pure = generate(model, "walk_sad", length=view0.motion.num_frames, seed=0)
     assert np.allclose(view0.motion.poses, pure.poses, atol=1e-5)
-    # fine noise: this view's sampler only
-    controls["fine noise"].value = 0.0
-    quiet = update().motion
-    assert model.fine_noise == 1.0 and np.abs(quiet.poses - view0.motion.poses).max() > 1e-4
-    model.fine_noise = 0.0
-    try:
-        same = generate(model, "walk_sad", length=quiet.num_frames, seed=0)
-    finally:
-        model.fine_noise = 1.0
-    assert np.allclose(quiet.poses, same.poses, atol=1e-5)
-    controls["fine noise"].value = 1.0
-    # guidance: this view's sampler only, as the model's own guidance would sample
-    controls["guidance"].value = 0.5
-    pushed = update().motion
-    assert model.guidance == 0.0 and np.abs(pushed.poses - view0.motion.poses).max() > 1e-4
-    model.guidance = 0.5
-    try:
-        same = generate(model, "walk_sad", length=pushed.num_frames, seed=0)
-    finally:
-        model.guidance = 0.0
-    assert np.allclose(pushed.poses, same.poses, atol=1e-5)
-    controls["guidance"].value = 0.0
+    # fine noise and guidance: this view's sampler only, as the model's own setting
+    # would sample; the model itself is left as it was
+    for control, attr, value, default in (("fine noise", "fine_noise", 0.0, 1.0),
+                                          ("guidance", "guidance", 0.5, 0.0)):  # fmt: skip
+        controls[control].value = value
+        seen = update().motion
+        assert getattr(model, attr) == default
+        assert np.abs(seen.poses - view0.motion.poses).max() > 1e-4, control
+        setattr(model, attr, value)
+        try:
+            same = generate(model, "walk_sad", length=seen.num_frames, seed=0)
+        finally:
+            setattr(model, attr, default)
+        assert np.allclose(seen.poses, same.poses, atol=1e-5), control
+        controls[control].value = default
     controls["crossover i"].value = 3
     assert update().weights[:3, 0].tolist() == [1.0, 1.0, 1.0]
 
