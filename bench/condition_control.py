@@ -61,7 +61,6 @@ def main(argv=None) -> int:
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
-    p.add_argument("--lr-final", type=float, default=None, help="TrainConfig.lr_final (overrides)")
     p.add_argument("--iterations", type=int, default=None, help="per block (smoke tests)")
     p.add_argument(
         "--fine-noise", type=float, default=None,
@@ -95,8 +94,6 @@ def main(argv=None) -> int:
     cfg = cfg.replace(loss=loss)
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
-    if a.lr_final is not None:
-        cfg = cfg.replace(lr_final=a.lr_final)
     if a.iterations is not None:
         cfg = cfg.replace(block_iterations=(a.iterations,) * cfg.num_blocks, checkpoint_every=0)
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
@@ -104,8 +101,6 @@ def main(argv=None) -> int:
         name += f"_con{a.con:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
-    if a.lr_final is not None:
-        name += f"_lrfinal{a.lr_final:g}"
     if a.iterations is not None:
         name += f"_it{a.iterations}"
     out = a.out or ROOT / "outputs" / "condition_control" / name

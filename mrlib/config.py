@@ -52,7 +52,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 from dataclasses import dataclass, field
 
 from mrlib.errors import MrlibError
@@ -184,10 +183,6 @@ class TrainConfig:
     block_size: int = 2  # consecutive levels trained together
     block_iterations: tuple[int, ...] = (15000, 25000, 25000, 25000)  # one entry per block
     lr: float = 1e-4
-    # Learning rate at the end of each block as a share of ``lr``, reached on a cosine from
-    # ``lr`` at the block's first iteration (generator and critics alike); 1 = constant,
-    # as in the paper.
-    lr_final: float = 1.0
     betas: tuple[float, float] = (0.9, 0.999)
     n_critic: int = 5  # critic steps per generator step (GANimator's D_fact)
     mix_prob: float = 0.9  # share of random generations that mix two conditions
@@ -220,8 +215,6 @@ class TrainConfig:
             )
         if any(n < 0 for n in self.block_iterations):
             raise ConfigError("block_iterations must be >= 0")
-        if not 0 < self.lr_final <= 1:
-            raise ConfigError(f"lr_final must be in (0, 1], got {self.lr_final}")
         if self.n_critic < 0 or self.samples_per_clip < 1:
             raise ConfigError("n_critic must be >= 0 and samples_per_clip >= 1")
         if self.zstar not in ("shared", "full"):
@@ -251,14 +244,6 @@ class TrainConfig:
             if self.smooth_from_level is None
             else self.smooth_from_level
         )
-
-    def lr_at(self, iteration: int, block: int) -> float:
-        """Learning rate of the given (0-based) iteration of a block."""
-        n = self.block_iterations[block]
-        if self.lr_final == 1 or n <= 1:
-            return self.lr
-        cos = 0.5 * (1 + math.cos(math.pi * min(iteration, n - 1) / (n - 1)))
-        return self.lr * (self.lr_final + (1 - self.lr_final) * cos)
 
     def replace(self, **changes) -> TrainConfig:
         return dataclasses.replace(self, **changes)

@@ -407,10 +407,6 @@ class Trainer:
         """One iteration (critic steps + one generator step) of the current block; returns
         the losses ``{level: {name: value}}`` (0-based levels)."""
         losses: dict[int, dict[str, torch.Tensor]] = {i: {} for i in self.block_levels}
-        lr = self.config.lr_at(self.iteration, self.block)
-        for opt in (self.opt_g, self.opt_d):
-            for group in opt.param_groups:
-                group["lr"] = lr
         if self.config.n_critic > 0:
             self._critic_steps(losses)
         self._generator_step(losses)
