@@ -61,7 +61,6 @@ def main(argv=None) -> int:
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
-    p.add_argument("--ema", type=float, default=None, help="TrainConfig.ema (overrides)")
     p.add_argument("--iterations", type=int, default=None, help="per block (smoke tests)")
     p.add_argument(
         "--fine-noise", type=float, default=None,
@@ -95,8 +94,6 @@ def main(argv=None) -> int:
     cfg = cfg.replace(loss=loss)
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
-    if a.ema is not None:
-        cfg = cfg.replace(ema=a.ema)
     if a.iterations is not None:
         cfg = cfg.replace(block_iterations=(a.iterations,) * cfg.num_blocks, checkpoint_every=0)
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
@@ -104,8 +101,6 @@ def main(argv=None) -> int:
         name += f"_con{a.con:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
-    if a.ema is not None:
-        name += f"_ema{a.ema:g}"
     if a.iterations is not None:
         name += f"_it{a.iterations}"
     out = a.out or ROOT / "outputs" / "condition_control" / name

@@ -184,7 +184,6 @@ class TrainConfig:
     block_iterations: tuple[int, ...] = (15000, 25000, 25000, 25000)  # one entry per block
     lr: float = 1e-4
     betas: tuple[float, float] = (0.9, 0.999)
-    ema: float = 0.0
     n_critic: int = 5  # critic steps per generator step (GANimator's D_fact)
     mix_prob: float = 0.9  # share of random generations that mix two conditions
     samples_per_clip: int = 1  # random generations per training clip and step

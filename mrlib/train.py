@@ -201,7 +201,6 @@ class Trainer:
         self.done = False
         self.opt_g: torch.optim.Adam | None = None
         self.opt_d: torch.optim.Adam | None = None
-        self._ema: list[torch.Tensor] | None = None
 
         # 3. fixed batch layouts (packed: samples end to end, see mrlib.pyramid) -------------
         N = data.num_clips
@@ -383,8 +382,6 @@ class Trainer:
         g_params = [p for i in self.block_levels for p in self.generator.levels[i].parameters()]
         d_params = [p for i in self.block_levels for p in self.critics[i].parameters()]
         self.opt_g = torch.optim.Adam(g_params, lr=c.lr, betas=c.betas)
-        self._g_params = g_params
-        self._ema = [p.detach().clone() for p in g_params] if c.ema else None
         self.opt_d = torch.optim.Adam(d_params, lr=c.lr, betas=c.betas)
         self._rec_cache = None
 
@@ -555,9 +552,6 @@ class Trainer:
                 losses[i][name] = value.detach()
         total.backward()
         self.opt_g.step()
-        if self._ema is not None:
-            with torch.no_grad():
-                torch._foreach_lerp_(self._ema, [p.detach() for p in self._g_params], 1 - c.ema)
 
     # -- checkpoints -------------------------------------------------------------------------
     def state_dict(self) -> dict:
@@ -747,10 +741,6 @@ class Trainer:
                     finally:
                         bar.close()
                     if not interrupted:
-                        if self._ema is not None:
-                            with torch.no_grad():
-                                for p, e in zip(self._g_params, self._ema, strict=True):
-                                    p.copy_(e)
                         self.block += 1
                         self.iteration = 0
                         self.opt_g = self.opt_d = None
