@@ -10,7 +10,10 @@ prints the foot skating (share of contact vertex-frames whose feet move faster t
    labels, its root path, its leg rotations): is it the labels, the path or the pose?
 3. the reconstructions and random samples with their contact labels shifted by a few
    frames, and low-passed: a timing error or jitter would show there;
-4. the mean rotation error of the leg joints in the reconstructions (degrees).
+4. the mean rotation error of the leg joints in the reconstructions (degrees);
+5. where random samples slide: inside the stance (labels shortened by two frames at both
+   ends), along or across the walking direction, and with the noise of levels 2 to L
+   switched off (only z_1 drawn, as in the reconstructions).
 
     python bench/skating_sources.py [--checkpoint ckpt.pt] [--samples 2] [--frames 400]
 """
@@ -18,11 +21,12 @@ prints the foot skating (share of contact vertex-frames whose feet move faster t
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 
 import numpy as np
 import torch
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import binary_erosion, gaussian_filter1d
 from tutorial_checkpoint import add_checkpoint_arg, load
 
 from mrlib.features import features_to_motion
@@ -148,6 +152,35 @@ def main() -> int:
         print(
             f"| {name} | {np.mean([skate(m)[0] for m in ms]):.1f} | "
             f"{np.mean([skate(m)[0] for m in smooth]):.1f} |"
+        )
+
+    print("\n## 4. Where random samples slide\n")
+    quiet = copy.copy(model)
+    quiet.sigma = model.sigma.clone()
+    quiet.sigma[:, 1:] = 0
+    still = [
+        generate(quiet, lab, length=n, seed=s, fix_contacts=False)
+        for lab in model.labels
+        for s in range(a.samples)
+    ]
+    print("| motion | skating % | stance only % | contact-foot speed along / across the walk m/s |")
+    print("|---|---:|---:|---|")
+    for name, ms in (("training clips", train), ("random samples", raw),
+                     ("random samples, noise of levels 2-L off", still)):  # fmt: skip
+        share, inner, along, across = [], [], [], []
+        for m in ms:
+            c = np.asarray(m.contacts) > 0.5
+            share.append(skate(m)[0])
+            core = np.stack([binary_erosion(c[:, k], iterations=2) for k in range(c.shape[1])], 1)
+            inner.append(skate(dataclasses.replace(m, contacts=core.astype(m.contacts.dtype)))[0])
+            v = np.gradient(motion_kinematics(m, body)[1][..., [0, 2]], axis=0) * m.fps
+            root = np.gradient(m.trans[:, [0, 2]], axis=0)
+            d = root / (np.linalg.norm(root, axis=1, keepdims=True) + 1e-12)  # (T, 2)
+            along.append((v * d[:, None]).sum(-1)[c])
+            across.append(np.abs(v[..., 1] * d[:, None, 0] - v[..., 0] * d[:, None, 1])[c])
+        print(
+            f"| {name} | {np.mean(share):.1f} | {np.mean(inner):.1f} | "
+            f"{np.concatenate(along).mean():+.3f} / {np.concatenate(across).mean():.3f} |"
         )
     return 0
 
