@@ -61,7 +61,13 @@ def main(argv=None) -> int:
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
-    p.add_argument("--iterations", type=int, default=None, help="per block (smoke tests)")
+    p.add_argument(
+        "--iterations",
+        type=lambda v: tuple(int(n) for n in v.split(",")),
+        default=None,
+        metavar="N[,N...]",
+        help="iterations per block, one value for all blocks or one per block",
+    )
     p.add_argument(
         "--fine-noise", type=float, default=None,
         help="sample with this GenerativeModel.fine_noise [default: mrlib's]",
@@ -95,14 +101,15 @@ def main(argv=None) -> int:
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
     if a.iterations is not None:
-        cfg = cfg.replace(block_iterations=(a.iterations,) * cfg.num_blocks, checkpoint_every=0)
+        its = a.iterations * cfg.num_blocks if len(a.iterations) == 1 else a.iterations
+        cfg = cfg.replace(block_iterations=its, checkpoint_every=0)
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
     if a.con is not None:
         name += f"_con{a.con:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
     if a.iterations is not None:
-        name += f"_it{a.iterations}"
+        name += "_it" + "-".join(str(n) for n in a.iterations)
     out = a.out or ROOT / "outputs" / "condition_control" / name
 
     body = mrlib.load_body_model()

@@ -74,6 +74,9 @@ def main() -> int:
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
     ap.add_argument("--guidance", type=float, default=None,
                     help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
+    ap.add_argument("--iterations", type=int, default=None,
+                    help="the model trained with this many iterations per block "
+                    "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
@@ -82,12 +85,11 @@ def main() -> int:
     if not all(p.is_file() for p in paths):
         ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")
     cfg = get_preset("tutorial").replace(seed=a.seed)
-    out = (
-        ROOT
-        / "outputs"
-        / "condition_control"
-        / f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
-    )
+    name = f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
+    if a.iterations is not None:
+        cfg = cfg.replace(block_iterations=(a.iterations,) * cfg.num_blocks, checkpoint_every=0)
+        name += f"_it{a.iterations}"
+    out = ROOT / "outputs" / "condition_control" / name
     body = mrlib.load_body_model()
     data = TrainingSet.from_motions([mrlib.load_motion(p) for p in paths], body=body)
     model, record = train_or_reuse(data, cfg, out, body=body)
