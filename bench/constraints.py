@@ -74,8 +74,9 @@ def main() -> int:
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
     ap.add_argument("--guidance", type=float, default=None,
                     help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
-    ap.add_argument("--iterations", type=int, default=None,
-                    help="the model trained with this many iterations per block "
+    ap.add_argument("--iterations", type=lambda v: tuple(int(n) for n in v.split(",")),
+                    default=None, metavar="N[,N...]",
+                    help="the model trained with these iterations per block "
                     "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
@@ -87,8 +88,9 @@ def main() -> int:
     cfg = get_preset("tutorial").replace(seed=a.seed)
     name = f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
     if a.iterations is not None:
-        cfg = cfg.replace(block_iterations=(a.iterations,) * cfg.num_blocks, checkpoint_every=0)
-        name += f"_it{a.iterations}"
+        its = a.iterations * cfg.num_blocks if len(a.iterations) == 1 else a.iterations
+        cfg = cfg.replace(block_iterations=its, checkpoint_every=0)
+        name += "_it" + "-".join(str(n) for n in a.iterations)
     out = ROOT / "outputs" / "condition_control" / name
     body = mrlib.load_body_model()
     data = TrainingSet.from_motions([mrlib.load_motion(p) for p in paths], body=body)
