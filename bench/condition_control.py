@@ -38,6 +38,7 @@ import time
 from pathlib import Path
 
 import torch
+from tutorial_checkpoint import add_iterations_arg, with_iterations
 
 import mrlib
 from mrlib import control, fidelity
@@ -61,13 +62,7 @@ def main(argv=None) -> int:
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
-    p.add_argument(
-        "--iterations",
-        type=lambda v: tuple(int(n) for n in v.split(",")),
-        default=None,
-        metavar="N[,N...]",
-        help="iterations per block, one value for all blocks or one per block",
-    )
+    add_iterations_arg(p, "iterations per block, one value for all blocks or one per block")
     p.add_argument(
         "--fine-noise", type=float, default=None,
         help="sample with this GenerativeModel.fine_noise [default: mrlib's]",
@@ -100,16 +95,13 @@ def main(argv=None) -> int:
     cfg = cfg.replace(loss=loss)
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
-    if a.iterations is not None:
-        its = a.iterations * cfg.num_blocks if len(a.iterations) == 1 else a.iterations
-        cfg = cfg.replace(block_iterations=its, checkpoint_every=0)
+    cfg, it_suffix = with_iterations(cfg, a.iterations)
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
     if a.con is not None:
         name += f"_con{a.con:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
-    if a.iterations is not None:
-        name += "_it" + "-".join(str(n) for n in a.iterations)
+    name += it_suffix
     out = a.out or ROOT / "outputs" / "condition_control" / name
 
     body = mrlib.load_body_model()

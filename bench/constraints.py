@@ -44,6 +44,8 @@ import torch
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "bench"))
 
+from tutorial_checkpoint import add_iterations_arg, with_iterations  # noqa: E402
+
 import mrlib  # noqa: E402
 from mrlib import constraints as C  # noqa: E402
 from mrlib.config import get_preset  # noqa: E402
@@ -74,10 +76,8 @@ def main() -> int:
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
     ap.add_argument("--guidance", type=float, default=None,
                     help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
-    ap.add_argument("--iterations", type=lambda v: tuple(int(n) for n in v.split(",")),
-                    default=None, metavar="N[,N...]",
-                    help="the model trained with these iterations per block "
-                    "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
+    add_iterations_arg(ap, "the model trained with these iterations per block "
+                       "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
@@ -87,10 +87,8 @@ def main() -> int:
         ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")
     cfg = get_preset("tutorial").replace(seed=a.seed)
     name = f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
-    if a.iterations is not None:
-        its = a.iterations * cfg.num_blocks if len(a.iterations) == 1 else a.iterations
-        cfg = cfg.replace(block_iterations=its, checkpoint_every=0)
-        name += "_it" + "-".join(str(n) for n in a.iterations)
+    cfg, it_suffix = with_iterations(cfg, a.iterations)
+    name += it_suffix
     out = ROOT / "outputs" / "condition_control" / name
     body = mrlib.load_body_model()
     data = TrainingSet.from_motions([mrlib.load_motion(p) for p in paths], body=body)

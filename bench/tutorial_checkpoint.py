@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 import mrlib
+from mrlib.config import TrainConfig
 from mrlib.constraints import part_fidelity
 from mrlib.features import features_to_motion
 from mrlib.footik import cleanup_foot_contacts
@@ -30,6 +31,29 @@ DEFAULT = ROOT / "outputs/condition_control/tutorial_seed0_detail100_mismatch0/c
 
 def add_checkpoint_arg(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--checkpoint", type=Path, default=DEFAULT)
+
+
+def add_iterations_arg(ap: argparse.ArgumentParser, help: str) -> None:
+    """``--iterations N[,N...]``: one count for every block, or one per block."""
+    ap.add_argument(
+        "--iterations",
+        type=lambda v: tuple(int(n) for n in v.split(",")),
+        default=None,
+        metavar="N[,N...]",
+        help=help,
+    )
+
+
+def with_iterations(
+    cfg: TrainConfig, iterations: tuple[int, ...] | None
+) -> tuple[TrainConfig, str]:
+    """``cfg`` with ``--iterations`` applied, and the suffix of its run folder's name
+    (``_it1600``, ``_it3200-3200-800-800``; empty for the preset's own budget)."""
+    if iterations is None:
+        return cfg, ""
+    its = iterations * cfg.num_blocks if len(iterations) == 1 else iterations
+    suffix = "_it" + "-".join(str(n) for n in iterations)
+    return cfg.replace(block_iterations=its, checkpoint_every=0), suffix
 
 
 def load(ap: argparse.ArgumentParser, path: Path) -> tuple[GenerativeModel, object]:
