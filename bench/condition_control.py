@@ -62,7 +62,6 @@ def main(argv=None) -> int:
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
-    p.add_argument("--rec-legs", type=float, default=None, help="LossWeights.rec_legs (overrides)")
     add_iterations_arg(p, "iterations per block, one value for all blocks or one per block")
     p.add_argument(
         "--fine-noise", type=float, default=None,
@@ -93,8 +92,6 @@ def main(argv=None) -> int:
         loss = dataclasses.replace(loss, mismatch=a.mismatch)
     if a.con is not None:
         loss = dataclasses.replace(loss, con=a.con)
-    if a.rec_legs is not None:
-        loss = dataclasses.replace(loss, rec_legs=a.rec_legs)
     cfg = cfg.replace(loss=loss)
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
@@ -104,8 +101,6 @@ def main(argv=None) -> int:
         name += f"_con{a.con:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
-    if a.rec_legs is not None:
-        name += f"_reclegs{a.rec_legs:g}"
     name += it_suffix
     out = a.out or ROOT / "outputs" / "condition_control" / name
 

@@ -32,7 +32,6 @@ Writes ``<run folder>/constraints.json`` (``constraints_guidance<G>.json`` with 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import itertools
 import json
 import sys
@@ -79,9 +78,6 @@ def main() -> int:
                     help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
     add_iterations_arg(ap, "the model trained with these iterations per block "
                        "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
-    ap.add_argument("--rec-legs", type=float, default=None,
-                    help="the model trained with this LossWeights.rec_legs "
-                    "(bench/condition_control.py --rec-legs) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
@@ -91,9 +87,6 @@ def main() -> int:
         ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")
     cfg = get_preset("tutorial").replace(seed=a.seed)
     name = f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
-    if a.rec_legs is not None:
-        cfg = cfg.replace(loss=dataclasses.replace(cfg.loss, rec_legs=a.rec_legs))
-        name += f"_reclegs{a.rec_legs:g}"
     cfg, it_suffix = with_iterations(cfg, a.iterations)
     name += it_suffix
     out = ROOT / "outputs" / "condition_control" / name

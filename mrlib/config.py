@@ -165,17 +165,11 @@ class LossWeights:
     con_norm: str = "squared"
     # Also apply L_con to the reconstructions (the paper applies it to random samples).
     con_on_rec: bool = False
-    # Beyond the paper: how much more the reconstruction L1 weighs the channels a stance
-    # foot hangs on (pelvis and leg rotations, root displacement) than the others, at the
-    # same total weight (``losses.leg_channel_weights``). 1: the paper's plain L1.
-    rec_legs: float = 1.0
 
     def __post_init__(self):
         for name in ("adv", "con", "rec", "smooth", "gp", "mismatch", "detail"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"loss weight {name} must be >= 0, got {getattr(self, name)}")
-        if not self.rec_legs > 0:
-            raise ConfigError(f"loss weight rec_legs must be > 0, got {self.rec_legs}")
         if self.con_norm not in ("squared", "speed"):
             raise ConfigError(f"con_norm must be 'squared' or 'speed', got {self.con_norm!r}")
 

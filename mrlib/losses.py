@@ -19,17 +19,8 @@ from collections.abc import Callable
 
 import torch
 
-from mrlib.features import (
-    NUM_FEATURES,
-    ROOT_SLICE,
-    FeatureNormalizer,
-    root_velocity_to_trans,
-    split_features,
-)
+from mrlib.features import FeatureNormalizer, root_velocity_to_trans, split_features
 from mrlib.rotations import sixd_to_matrix
-
-# The pelvis and both legs (hips, knees, ankles, feet): the chain a stance foot hangs on.
-LEG_CHAIN_JOINTS: tuple[int, ...] = (0, 1, 2, 4, 5, 7, 8, 10, 11)
 
 __all__ = [
     "weighted_mean",
@@ -42,7 +33,6 @@ __all__ = [
     "mismatch_critic_loss",
     "detail_statistics_loss",
     "reconstruction_loss",
-    "leg_channel_weights",
     "contact_consistency_loss",
     "foot_slide",
     "smoothness_loss",
@@ -203,30 +193,11 @@ def detail_statistics_loss(band_rms: torch.Tensor, target_rms: torch.Tensor) -> 
 
 # -- reconstruction ------------------------------------------------------------------------
 def reconstruction_loss(
-    pred: torch.Tensor,
-    target: torch.Tensor,
-    weights: torch.Tensor,
-    channel_weights: torch.Tensor | None = None,
+    pred: torch.Tensor, target: torch.Tensor, weights: torch.Tensor
 ) -> torch.Tensor:
     """L1 between ``pred`` and ``target (B, C, T)`` (paper Eq. 10): mean absolute error
-    over the frames and channels of each clip, averaged over clips. ``channel_weights
-    (C,)`` (mean 1) weighs the channels of that mean; None weighs them equally."""
-    err = (pred - target).abs()
-    if channel_weights is not None:
-        err = err * channel_weights.to(err)[:, None]
-    return weighted_mean(err.transpose(1, 2), weights)
-
-
-def leg_channel_weights(legs: float) -> torch.Tensor:
-    """Channel weights ``(C,)`` of the reconstruction L1 that weigh the channels a stance
-    foot hangs on (the pelvis rotation, both legs' rotations and the root displacement)
-    ``legs`` times as much as the others, scaled to mean 1 so that the term's total
-    weight stays ``LossWeights.rec`` (``LossWeights.rec_legs``)."""
-    w = torch.ones(NUM_FEATURES)
-    for j in LEG_CHAIN_JOINTS:
-        w[6 * j : 6 * j + 6] = legs
-    w[ROOT_SLICE] = legs
-    return w / w.mean()
+    over the frames and channels of each clip, averaged over clips."""
+    return weighted_mean((pred - target).abs().transpose(1, 2), weights)
 
 
 # -- body-model terms ----------------------------------------------------------------------

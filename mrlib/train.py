@@ -63,7 +63,6 @@ from mrlib.losses import (
     detail_statistics_loss,
     foot_slide,
     generator_adversarial_loss,
-    leg_channel_weights,
     mismatch_critic_loss,
     reconstruction_loss,
     smoothness_loss,
@@ -235,9 +234,6 @@ class Trainer:
         ]  # (1, S_i)
         lay = self.rand_layout
         self.w_rec = [self.rec_layout.weights(i) for i in range(L)]
-        self.rec_channels = (
-            None if config.loss.rec_legs == 1 else leg_channel_weights(config.loss.rec_legs).to(dev)
-        )
         self.w_rand = [lay.weights(i) for i in range(L)]
         self.w_vel = [lay.weights(i, lay.trimmed(i, start=1)) for i in range(L)]
         self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
@@ -507,9 +503,7 @@ class Trainer:
         for k, i in enumerate(self.block_levels):
             cut = self.g_layout.split(i, self.N)
             out_rec, out_rand = outs[k][..., :cut], outs[k][..., cut:]
-            terms = {
-                "rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i], self.rec_channels)
-            }
+            terms = {"rec": reconstruction_loss(out_rec, self.real[i], self.w_rec[i])}
             need_con = w.con and i + 1 >= c.contact_from_level
             need_smooth = w.smooth and i + 1 >= c.smooth_start
             need_adv = c.n_critic > 0 and w.adv

@@ -15,7 +15,6 @@ from mrlib.losses import (
     generator_adversarial_loss,
     gradient_penalty,
     interior_mask,
-    leg_channel_weights,
     mask_weights,
     reconstruction_loss,
     smoothness_loss,
@@ -109,31 +108,6 @@ def test_reconstruction_is_masked_l1():
     b[0, :, 2:] = 100.0  # padding of sample 0
     mask = torch.tensor([[True, True, False, False], [True, True, True, True]])
     assert reconstruction_loss(a, b, mask_weights(mask)).item() == pytest.approx(1.0)
-
-
-def test_leg_channel_weights_reweigh_the_l1_at_the_same_total():
-    from mrlib.config import ConfigError, LossWeights
-    from mrlib.features import NUM_FEATURES, ROOT_SLICE
-
-    assert torch.equal(leg_channel_weights(1.0), torch.ones(NUM_FEATURES))
-    w = leg_channel_weights(4.0)
-    assert w.mean().item() == pytest.approx(1.0)
-    knee, elbow = 6 * 4, 6 * 18  # left_knee, left_elbow
-    assert w[knee].item() == pytest.approx(4 * w[elbow].item())
-    assert torch.allclose(w[ROOT_SLICE], w[knee].expand(3))
-    assert w[-1].item() == pytest.approx(w[elbow].item())  # contact channels: the others
-    # the same error costs 4x as much on the knee as on the elbow; none is no weighing
-    pred = torch.zeros(1, NUM_FEATURES, 5)
-    weights = mask_weights(torch.ones(1, 5, dtype=torch.bool))
-    costs = []
-    for ch in (knee, elbow):
-        target = pred.clone()
-        target[0, ch] = 1.0
-        costs.append(reconstruction_loss(pred, target, weights, w).item())
-        assert reconstruction_loss(pred, target, weights).item() == pytest.approx(1 / NUM_FEATURES)
-    assert costs[0] == pytest.approx(4 * costs[1])
-    with pytest.raises(ConfigError, match="rec_legs"):
-        LossWeights(rec_legs=0.0)
 
 
 def test_wgan_terms_signs():
