@@ -18,8 +18,9 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
 * **parts**: upper body from one label, lower body from another, for every ordered
   pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
   on each label's second capture take, which the model never saw;
-* **loop**: 4 s loops by ``circular`` and ``crossfade``, and raw samples closed on
-  themselves: seam step over the 95th percentile of the loop's own steps.
+* **loop**: 4 s loops by ``circular`` (begun at the calmest frame, the default, and at
+  the sample's frame 0) and ``crossfade``, and raw samples closed on themselves: seam
+  step over the 95th percentile of the loop's own steps.
 
     python bench/constraints.py                 # seed 0 model, 3 samples per case
     python bench/constraints.py --samples 5 --threads 2
@@ -280,20 +281,22 @@ def second_takes(model, body, results) -> None:
 def run_loops(model, body, seeds, results) -> None:
     fps, labs = model.fps, model.labels
     print("\n## Loops (4 s): seam step / 95th percentile of own steps\n")
-    print("| label | circular | crossfade | raw sample closed on itself |")
-    print("|---|---|---|---|")
+    print("| label | circular | circular, begun at the sample's frame 0 | crossfade "
+          "| raw sample closed on itself |")  # fmt: skip
+    print("|---|---|---|---|---|")
     results["loop"] = []
     N = int(4 * fps)
+    cases = {"circular": ("circular", "calm"), "circular_frame0": ("circular", "sample"),
+             "crossfade": ("crossfade", "calm")}  # fmt: skip
     for lab in labs:
         row = {"label": lab}
-        for method in ("circular", "crossfade"):
+        for key, (method, start) in cases.items():
             r = []
             for s in seeds:
-                sm = C.loop_seam(
-                    C.generate_loop(model, lab, N, seed=s, method=method, body=body), body
-                )
+                m = C.generate_loop(model, lab, N, seed=s, method=method, start=start, body=body)
+                sm = C.loop_seam(m, body)
                 r.append(sm["seam"] / sm["p95"])
-            row[method] = r
+            row[key] = r
         r = []
         for s in seeds:
             m = generate(model, lab, length=N, seed=s, body=body)
@@ -304,7 +307,7 @@ def run_loops(model, body, seeds, results) -> None:
         row["raw"] = r
         results["loop"].append(row)
         print(f"| {lab} | " + " | ".join(
-            f"{np.mean(row[k]):.2f} (max {np.max(row[k]):.2f})" for k in ("circular", "crossfade", "raw")
+            f"{np.mean(row[k]):.2f} (max {np.max(row[k]):.2f})" for k in (*cases, "raw")
         ) + " |", flush=True)  # fmt: skip
 
 

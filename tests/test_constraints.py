@@ -261,6 +261,25 @@ def test_generate_loop_tiles_seamlessly(model, body):
         C.tile_loop(generate(model, "walk_sad", length=20, seed=0), 2)
 
 
+def test_loop_starts_at_its_calmest_frame(model, body):
+    raw = C.generate_loop(model, "walk_sad", 40, seed=1, start="sample", fix_contacts=False)
+    calm = C.generate_loop(model, "walk_sad", 40, seed=1, fix_contacts=False)
+    k = calm.meta["loop_start"]
+    assert 0 < k < 40  # this draw's calmest step is not the wrap itself
+    # the same cycle, begun k frames later, and still one cycle's travel per cycle
+    assert np.allclose(calm.poses, np.roll(raw.poses, -k, axis=0), atol=1e-6)
+    assert np.allclose(calm.meta["loop_offset"], raw.meta["loop_offset"])
+    assert np.allclose(C.tile_loop(calm, 2).trans[1:41] - C.tile_loop(raw, 2).trans[k + 1 : k + 41],
+                       calm.trans[1] - raw.trans[k + 1], atol=1e-5)  # fmt: skip
+    seams = [C.loop_seam(m, body) for m in (raw, calm)]
+    J = body.motion_joints(C.tile_loop(calm, 2).slice(0, 41))
+    steps = np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)
+    assert seams[1]["seam"] == pytest.approx(steps.min(), rel=1e-5)
+    assert seams[1]["seam"] < seams[0]["seam"]
+    with pytest.raises(MotionValueError, match="start must be"):
+        C.generate_loop(model, "walk_sad", 40, start="first")
+
+
 # -- body parts ---------------------------------------------------------------------------
 def test_film_parts_with_one_label_are_that_label(model):
     same = C.generate_parts(model, {"upper": "walk_sad", "lower": "walk_sad"}, 30, seed=2,

@@ -34,7 +34,7 @@ from mrlib.constraints.keyframes import (
     load_keyframes,
     save_keyframes,
 )
-from mrlib.constraints.loop import generate_loop, loop_seam, tile_loop
+from mrlib.constraints.loop import generate_loop, loop_seam, roll_loop, tile_loop
 from mrlib.constraints.path import (
     GroundPath,
     follow_path,
@@ -71,4 +71,5 @@ __all__ = [
     "generate_loop",
     "loop_seam",
     "tile_loop",
+    "roll_loop",
 ]

@@ -7,6 +7,12 @@ construction: the frame after the last is the first. The root travels on (a walk
 moves forward each cycle, as root motion in a game engine): ``meta["loop_offset"]`` is
 the ground displacement of one cycle.
 
+A cycle has no first frame of its own, so ``start="calm"`` (default) begins it where
+the body moves least: the wrap from the last frame to the first is then the cycle's
+smallest joint step, the place where a cut into or out of the loop shows least (and the
+seam cannot stand out from the loop's other steps). ``start="sample"`` keeps the
+generator's frame 0 as the first.
+
 ``method="crossfade"``: the usual fix, a sample ``blend_s`` seconds longer whose extra
 tail is faded into its head (the features, so the root velocity too). Measured against
 the circular loop in ``docs/results.md``.
@@ -20,7 +26,7 @@ import torch
 from mrlib.errors import MotionValueError
 from mrlib.motion import Motion
 
-__all__ = ["generate_loop", "loop_seam", "tile_loop"]
+__all__ = ["generate_loop", "loop_seam", "tile_loop", "roll_loop"]
 
 
 def _loop_motion(model, x: torch.Tensor, label: str, name: str) -> Motion:
@@ -54,6 +60,29 @@ def tile_loop(motion: Motion, cycles: int) -> Motion:
     )
 
 
+def roll_loop(motion: Motion, start: int) -> Motion:
+    """The same loop begun at its frame ``start`` (the frames before it move to the end,
+    one cycle on)."""
+    T = motion.num_frames
+    s = int(start) % T
+    if s == 0:
+        return motion
+    two = tile_loop(motion, 2)
+    out = two.slice(s, s + T)
+    return out.replace(trans=out.trans - out.trans[0] + motion.trans[0], meta=dict(motion.meta))
+
+
+def _calm_start(motion: Motion, body) -> int:
+    """The frame after the cycle's smallest joint step (wrap-around included)."""
+    from mrlib.body import resolve_body
+
+    body = resolve_body(body, shared=True)
+    T = motion.num_frames
+    J = body.motion_joints(tile_loop(motion, 2).slice(0, T + 1))  # (T + 1, 24, 3)
+    steps = np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)  # step k: frame k -> k + 1
+    return (int(np.argmin(steps)) + 1) % T
+
+
 def _clean_loop(m: Motion, body) -> Motion:
     """Foot clean-up of a loop: on three cycles, keeping the middle one, so the
     clean-up sees across the seam."""
@@ -75,16 +104,19 @@ def generate_loop(
     blend=None,
     seed: int | None = None,
     method: str = "circular",
+    start: str = "calm",
     blend_s: float = 0.5,
     fix_contacts: bool = True,
     body=None,
 ) -> Motion:
     """A loop of ``length`` frames (default: the condition's training clip) under a
-    label condition (method: module docstring)."""
+    label condition (method and ``start``: module docstring)."""
     from mrlib.sample import check_conditions, draw_noise, label_inputs, label_weights
 
     if method not in ("circular", "crossfade"):
         raise MotionValueError(f"method must be 'circular' or 'crossfade', got {method!r}")
+    if start not in ("calm", "sample"):
+        raise MotionValueError(f"start must be 'calm' or 'sample', got {start!r}")
     W = label_weights(model, condition, conditions, blend)
     label = model.labels[int(W[-1].argmax())]
     if method == "circular":
@@ -110,6 +142,10 @@ def generate_loop(
     m.meta["loop_method"] = method
     if fix_contacts and m.contacts is not None:
         m = _clean_loop(m, body)
+    if start == "calm":
+        k = _calm_start(m, body)
+        m = roll_loop(m, k)
+        m.meta["loop_start"] = k
     return m
 
 
