@@ -62,6 +62,10 @@ def main(argv=None) -> int:
     p.add_argument("--mismatch", type=float, default=None, help="LossWeights.mismatch (overrides)")
     p.add_argument("--con", type=float, default=None, help="LossWeights.con (overrides)")
     p.add_argument("--lr", type=float, default=None, help="Adam learning rate (overrides)")
+    p.add_argument(
+        "--mix-prob", type=float, default=None,
+        help="TrainConfig.mix_prob, the share of generations that mix two labels (overrides)",
+    )  # fmt: skip
     add_iterations_arg(p, "iterations per block, one value for all blocks or one per block")
     p.add_argument(
         "--fine-noise", type=float, default=None,
@@ -95,12 +99,16 @@ def main(argv=None) -> int:
     cfg = cfg.replace(loss=loss)
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
+    if a.mix_prob is not None:
+        cfg = cfg.replace(mix_prob=a.mix_prob)
     cfg, it_suffix = with_iterations(cfg, a.iterations)
     name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
     if a.con is not None:
         name += f"_con{a.con:g}"
     if a.lr is not None:
         name += f"_lr{a.lr:g}"
+    if a.mix_prob is not None:
+        name += f"_mix{a.mix_prob:g}"
     name += it_suffix
     out = a.out or ROOT / "outputs" / "condition_control" / name
 
