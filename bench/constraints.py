@@ -26,6 +26,7 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
     python bench/constraints.py --samples 5 --threads 2
     python bench/constraints.py --only keyframes loop
     python bench/constraints.py --only parts --guidance 0.5
+    python bench/constraints.py --only keyframes --ramp
 
 Writes ``<run folder>/constraints.json`` (``constraints_guidance<G>.json`` with ``--guidance``).
 """
@@ -77,6 +78,9 @@ def main() -> int:
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
     ap.add_argument("--guidance", type=float, default=None,
                     help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
+    ap.add_argument("--ramp", action="store_true",
+                    help="keyframes: also condition the in-between on a label ramp from the "
+                    "first keyframe's label to the last's")  # fmt: skip
     add_iterations_arg(ap, "the model trained with these iterations per block "
                        "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
@@ -197,27 +201,62 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
             [around(generate(model, b_lab, length=N, seed=s, body=body)) for s in seeds]
         )
         own = mean_jerk(motion_kinematics(train[b_lab], body)[0], fps) / train_jerk
-        for steps, still in ((0, 0.0), (a.steps, 0.0), (a.steps, a.still)):
+        cases = [(0, 0.0, False), (a.steps, 0.0, False), (a.steps, a.still, False)]
+        if a.ramp:
+            cases.append((a.steps, a.still, True))
+        for steps, still, ramp in cases:
             rot, pos, jr = [], [], []
             for s in seeds:
-                m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps,
-                                              still=still, body=body)  # fmt: skip
+                if ramp:
+                    m = ramped_in_between(model, kfs, N, a_lab, b_lab, s, steps, still, body)
+                else:
+                    m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps,
+                                                  still=still, body=body)  # fmt: skip
                 e = C.keyframe_errors(m, kfs)
                 rot.append(e["rotation_deg"])
                 pos.append(e["trans_cm"])
                 jr.append(around(m))
             jr = np.asarray(jr)
-            row = {"from": a_lab, "to": b_lab, "steps": steps, "still": still,
+            row = {"from": a_lab, "to": b_lab + (" (ramp)" if ramp else ""), "steps": steps,
+                   "still": still,
                    "rotation_deg": float(np.max(rot)),
                    "trans_cm": float(np.max(pos)), "jerk_ratio_mean": jr.mean(0).tolist(),
                    "jerk_ratio_max": jr.max(0).tolist(),
                    "unconstrained_jerk_ratio_mean": control.mean(0).tolist(),
                    "label_clip_jerk_ratio": float(own)}  # fmt: skip
             results["keyframes"].append(row)
-            print(f"| {a_lab} -> {b_lab} | {steps} | {still:g} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
+            print(f"| {a_lab} -> {row['to']} | {steps} | {still:g} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
                   + " / ".join(f"{m_:.2f} (max {x_:.2f})" for m_, x_ in zip(jr.mean(0), jr.max(0), strict=True))
                   + " | " + " / ".join(f"{c_:.2f}" for c_ in control.mean(0))
                   + f" | {own:.2f} |", flush=True)  # fmt: skip
+
+
+def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body):
+    """``generate_with_keyframes`` with the condition eased over time from ``a_lab`` (the
+    first keyframe's clip) to ``b_lab`` (the last's), the noise of their mean sigma."""
+    from mrlib.constraints.common import fitted_motion
+    from mrlib.sample import (
+        check_conditions,
+        draw_noise,
+        guided_weights,
+        label_inputs,
+        label_weights,
+        noise_amplitude,
+    )
+
+    Wa, Wb = label_weights(model, a_lab), label_weights(model, b_lab)
+    lengths, _, _ = label_inputs(model, Wb, N)
+    Ga, Gb = guided_weights(model, Wa), guided_weights(model, Wb)
+    conds = []
+    for i, T in enumerate(lengths):
+        u = torch.linspace(0, 1, T)[:, None]
+        u = u * u * (3 - 2 * u)
+        conds.append(((1 - u) * Ga[i] + u * Gb[i])[None])
+    noises = draw_noise(lengths, noise_amplitude(model, (Wa + Wb) / 2), seed, 1, model.device)
+    loss_fn = C.keyframe_objective(model, kfs, N, still)
+    m = fitted_motion(model, noises, check_conditions(model, conds, lengths), b_lab, "ramp",
+                      loss_fn, steps=steps, body=body)  # fmt: skip
+    return C.apply_keyframes(C.align_to_keyframes(m, kfs, body), kfs)
 
 
 def run_parts(model, body, a, seeds, results) -> None:

@@ -11,6 +11,11 @@ samples' joint jerk (over the label's clip's) and foot skating; the figures exce
 jerk and skating are of the cleaned samples.
 
     python bench/guidance.py [--checkpoint ckpt.pt] [--guidance 0,0.25,0.5,1] [--samples 5]
+    python bench/guidance.py --guidance 0 --noise-scale 1,0.75,0.5 [--noise-levels coarse]
+
+``--noise-scale`` multiplies the sampling noise's sigma (every level, or with
+``--noise-levels coarse`` level 1 only), a truncation of the noise as in BigGAN (Brock et
+al. 2019): each value is measured at every guidance value.
 """
 
 from __future__ import annotations
@@ -25,17 +30,27 @@ def main() -> int:
     add_checkpoint_arg(ap)
     ap.add_argument("--guidance", default="0,0.25,0.5,1", help="values [0,0.25,0.5,1]")
     ap.add_argument("--samples", type=int, default=5, help="samples per label [5]")
+    ap.add_argument("--noise-scale", default="1", help="factors on the noise sigma [1]")
+    ap.add_argument("--noise-levels", choices=["all", "coarse"], default="all",
+                    help="levels whose noise --noise-scale scales [all]")  # fmt: skip
     a = ap.parse_args()
     model, body = load(ap, a.checkpoint)
     clips = LabelClips(model, body)
     print(f"{a.checkpoint}: {a.samples} samples per label, twice the label's clip\n")
-    print("| guidance | fidelity % whole / upper / lower | worst part % | coverage eps 2 / 1 % "
-          "| global div. | local div. | raw jerk | raw skating % |")  # fmt: skip
-    print("|---:|---|---:|---:|---:|---:|---:|---:|")
-    for g in (float(x) for x in a.guidance.split(",")):
+    print("| guidance | noise scale | fidelity % whole / upper / lower | worst part % "
+          "| coverage eps 2 / 1 % | global div. | local div. | raw jerk | raw skating % |")  # fmt: skip
+    print("|---:|---:|---|---:|---:|---:|---:|---:|---:|")
+    sigma = model.sigma.clone()
+    grid = [(float(g), float(t)) for g in a.guidance.split(",") for t in a.noise_scale.split(",")]
+    for g, t in grid:
         model.guidance = g
+        model.sigma = sigma.clone()
+        if a.noise_levels == "all":
+            model.sigma *= t
+        else:
+            model.sigma[:, 0] *= t
         r = clips.measure(model, a.samples)
-        print(f"| {g:g} | {100 * r['fidelity']:.1f} / {100 * r['upper']:.1f} / "
+        print(f"| {g:g} | {t:g} | {100 * r['fidelity']:.1f} / {100 * r['upper']:.1f} / "
               f"{100 * r['lower']:.1f} | {100 * r['worst_part']:.1f} | "
               f"{100 * r['coverage']:.1f} / {100 * r['coverage_eps1']:.1f} | "
               f"{r['global_div']:.3f} | {r['local_div']:.3f} | {r['jerk_raw']:.2f} | "
