@@ -72,15 +72,19 @@ def roll_loop(motion: Motion, start: int) -> Motion:
     return out.replace(trans=out.trans - out.trans[0] + motion.trans[0], meta=dict(motion.meta))
 
 
-def _calm_start(motion: Motion, body) -> int:
-    """The frame after the cycle's smallest joint step (wrap-around included)."""
+def _joint_steps(motion: Motion, body, frames: int) -> np.ndarray:
+    """Mean joint displacement (metres) from frame k to k + 1 over the first ``frames``
+    frames of the loop played twice: ``(frames - 1,)``, step ``T - 1`` the wrap."""
     from mrlib.body import resolve_body
 
-    body = resolve_body(body, shared=True)
+    J = resolve_body(body, shared=True).motion_joints(tile_loop(motion, 2).slice(0, frames))
+    return np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)
+
+
+def _calm_start(motion: Motion, body) -> int:
+    """The frame after the cycle's smallest joint step (wrap-around included)."""
     T = motion.num_frames
-    J = body.motion_joints(tile_loop(motion, 2).slice(0, T + 1))  # (T + 1, 24, 3)
-    steps = np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)  # step k: frame k -> k + 1
-    return (int(np.argmin(steps)) + 1) % T
+    return (int(np.argmin(_joint_steps(motion, body, T + 1))) + 1) % T
 
 
 def _clean_loop(m: Motion, body) -> Motion:
@@ -153,13 +157,8 @@ def loop_seam(motion: Motion, body=None) -> dict[str, float]:
     """How well a loop closes, on joint positions (metres): ``seam`` is the mean joint
     displacement from the last frame to the next cycle's first; ``p95`` and ``median``
     those of the loop's own frame-to-frame steps."""
-    from mrlib.body import resolve_body
-
-    body = resolve_body(body, shared=True)
-    two = tile_loop(motion, 2)
-    J = body.motion_joints(two)  # (2T, 24, 3)
-    steps = np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)  # (2T - 1,)
     T = motion.num_frames
+    steps = _joint_steps(motion, body, 2 * T)  # (2T - 1,)
     seam = float(steps[T - 1])
     own = np.concatenate([steps[: T - 1], steps[T:]])
     return {"seam": seam, "p95": float(np.percentile(own, 95)), "median": float(np.median(own))}
