@@ -14,7 +14,9 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
   third walk) in the middle, 4 s: largest rotation and root errors at the keyframes and
   the jerk of the 1 s around each keyframe over the training clips' mean jerk, beside
   the same for unconstrained samples of the label (same seeds, same windows), without
-  the noise fit, with it for the keyframes alone (``still=0``) and with its jerk term;
+  the noise fit, with it for the keyframes alone (``still=0``) and with its jerk term
+  (``--joint-jerk`` sets that term's weight of the joint positions, ``--no-clean``
+  leaves the feet unplanted);
 * **parts**: upper body from one label, lower body from another, for every ordered
   pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
   on each label's second capture take, which the model never saw;
@@ -27,6 +29,7 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
     python bench/constraints.py --only keyframes loop
     python bench/constraints.py --only parts --guidance 0.5
     python bench/constraints.py --only keyframes --ramp
+    python bench/constraints.py --only keyframes --joint-jerk 0 --no-clean
 
 Writes ``<run folder>/constraints.json`` (``constraints_guidance<G>.json`` with ``--guidance``).
 """
@@ -81,6 +84,10 @@ def main() -> int:
     ap.add_argument("--ramp", action="store_true",
                     help="keyframes: also condition the in-between on a label ramp from the "
                     "first keyframe's label to the last's")  # fmt: skip
+    ap.add_argument("--joint-jerk", type=float, default=None,
+                    help="keyframes: mrlib.constraints.keyframes.JOINT_JERK [mrlib's]")  # fmt: skip
+    ap.add_argument("--no-clean", action="store_true",
+                    help="keyframes: do not plant the feet of the in-betweens")  # fmt: skip
     add_iterations_arg(ap, "the model trained with these iterations per block "
                        "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
@@ -172,11 +179,17 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
     fps = model.fps
     print("\n## Keyframes (4 s in-between)\n")
     print(f"training clips' mean jerk {train_jerk:.1f} m/s^3\n")
+    if a.joint_jerk is not None:
+        C.keyframes.JOINT_JERK = a.joint_jerk
+    clean = not a.no_clean
+    key = "keyframes" + (f"_jointjerk{a.joint_jerk:g}" if a.joint_jerk is not None else "")
+    key += "_noclean" if a.no_clean else ""
+    print(f"JOINT_JERK {C.keyframes.JOINT_JERK:g}, feet {'planted' if clean else 'as generated'}\n")
     print(
         "| from -> to (label) | steps | still | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) | unconstrained samples, same windows | the label's training clip |"
     )
     print("|---|---|---|---|---|---|---|---|")
-    results["keyframes"] = []
+    results[key] = []
     N = int(4 * fps)
     labs = model.labels
     for i, (a_lab, b_lab) in enumerate(itertools.permutations(labs, 2)):
@@ -208,10 +221,11 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
             rot, pos, jr = [], [], []
             for s in seeds:
                 if ramp:
-                    m = ramped_in_between(model, kfs, N, a_lab, b_lab, s, steps, still, body)
+                    m = ramped_in_between(model, kfs, N, a_lab, b_lab, s, steps, still, body,
+                                          clean)  # fmt: skip
                 else:
                     m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps,
-                                                  still=still, body=body)  # fmt: skip
+                                                  still=still, clean=clean, body=body)  # fmt: skip
                 e = C.keyframe_errors(m, kfs)
                 rot.append(e["rotation_deg"])
                 pos.append(e["trans_cm"])
@@ -224,14 +238,14 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
                    "jerk_ratio_max": jr.max(0).tolist(),
                    "unconstrained_jerk_ratio_mean": control.mean(0).tolist(),
                    "label_clip_jerk_ratio": float(own)}  # fmt: skip
-            results["keyframes"].append(row)
+            results[key].append(row)
             print(f"| {a_lab} -> {row['to']} | {steps} | {still:g} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
                   + " / ".join(f"{m_:.2f} (max {x_:.2f})" for m_, x_ in zip(jr.mean(0), jr.max(0), strict=True))
                   + " | " + " / ".join(f"{c_:.2f}" for c_ in control.mean(0))
                   + f" | {own:.2f} |", flush=True)  # fmt: skip
 
 
-def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body):
+def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body, clean=True):
     """``generate_with_keyframes`` with the condition eased over time from ``a_lab`` (the
     first keyframe's clip) to ``b_lab`` (the last's), the noise of their mean sigma."""
     from mrlib.constraints.common import fitted_motion
@@ -253,9 +267,9 @@ def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body):
         u = u * u * (3 - 2 * u)
         conds.append(((1 - u) * Ga[i] + u * Gb[i])[None])
     noises = draw_noise(lengths, noise_amplitude(model, (Wa + Wb) / 2), seed, 1, model.device)
-    loss_fn = C.keyframe_objective(model, kfs, N, still)
+    loss_fn = C.keyframe_objective(model, kfs, N, still, body)
     m = fitted_motion(model, noises, check_conditions(model, conds, lengths), b_lab, "ramp",
-                      loss_fn, steps=steps, body=body)  # fmt: skip
+                      loss_fn, steps=steps, clean=clean, body=body)  # fmt: skip
     return C.apply_keyframes(C.align_to_keyframes(m, kfs, body), kfs)
 
 

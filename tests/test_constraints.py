@@ -202,6 +202,29 @@ def test_the_noise_fit_weighs_jitter_near_keyframes_only(model, clips):
         C.keyframe_objective(model, kfs, T, still=-1.0)
 
 
+def test_the_jerk_term_weighs_the_joints_jitter_too(model, clips, body, monkeypatch):
+    walk = clips[0]
+    smooth = model.normalizer.normalize(model.features[0])[None].transpose(1, 2)  # (1, C, T)
+    T = smooth.shape[-1]
+    kfs = [C.Keyframe(0, walk.poses[0], joints=("right_elbow",))]
+    near, far = smooth.clone(), smooth.clone()
+    f_near, f_far = int(C.keyframes.STILL_S * model.fps) // 2 + 1, T // 2
+    near[0, :, f_near] += 0.3
+    far[0, :, f_far] += 0.3
+    with_joints = C.keyframe_objective(model, kfs, T, body=body)
+    monkeypatch.setattr(C.keyframes, "JOINT_JERK", 0.0)
+    channels_only = C.keyframe_objective(model, kfs, T, body=body)
+
+    def added(fn, x):
+        return float(fn(x) - fn(smooth))
+
+    # the same jolt near the keyframe costs more once the joints' jerk is weighed;
+    # far from it, neither term sees it
+    assert added(with_joints, near) > 2 * added(channels_only, near) > 0
+    assert added(with_joints, far) == pytest.approx(0.0, abs=1e-4)
+    assert added(channels_only, far) == pytest.approx(0.0, abs=1e-4)
+
+
 def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body):
     prefix = clips[0].slice(0, 20)
     m = C.continue_motion(model, prefix, 20, "walk_sad", seed=0, steps=5, body=body)

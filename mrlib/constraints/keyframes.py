@@ -8,7 +8,11 @@ position) at one frame. :func:`generate_with_keyframes` meets keyframes in three
    joint rotations and the distances between root keyframes, so the model's own motion
    comes close by itself, and towards a low jerk within ``STILL_S`` seconds of each
    keyframe: the finest levels' noise reaches the output as frame-to-frame jitter,
-   which the fit takes out where a pop would show.
+   which the fit takes out where a pop would show. The jerk is weighed twice: in the
+   generator's normalised pose and root channels, and in the joint positions the body
+   model gives them (``JOINT_JERK``), where the jitter shows: a small rotation jitter at
+   the hip moves the foot by the leg's length, and the foot planting that follows
+   (``clean``) corrects the feet by more the more they jitter.
 2. **Placement.** The motion is turned about the vertical and moved on the ground
    (one rigid motion for the whole clip) to fit the root keyframes best.
 3. **Exact fit.** What is left at each keyframe, a rotation per constrained joint and a
@@ -52,6 +56,9 @@ __all__ = [
 BLEND_S = 1.0  # seconds over which a residual eases out before the first / after the last keyframe
 STILL_S = 0.5  # the window on either side of a keyframe whose jerk the noise fit lowers
 STILL = 5.0  # weight of that jerk in the noise fit (generate_with_keyframes)
+# weight of the joint positions' mean squared jerk (over the model's training clips' mean
+# jerk, squared) beside the normalised channels', within the jerk term
+JOINT_JERK = 2e-3
 
 
 @dataclass(frozen=True)
@@ -296,12 +303,26 @@ def _sixd(R: torch.Tensor) -> torch.Tensor:
     return R[..., :, :2].transpose(-1, -2).reshape(*R.shape[:-2], 6)
 
 
-def keyframe_objective(model, keyframes: Sequence[Keyframe], length: int, still: float = STILL):
+def _clips_jerk(model, body) -> float:
+    """Mean joint jerk (m/s^3) of the model's training clips on ``body``."""
+    from mrlib.features import features_to_motion
+    from mrlib.plausibility import mean_jerk, motion_kinematics
+
+    clips = [features_to_motion(x, model.fps, betas=model.betas) for x in model.features]
+    return float(np.mean([mean_jerk(motion_kinematics(m, body)[0], model.fps) for m in clips]))
+
+
+def keyframe_objective(
+    model, keyframes: Sequence[Keyframe], length: int, still: float = STILL, body=None
+):
     """The noise fit's loss of generator output ``x (1, C, length)`` (normalised): the
     squared 6D error of the keyframes' joint rotations (the root's own is placed
     afterwards), the error of the ground distance between consecutive root keyframes,
-    and ``still`` times the mean squared third difference of the pose and root channels
-    within ``STILL_S`` seconds of a keyframe. None when there is nothing to fit."""
+    and ``still`` times the jerk within ``STILL_S`` seconds of a keyframe: the mean
+    squared third difference of the pose and root channels plus ``JOINT_JERK`` times the
+    mean squared jerk of the joint positions on ``body`` over the training clips' mean
+    jerk squared. None when there is nothing to fit."""
+    from mrlib.body import resolve_body
     from mrlib.constraints.optimise import decode
     from mrlib.rotations import axis_angle_to_matrix
 
@@ -317,6 +338,10 @@ def keyframe_objective(model, keyframes: Sequence[Keyframe], length: int, still:
     still = float(still) if near.any() else 0.0
     if not (posed or len(roots) >= 2 or still > 0):
         return None
+    if still > 0:
+        body = resolve_body(body, shared=True)
+        betas = torch.as_tensor(np.asarray(model.betas, np.float32))
+        per_joint = JOINT_JERK * (model.fps**3 / _clips_jerk(model, body)) ** 2
     tgt = [
         (kf.frame, [j for j in kf.joints if j > 0],
          _sixd(axis_angle_to_matrix(torch.from_numpy(kf.poses))).float())
@@ -339,7 +364,11 @@ def keyframe_objective(model, keyframes: Sequence[Keyframe], length: int, still:
         if still > 0:
             y = x[:, : ROOT_SLICE.stop]  # pose and root channels, normalised
             jerk = y[..., 3:] - 3 * y[..., 2:-1] + 3 * y[..., 1:-2] - y[..., :-3]
-            loss = loss + still * jerk[..., near_t].pow(2).mean()
+            on = body.device
+            J = body(d["rotations"][0].to(on), d["trans"][0].to(on), betas).joints  # (T, 24, 3) m
+            dJ = J[3:] - 3 * J[2:-1] + 3 * J[1:-2] - J[:-3]
+            joints = per_joint * dJ[near_t.to(on)].pow(2).sum(-1).mean().to(x.device)
+            loss = loss + still * (jerk[..., near_t].pow(2).mean() + joints)
         return loss
 
     return loss_fn
@@ -374,7 +403,7 @@ def generate_with_keyframes(
     probe = Motion(np.zeros((length, NUM_JOINTS, 3)), np.zeros((length, 3)), model.fps)
     _check_frames(probe, keyframes)
     noises, conds, label = label_setup(model, condition, conditions, blend, length, seed)
-    loss_fn = keyframe_objective(model, keyframes, length, still)
+    loss_fn = keyframe_objective(model, keyframes, length, still, body)
     name = f"{label}_keyframes_seed{seed}"
     m = fitted_motion(model, noises, conds, label, name, loss_fn, steps=steps, clean=clean,
                       body=body, progress=progress)  # fmt: skip
