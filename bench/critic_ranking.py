@@ -1,0 +1,147 @@
+"""Best of n by the model's own critics: does ranking a label's samples with the trained
+conditional critics pick the ones whose body parts keep the label?
+
+A route to body-part composition (``mrlib.constraints.generate_parts``, splice): each part
+comes from a sample of its own label, so a part keeps its label as often as unmixed
+samples keep it on that part. Drawing n samples and keeping the one the critics like best
+is discriminator rejection sampling (Azadi et al., ICLR 2019) in its simplest form. The
+`tutorial` critics are projection critics (``mrlib.models.PatchCritic``):
+``D(x, c)_t = w * h(x)_t + <P c_t, g(x)_t>``, and ``g``'s channels belong to joints
+(skeleton-aware convolutions), so the label term splits by body part. Scores, each summed
+over the eight levels' critics on the sample's level outputs and averaged over frames:
+
+* ``part margin``: the label term of the sample's own label minus its mean over the other
+  labels, on the part's channels of ``g`` only;
+* ``whole margin``: the same on every channel;
+* ``critic score``: ``D(x, c)`` with the sample's own label (realism and label together).
+
+Per label and part: the part's fidelity (``mrlib.constraints.part_fidelity``, the measure
+of ``bench/constraints.py --only parts``) of all ``--samples`` samples, the correlation of
+each score with it over the samples, and the fidelity of the best-scored sample of each
+group of n (n = 2, 4, 8). Samples are twice the longest clip, as in
+``bench/constraints.py``; seed 0; one torch thread.
+
+    python bench/critic_ranking.py [--checkpoint ckpt.pt] [--samples 32]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from tutorial_checkpoint import add_checkpoint_arg
+
+from mrlib.checkpoint import load_checkpoint
+from mrlib.constraints import PARTS, part_fidelity
+from mrlib.models import build_critics, hidden_channel_joint
+from mrlib.pyramid import PackedLevels
+from mrlib.sample import (
+    _to_motions,
+    label_inputs,
+    label_weights,
+    model_from_state,
+    sample_features,
+)
+
+GROUPS = (2, 4, 8)
+
+
+def critic_terms(critic, x: torch.Tensor, k: int):
+    """``x (B, C, T)`` one level's outputs -> per sample ``(B, F, K)`` the label term's
+    mean per channel of ``g`` and label, and ``(B,)`` the mean of ``D(x, e_k)``."""
+    B, C, T = x.shape
+    pad = critic.body.pad
+    lay = PackedLevels.from_table(torch.full((B, 1), T), gap=2 * pad + 2)
+    xp = lay.pack(list(x), 0)
+    index = lay.pad_index(0, pad)
+    band = xp - F.avg_pool1d(xp.gather(2, index.expand(1, C, -1)), 2 * pad + 1, stride=1)
+    g = F.leaky_relu(critic.detail(band, index), critic.body.slope)
+    P = critic.project.weight  # (F, K)
+    terms = torch.stack([gb.mean(1)[:, None] * P for gb in lay.unpack(g, 0)])
+    onehot = F.one_hot(torch.tensor(k), P.shape[1]).float().expand(1, xp.shape[-1], -1)
+    total = torch.stack([s.mean() for s in lay.unpack(critic(xp, index, onehot)[:, None], 0)])
+    return terms, total
+
+
+def margin(z: torch.Tensor, k: int) -> np.ndarray:
+    """``z (B, K)`` -> own label's term minus the mean of the others'."""
+    others = torch.cat([z[:, :k], z[:, k + 1 :]], 1)
+    return (z[:, k] - others.mean(1)).numpy()
+
+
+def best_of(fid: np.ndarray, score: np.ndarray, n: int) -> float:
+    m = len(fid) // n * n
+    f, s = fid[:m].reshape(-1, n), score[:m].reshape(-1, n)
+    return float(f[np.arange(len(f)), s.argmax(1)].mean())
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    add_checkpoint_arg(ap)
+    ap.add_argument("--samples", type=int, default=32, help="samples per label [32]")
+    a = ap.parse_args()
+    if not a.checkpoint.is_file():
+        ap.error(f"{a.checkpoint} not found: run bench/condition_control.py first")
+    torch.set_num_threads(1)
+    state = load_checkpoint(a.checkpoint)
+    model = model_from_state(state)
+    if not model.config.model.critic_condition:
+        ap.error("this model's critics are unconditional: they carry no label term to rank by")
+    critics = build_critics(model.config.model, int(state["cond_dim"]))
+    critics.load_state_dict(state["critics"])
+    critics.eval().requires_grad_(False)
+    L, N = model.num_levels, a.samples
+    length = 2 * int(model.lengths[:, -1].max())
+    print(f"{a.checkpoint}: {N} samples per label of {length} frames, seed 0\n")
+    print(
+        "| label | part | all samples | score | r | "
+        + " | ".join(f"best of {n}" for n in GROUPS)
+        + " |"
+    )
+    print("|---|---|---:|---|---:|" + "---:|" * len(GROUPS))
+    picked: dict[str, list[float]] = {}
+    t_sample = t_score = 0.0
+    for k, lab in enumerate(model.labels):
+        t0 = time.perf_counter()
+        lens, amp, conds = label_inputs(model, label_weights(model, lab), length)
+        outs = sample_features(model, conds, lens, amp, seed=0, num_samples=N, keep=True)
+        t1 = time.perf_counter()
+        with torch.inference_mode():
+            terms, totals = zip(
+                *(critic_terms(critics[i], outs[i], k) for i in range(L)), strict=True
+            )
+        t_sample += t1 - t0
+        t_score += time.perf_counter() - t1
+        ms = _to_motions(model, outs[-1], model.fps, lab, [f"{lab}_{b}" for b in range(N)])
+        joints = hidden_channel_joint(terms[0].shape[1])
+        for part in ("upper", "lower"):
+            fid = np.array([part_fidelity([m], model, {part: lab})[part] for m in ms])
+            on = torch.from_numpy(np.isin(joints, PARTS[part]))
+            scores = {
+                "part margin": margin(sum(t[:, on].sum(1) for t in terms), k),
+                "whole margin": margin(sum(t.sum(1) for t in terms), k),
+                "critic score": sum(totals).numpy(),
+            }
+            picked.setdefault(f"{part}/random", []).append(float(fid.mean()))
+            for name, s in scores.items():
+                r = np.corrcoef(s, fid)[0, 1] if fid.std() > 0 else float("nan")
+                best = [best_of(fid, s, n) for n in GROUPS]
+                picked.setdefault(f"{part}/{name}", []).append(best[-1])
+                print(f"| {lab} | {part} | {100 * fid.mean():.1f} % | {name} | {r:+.2f} | "
+                      + " | ".join(f"{100 * b:.1f} %" for b in best) + " |", flush=True)  # fmt: skip
+    print(f"\nbest of {GROUPS[-1]}, per part over the labels (worst part, parts >= 90 %):")
+    for name in ("random", "part margin", "whole margin", "critic score"):
+        f = np.array(picked[f"upper/{name}"] + picked[f"lower/{name}"])
+        label = "all samples" if name == "random" else name
+        print(f"  {label}: mean {100 * f.mean():.1f} %, worst {100 * f.min():.1f} %, "
+              f"{int((f >= 0.9).sum())} of {len(f)} parts >= 90 %")  # fmt: skip
+    print(f"\nsampling {t_sample:.1f} s, critic scores {t_score:.1f} s "
+          f"({4 * N} samples, one thread)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
