@@ -310,6 +310,17 @@ class PatchCritic(nn.Module):
             raise ValueError(
                 f"conditional critic needs cond (B, {x.shape[-1]}, {self.cond_dim}), got {got}"
             )
+        score, h = self.split(x, pad_index, band)
+        return score + (self.project(cond).transpose(1, 2) * h).sum(1)
+
+    def split(
+        self, x: torch.Tensor, pad_index: torch.Tensor, band: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """A conditional critic's two terms before the condition: the realism score
+        ``w * h(x)`` ``(B, T)`` and the features ``(B, F, T)`` the projection reads (of the
+        detail band, of ``band``, or ``h(x)`` itself, per ``critic_band``); ``forward`` is
+        ``score + <P c_t, features_t>``. Each feature channel belongs to a joint
+        (``hidden_channel_joint``), so the label term splits by body part."""
         layers = self.body.layers
         h = x
         for layer in layers[:-1]:
@@ -324,7 +335,7 @@ class PatchCritic(nn.Module):
             raise ValueError(f"critic_band='level' needs band {tuple(x.shape)}, got {got}")
         if self.detail is not None:
             h = F.leaky_relu(self.detail(band, pad_index), self.body.slope)
-        return score + (self.project(cond).transpose(1, 2) * h).sum(1)
+        return score, h
 
 
 class MultiResGenerator(nn.Module):

@@ -266,6 +266,23 @@ def test_detail_band_critic_judges_the_label_on_detail_only():
         ModelConfig(critic_band="high")
 
 
+@pytest.mark.parametrize("band", ["full", "detail", "level"])
+def test_critic_split_gives_the_two_terms_forward_adds(band):
+    torch.manual_seed(0)
+    critic = PatchCritic(dataclasses.replace(TINY, critic_band=band), cond_dim=3)
+    x, lb = torch.randn(2, C, 30), 0.1 * torch.randn(2, C, 30)
+    pad = _pad(30).expand(2, -1, -1)
+    c = torch.softmax(torch.randn(2, 30, 3), -1)
+    score, feats = critic.split(x, pad, lb)
+    assert score.shape == (2, 30) and feats.shape[::2] == (2, 30)
+    # one joint per feature channel, as the skeleton-aware layers assign them
+    assert len(hidden_channel_joint(feats.shape[1])) == feats.shape[1]
+    label = (critic.project(c).transpose(1, 2) * feats).sum(1)
+    assert torch.allclose(critic(x, pad, c, lb), score + label, atol=1e-5)
+    if band != "level":  # the same call without the band the other two never read
+        assert torch.allclose(critic.split(x, pad)[1], feats)
+
+
 def test_level_band_critic_reads_the_band_it_is_given():
     torch.manual_seed(0)
     critic = PatchCritic(dataclasses.replace(TINY, critic_band="level"), cond_dim=3)
