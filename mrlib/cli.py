@@ -151,6 +151,16 @@ def _parse_iterations(text: str | None) -> tuple[int, ...] | None:
     return its
 
 
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text!r}")
+    return v
+
+
 def _add_train(sub):
     p = sub.add_parser(
         "train",
@@ -185,6 +195,14 @@ def _add_train(sub):
     )
     p.add_argument(
         "--levels", type=int, default=None, help="number of pyramid levels (overrides the preset)"
+    )
+    p.add_argument(
+        "--lr",
+        type=_positive_float,
+        default=None,
+        metavar="RATE",
+        help="Adam learning rate, overriding the preset's (tutorial: 5e-4; 2e-3 sharpens each "
+        "label, docs/results.md 'Body parts')",
     )
     p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
     _joint_map_option(p)
@@ -240,7 +258,9 @@ def _cmd_train(args) -> int:
             f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
             f"lengths {data.lengths}"
         )
-    cfg = training_config(args.preset, args.iterations, args.levels, args.seed, args.device)
+    cfg = training_config(
+        args.preset, args.iterations, args.levels, args.seed, args.device, lr=args.lr
+    )
     if args.checkpoint_every is not None:
         if args.checkpoint_every < 0:
             raise MrlibError(f"--checkpoint-every must be >= 0, got {args.checkpoint_every}")

@@ -392,12 +392,13 @@ def training_config(
     levels: int | None = None,
     seed: int | None = None,
     device: str | None = None,
+    lr: float | None = None,
 ) -> TrainConfig:
     """A preset with the command line's overrides applied (``mrlib train``).
 
     ``iterations``: one value for every block or one per block. Changing ``levels``
     keeps the preset's first-block budget for block 1 and its last block's budget for
-    every other block."""
+    every other block. ``lr``: Adam's learning rate (must be > 0)."""
     cfg = get_preset(preset)
     model = cfg.model if levels is None else dataclasses.replace(cfg.model, num_levels=levels)
     n = -(-model.num_levels // cfg.block_size)
@@ -411,6 +412,10 @@ def training_config(
         changes["seed"] = seed
     if device is not None:
         changes["device"] = device
+    if lr is not None:
+        if not lr > 0:
+            raise ValueError(f"learning rate must be > 0, got {lr}")
+        changes["lr"] = float(lr)
     return cfg.replace(**changes)
 
 

@@ -239,6 +239,8 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
         "export under /sys": (["export", str(clip), "/sys/mrlib-x.npz"], 1, "/sys"),
         "export --fps 1e9": (["export", str(clip), str(tmp / "x.npz"), "--fps", "1e9"], 1, "fps"),
         "train --fps nan": (["train", str(clip), "--fps", "nan", "--out", str(tmp)], 1, "fps"),
+        "train --lr 0": (["train", str(clip), "--lr", "0", "--out", str(tmp)], 2, "--lr"),
+        "train --lr nan": (["train", str(clip), "--lr", "nan", "--out", str(tmp)], 2, "--lr"),
         "train a clip too short for the levels": (
             ["train", str(clip), "--levels", "20", "--out", str(tmp)],
             1,

@@ -60,6 +60,23 @@ def _gen_state(path):
     return load_checkpoint(path)["generator"]
 
 
+def test_cli_lr_overrides_the_presets_and_is_saved(tmp_path):
+    from mrlib.cli import main
+    from mrlib.config import training_config
+
+    assert training_config("tutorial").lr == tutorial().lr
+    assert training_config("tutorial", lr=2e-3).lr == 2e-3 != tutorial().lr
+    with pytest.raises(ValueError, match="learning rate"):
+        training_config("tutorial", lr=-1.0)
+    from mrlib.io import save_motion
+
+    clip = save_motion(synthetic_walk("walk_sad", seconds=2.0, fps=20.0), tmp_path / "a.npz")
+    run = tmp_path / "run"
+    argv = ["train", str(clip), "--iterations", "1", "--levels", "2", "--no-progress"]
+    assert main([*argv, "--lr", "3e-3", "--out", str(run)]) == 0
+    assert json.loads((run / "checkpoint.pt.json").read_text())["lr"] == 3e-3
+
+
 def test_paper_preset_is_the_papers_schedule():
     c = paper()
     assert c.model.num_levels == 8 and c.model.scale_factor == pytest.approx(4 / 3)
