@@ -30,6 +30,7 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
     python bench/constraints.py --only parts --guidance 0.5
     python bench/constraints.py --only keyframes --ramp
     python bench/constraints.py --only keyframes --joint-jerk 0 --no-clean
+    python bench/constraints.py --lr 2e-3 --only parts   # bench/condition_control.py --lr 2e-3's model
 
 Writes ``<run folder>/constraints.json`` (``constraints_guidance<G>.json`` with ``--guidance``).
 """
@@ -88,6 +89,9 @@ def main() -> int:
                     help="keyframes: mrlib.constraints.keyframes.JOINT_JERK [mrlib's]")  # fmt: skip
     ap.add_argument("--no-clean", action="store_true",
                     help="keyframes: do not plant the feet of the in-betweens")  # fmt: skip
+    ap.add_argument("--lr", type=float, default=None,
+                    help="the model trained with this learning rate "
+                    "(bench/condition_control.py --lr) [the preset's]")  # fmt: skip
     add_iterations_arg(ap, "the model trained with these iterations per block "
                        "(bench/condition_control.py --iterations) [the preset's]")  # fmt: skip
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
@@ -99,6 +103,9 @@ def main() -> int:
         ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")
     cfg = get_preset("tutorial").replace(seed=a.seed)
     name = f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
+    if a.lr is not None:
+        cfg = cfg.replace(lr=a.lr)
+        name += f"_lr{a.lr:g}"
     cfg, it_suffix = with_iterations(cfg, a.iterations)
     name += it_suffix
     out = ROOT / "outputs" / "condition_control" / name
