@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 from dataclasses import dataclass, field
 
 from mrlib.errors import MrlibError
@@ -223,6 +224,8 @@ class TrainConfig:
             raise ConfigError(f"critic_mixed must be 'none' or 'label', got {self.critic_mixed!r}")
         if not 0 <= self.mix_prob <= 1:
             raise ConfigError(f"mix_prob must be in [0, 1], got {self.mix_prob}")
+        if not (math.isfinite(self.lr) and self.lr > 0):
+            raise ConfigError(f"lr (Adam's learning rate) must be finite and > 0, got {self.lr}")
         if self.loss.mismatch and not self.model.critic_condition:
             raise ConfigError("loss.mismatch needs conditional critics (critic_condition=True)")
 
@@ -398,7 +401,7 @@ def training_config(
 
     ``iterations``: one value for every block or one per block. Changing ``levels``
     keeps the preset's first-block budget for block 1 and its last block's budget for
-    every other block. ``lr``: Adam's learning rate (must be > 0)."""
+    every other block. ``lr``: Adam's learning rate."""
     cfg = get_preset(preset)
     model = cfg.model if levels is None else dataclasses.replace(cfg.model, num_levels=levels)
     n = -(-model.num_levels // cfg.block_size)
@@ -413,8 +416,6 @@ def training_config(
     if device is not None:
         changes["device"] = device
     if lr is not None:
-        if not lr > 0:
-            raise ValueError(f"learning rate must be > 0, got {lr}")
         changes["lr"] = float(lr)
     return cfg.replace(**changes)
 
