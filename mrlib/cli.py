@@ -161,6 +161,18 @@ def _positive_float(text: str) -> float:
     return v
 
 
+def _refuse_on_resume(args, options: dict[str, str]) -> None:
+    """A resumed run continues exactly as it was configured (its checkpoint holds the
+    config and the data), so an option that would change it is an error, not silently
+    dropped. ``options``: attribute name -> option as written."""
+    given = [flag for name, flag in options.items() if getattr(args, name) not in (None, False, [])]
+    if given:
+        raise MrlibError(
+            f"--resume continues the run as it was configured; {', '.join(given)} cannot "
+            "change it (start a new run in another --out folder instead)"
+        )
+
+
 def _add_train(sub):
     p = sub.add_parser(
         "train",
@@ -181,7 +193,7 @@ def _add_train(sub):
     )
     p.add_argument(
         "--preset",
-        default="tutorial",
+        default=None,
         choices=["tutorial", "paper"],
         help="training schedule: 'tutorial' (CPU minutes) or 'paper' (the paper's 15k/25k "
         "iterations per block; use a GPU) [default: tutorial]",
@@ -215,7 +227,12 @@ def _add_train(sub):
         "of each block only)",
     )
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
-    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
+    p.add_argument(
+        "--device",
+        type=_device,
+        default=None,
+        help="cpu or cuda [default: cpu; with --resume, the checkpoint's]",
+    )
     p.add_argument(
         "--out", type=Path, default=Path("runs/model"), help="output folder [default: runs/model]"
     )
@@ -249,25 +266,52 @@ def _cmd_train(args) -> int:
 
     if args.resume is None and not args.clips:
         raise MrlibError("give clips to train on, or --resume a checkpoint")
-    data = None
-    if args.resume is None:
-        data = TrainingSet.from_files(
-            args.clips, labels=args.labels, fps=args.fps, joint_map=args.joint_map
+    if args.resume is not None:
+        _refuse_on_resume(
+            args,
+            {
+                "clips": "clips",
+                "labels": "--labels",
+                "preset": "--preset",
+                "iterations": "--iterations",
+                "levels": "--levels",
+                "lr": "--lr",
+                "fps": "--fps",
+                "joint_map": "--joint-map",
+                "checkpoint_every": "--checkpoint-every",
+                "seed": "--seed",
+                "per_clip": "--per-clip",
+            },
         )
-        print(
-            f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
-            f"lengths {data.lengths}"
+        res = train(
+            None,
+            None,
+            args.out,
+            resume=args.resume,
+            device=args.device,
+            progress=not args.no_progress,
         )
+        return _report_training(res)
+    data = TrainingSet.from_files(
+        args.clips, labels=args.labels, fps=args.fps, joint_map=args.joint_map
+    )
+    print(
+        f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
+        f"lengths {data.lengths}"
+    )
     cfg = training_config(
-        args.preset, args.iterations, args.levels, args.seed, args.device, lr=args.lr
+        args.preset or "tutorial",
+        args.iterations,
+        args.levels,
+        args.seed,
+        args.device or "cpu",
+        lr=args.lr,
     )
     if args.checkpoint_every is not None:
         if args.checkpoint_every < 0:
             raise MrlibError(f"--checkpoint-every must be >= 0, got {args.checkpoint_every}")
         cfg = cfg.replace(checkpoint_every=args.checkpoint_every)
     if args.per_clip:
-        if data is None:
-            raise MrlibError("--per-clip trains from clips; resume each clip's folder separately")
         from mrlib.io.paths import inside, unique_components
 
         # one folder per clip, named after the clip but never a path of its own: the name
@@ -281,7 +325,11 @@ def _cmd_train(args) -> int:
             if res.interrupted:
                 return 130
         return 0
-    res = train(data, cfg, args.out, resume=args.resume, progress=not args.no_progress)
+    res = train(data, cfg, args.out, progress=not args.no_progress)
+    return _report_training(res)
+
+
+def _report_training(res) -> int:
     state = "interrupted; resume with --resume" if res.interrupted else "done"
     print(f"{state} in {res.wall_time_s:.0f} s -> {res.checkpoint}")
     return 130 if res.interrupted else 0
@@ -307,7 +355,7 @@ def _add_train_speech(sub):
     p.add_argument(
         "--features",
         choices=["logmel", "wavlm"],
-        default="logmel",
+        default=None,
         help="speech features: 'wavlm' (the paper's; needs local weights) or 'logmel' "
         "(no weights) [default: logmel]",
     )
@@ -316,7 +364,7 @@ def _add_train_speech(sub):
     )
     p.add_argument(
         "--preset",
-        default="tutorial",
+        default=None,
         choices=["tutorial", "paper"],
         help="'tutorial' (CPU, 20-30 min for a dozen 10 s clips) or 'paper' (the paper's "
         "schedule; use a GPU) [default: tutorial]",
@@ -335,9 +383,14 @@ def _add_train_speech(sub):
         help="audio of the random generations [default: 'paired' for the tutorial preset, "
         "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
     )
-    p.add_argument("--fps", type=float, default=25.0, help="motion frame rate [default: 25]")
+    p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
     p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
-    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
+    p.add_argument(
+        "--device",
+        type=_device,
+        default=None,
+        help="cpu or cuda [default: cpu; with --resume, the checkpoint's]",
+    )
     p.add_argument("--out", type=Path, default=Path("runs/speech"), help="output folder")
     p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -348,6 +401,21 @@ def _cmd_train_speech(args) -> int:
     from mrlib.config import block_iterations_for, speech_paper, speech_tutorial
     from mrlib.speech import SpeechFeatureExtractor, SpeechTrainingSet, speech_train
 
+    if args.resume is not None:
+        _refuse_on_resume(
+            args,
+            {
+                "paired": "PAIRED",
+                "unpaired": "--unpaired",
+                "features": "--features",
+                "wavlm": "--wavlm",
+                "preset": "--preset",
+                "iterations": "--iterations",
+                "random_audio": "--random-audio",
+                "fps": "--fps",
+                "seed": "--seed",
+            },
+        )
     data = cfg = None
     if args.resume is None:
         if args.paired is None:
@@ -359,10 +427,11 @@ def _cmd_train_speech(args) -> int:
             )
         if args.seed is not None:
             cfg = cfg.replace(seed=args.seed)
-        cfg = cfg.replace(device=args.device)
+        cfg = cfg.replace(device=args.device or "cpu")
         wavlm = None if args.wavlm is None else str(args.wavlm)
-        extractor = SpeechFeatureExtractor(kind=args.features, wavlm_path=wavlm)
-        data = SpeechTrainingSet.from_folders(args.paired, args.unpaired, extractor, fps=args.fps)
+        extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
+        fps = 25.0 if args.fps is None else args.fps
+        data = SpeechTrainingSet.from_folders(args.paired, args.unpaired, extractor, fps=fps)
         print(data)
     res = speech_train(
         data,
@@ -370,6 +439,7 @@ def _cmd_train_speech(args) -> int:
         args.out,
         resume=args.resume,
         random_audio=args.random_audio,
+        device=args.device if args.resume is not None else None,
         progress=not args.no_progress,
     )
     state = "interrupted; resume with --resume" if res.interrupted else "done"

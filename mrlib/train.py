@@ -780,6 +780,7 @@ def train(
     *,
     resume: str | Path | None = None,
     body=None,
+    device: str | None = None,
     progress: bool = True,
     callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
 ) -> TrainResult:
@@ -791,6 +792,8 @@ def train(
         out_dir: folder for ``checkpoint.pt`` (+ ``checkpoint.pt.json``) and ``losses.csv``.
         resume: a checkpoint to continue from, exactly where it stopped.
         body: body model for the contact and smoothness losses (default ``load_body_model()``).
+        device: when resuming, continue on this device instead of the checkpoint's
+            (the config's device otherwise).
         progress: show a tqdm bar per block with the latest losses.
         callback: called after every iteration with the trainer and the last logged losses
             ``{level: {name: value}}``; raising ``KeyboardInterrupt`` in it stops training
@@ -799,7 +802,7 @@ def train(
         a :class:`TrainResult`; ``interrupted`` tells whether it stopped early.
     """
     if resume is not None:
-        trainer = Trainer.from_checkpoint(resume, out_dir=out_dir, body=body)
+        trainer = Trainer.from_checkpoint(resume, out_dir=out_dir, body=body, device=device)
     else:
         if data is None or config is None:
             raise CheckpointError(None, "train() needs data and config unless resume is given")

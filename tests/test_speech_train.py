@@ -575,4 +575,10 @@ def test_cli_train_speech_from_folders(tmp_path, capsys):
     assert main(args + more) == 0
     assert load_checkpoint(tmp_path / "all" / "checkpoint.pt")["speech"]["random_audio"] == "all"
     assert main(["train-speech", "--out", str(out)]) == 1  # neither folder nor --resume
+    # a resumed run keeps its config: an option that would change it is refused, not dropped
+    capsys.readouterr()
+    resume = ["train-speech", "--resume", str(out / "checkpoint.pt"), "--out", str(out)]
+    assert main(resume + ["--iterations", "5", "--fps", "30"]) == 1
+    assert "--iterations, --fps cannot change it" in capsys.readouterr().err
+    assert main(resume + ["--device", "cpu", "--no-progress"]) == 0
     assert main(args[:2] + ["--iterations", "1,2", "--out", str(out)]) == 1  # 5 blocks

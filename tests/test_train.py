@@ -61,8 +61,9 @@ def _gen_state(path):
 
 
 def test_cli_lr_overrides_the_presets_and_is_saved(tmp_path):
-    from mrlib.cli import main
+    from mrlib.cli import _cmd_train, build_parser, main
     from mrlib.config import training_config
+    from mrlib.errors import MrlibError
 
     assert training_config("tutorial").lr == tutorial().lr
     assert training_config("tutorial", lr=2e-3).lr == 2e-3 != tutorial().lr
@@ -74,6 +75,13 @@ def test_cli_lr_overrides_the_presets_and_is_saved(tmp_path):
     run = tmp_path / "run"
     argv = ["train", str(clip), "--iterations", "1", "--levels", "2", "--no-progress"]
     assert main([*argv, "--lr", "3e-3", "--out", str(run)]) == 0
+    assert json.loads((run / "checkpoint.pt.json").read_text())["lr"] == 3e-3
+    # resuming keeps the run's rate: --lr (like --iterations) is refused there, not dropped
+    resume = ["train", "--resume", str(run / "checkpoint.pt"), "--out", str(run), "--no-progress"]
+    for extra, flag in (["--lr", "1e-2"], "--lr"), (["--iterations", "9"], "--iterations"):
+        with pytest.raises(MrlibError, match=f"{flag} cannot change it"):
+            _cmd_train(build_parser().parse_args([*resume, *extra]))
+    assert main([*resume, "--device", "cpu"]) == 0
     assert json.loads((run / "checkpoint.pt.json").read_text())["lr"] == 3e-3
 
 

@@ -404,13 +404,15 @@ def speech_train(
     resume: str | Path | None = None,
     random_audio: str | None = None,
     body=None,
+    device: str | None = None,
     progress: bool = True,
     callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
 ) -> TrainResult:
     """Train a speech-conditioned model (or continue one); ``mrlib.train.train`` for
-    speech. ``data`` and ``config`` are ignored when resuming."""
+    speech. ``data``, ``config`` and ``random_audio`` are ignored when resuming (the
+    checkpoint holds them); ``device`` then moves the run to another device."""
     if resume is not None:
-        trainer = SpeechTrainer.from_checkpoint(resume, out_dir=out_dir, body=body)
+        trainer = SpeechTrainer.from_checkpoint(resume, out_dir=out_dir, body=body, device=device)
     else:
         if data is None or config is None:
             raise CheckpointError(
