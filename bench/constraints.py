@@ -15,8 +15,8 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
   the jerk of the 1 s around each keyframe over the training clips' mean jerk, beside
   the same for unconstrained samples of the label (same seeds, same windows), without
   the noise fit, with it for the keyframes alone (``still=0``) and with its jerk term
-  (``--joint-jerk`` sets that term's weight of the joint positions, ``--no-clean``
-  leaves the feet unplanted);
+  (``--key-steps`` Adam steps of the fit, ``--joint-jerk`` that term's weight of the
+  joint positions; ``--no-clean`` leaves the feet unplanted);
 * **parts**: upper body from one label, lower body from another, for every ordered
   pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
   on each label's second capture take, which the model never saw;
@@ -77,7 +77,10 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=0, help="training seed of the model [0]")
     ap.add_argument("--samples", type=int, default=3, help="seeds per case [3]")
     ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--steps", type=int, default=150, help="noise optimisation steps [150]")
+    ap.add_argument("--steps", type=int, default=150,
+                    help="noise optimisation steps of the paths' alternative [150]")  # fmt: skip
+    ap.add_argument("--key-steps", type=int, default=C.keyframes.FIT_STEPS,
+                    help=f"noise optimisation steps of the keyframes [{C.keyframes.FIT_STEPS}]")  # fmt: skip
     ap.add_argument("--still", type=float, default=C.keyframes.STILL,
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
     ap.add_argument("--guidance", type=float, default=None,
@@ -221,9 +224,9 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
             [around(generate(model, b_lab, length=N, seed=s, body=body)) for s in seeds]
         )
         own = mean_jerk(motion_kinematics(train[b_lab], body)[0], fps) / train_jerk
-        cases = [(0, 0.0, False), (a.steps, 0.0, False), (a.steps, a.still, False)]
+        cases = [(0, 0.0, False), (a.key_steps, 0.0, False), (a.key_steps, a.still, False)]
         if a.ramp:
-            cases.append((a.steps, a.still, True))
+            cases.append((a.key_steps, a.still, True))
         for steps, still, ramp in cases:
             rot, pos, jr = [], [], []
             for s in seeds:

@@ -277,12 +277,13 @@ def interactive_parts(
 
 def interactive_inbetween(
     model: Any, clips: dict[str, Motion], body: Any = None, *, seconds: float = 4.0,
-    steps: int = 100,
+    steps: int | None = None,
 ) -> tuple[Any, Callable[[], Motion]]:  # fmt: skip
     """An ipywidgets UI for in-betweening: a start frame of one clip and an end pose
     of another (clip and frame pickers), the label of what lies between and the seed;
-    every change regenerates (``mrlib.constraints.generate_with_keyframes``) and shows
-    the mesh at the two keyframes and between them."""
+    every change regenerates (``mrlib.constraints.generate_with_keyframes``, with
+    ``steps`` of noise fit: default its own) and shows the mesh at the two keyframes and
+    between them."""
     import ipywidgets as w
     import matplotlib.pyplot as plt
     from IPython.display import display
@@ -313,8 +314,9 @@ def interactive_inbetween(
             Keyframe.from_motion(clips[a.value], int(fa.value), 0),
             Keyframe.from_motion(clips[b.value], int(fb.value), N - 1, root=False),
         ]
-        m = generate_with_keyframes(model, kfs, N, lab.value, seed=int(seed.value),
-                                    steps=steps, body=body)  # fmt: skip
+        fit = {} if steps is None else {"steps": steps}
+        m = generate_with_keyframes(model, kfs, N, lab.value, seed=int(seed.value), body=body,
+                                    **fit)  # fmt: skip
         shown = [0, N // 4, N // 2, 3 * N // 4, N - 1]
         image = crop_to_bodies(render_meshes(m, body, frames=shown))
         fig, ax = plt.subplots(figsize=(10, 4))

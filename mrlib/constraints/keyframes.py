@@ -59,6 +59,10 @@ STILL = 5.0  # weight of that jerk in the noise fit (generate_with_keyframes)
 # weight of the joint positions' mean squared jerk (over the model's training clips' mean
 # jerk, squared) beside the normalised channels', within the jerk term
 JOINT_JERK = 2e-3
+# Adam steps of the noise fit (generate_with_keyframes). On the Bandai walks the preset's
+# models met the jerk target at 150, but models trained with a larger learning rate
+# (sharper labels) needed 300 at the partial keyframe (docs/results.md, "Keyframes").
+FIT_STEPS = 300
 
 
 @dataclass(frozen=True)
@@ -383,7 +387,7 @@ def generate_with_keyframes(
     conditions=None,
     blend=None,
     seed: int | None = None,
-    steps: int = 100,
+    steps: int = FIT_STEPS,
     blend_s: float = BLEND_S,
     still: float = STILL,
     clean: bool = True,
@@ -391,10 +395,10 @@ def generate_with_keyframes(
     progress: bool = False,
 ) -> Motion:
     """A motion of ``length`` frames under a label condition that holds ``keyframes``
-    (method: module docstring). ``steps=0`` skips the noise optimisation; ``still``
-    weighs the jerk of the pose and root channels within ``STILL_S`` seconds of a
-    keyframe in it (0: the keyframes alone); ``clean`` plants the feet before the exact
-    fit."""
+    (method: module docstring). ``steps``: Adam steps of the noise optimisation
+    (``FIT_STEPS``; 0 skips it); ``still`` weighs the jerk within ``STILL_S`` seconds of
+    a keyframe in it (0: the keyframes alone); ``clean`` plants the feet before the
+    exact fit."""
     from mrlib.body import resolve_body
 
     body = resolve_body(body, shared=True)
