@@ -151,6 +151,16 @@ def _parse_iterations(text: str | None) -> tuple[int, ...] | None:
     return its
 
 
+def _parse_steps(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
+    return n
+
+
 def _positive_float(text: str) -> float:
     try:
         v = float(text)
@@ -537,6 +547,14 @@ def _add_sample(sub):
         default=None,
         help="length in seconds (default: a training clip's)",
     )
+    p.add_argument(
+        "--fit-steps",
+        type=_parse_steps,
+        default=None,
+        metavar="N",
+        help="Adam steps of the noise fit for --keyframes and --continue (0: none; "
+        "default: the library's, 300 for keyframes and 100 for continuation)",
+    )
     p.add_argument("--num", type=int, default=1, help="number of samples [default: 1]")
     p.add_argument("--seed", type=int, default=0, help="random seed [default: 0]")
     p.add_argument(
@@ -573,6 +591,7 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
     """Samples under --path / --keyframes / --loop / --continue (one per seed)."""
     from mrlib import constraints as C
 
+    fit = {} if args.fit_steps is None else {"steps": args.fit_steps}
     out = []
     for b in range(args.num):
         seed = args.seed + b
@@ -583,7 +602,9 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
             if length is None:
                 raise MrlibError("--keyframes needs --seconds (the length of the motion)")
             kfs = C.load_keyframes(args.keyframes)
-            m = C.generate_with_keyframes(model, kfs, length, seed=seed, clean=not args.raw, **kw)
+            m = C.generate_with_keyframes(
+                model, kfs, length, seed=seed, clean=not args.raw, **fit, **kw
+            )
         elif args.loop:
             m = C.generate_loop(model, length=length, seed=seed, fix_contacts=not args.raw, **kw)
         else:
@@ -593,7 +614,7 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
                 raise MrlibError("--continue needs --seconds (how much to add)")
             prefix = load_motion(args.prefix)
             frames = max(1, round(args.seconds * model.fps))
-            m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **kw)
+            m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **fit, **kw)
         out.append(m)
     return out
 
@@ -647,6 +668,8 @@ def _cmd_sample(args) -> int:
     from mrlib.sample import generate, load_model
 
     constrained = args.path or args.keyframes or args.loop or args.prefix
+    if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
+        raise MrlibError("--fit-steps applies to --keyframes and --continue only")
     if args.audio is not None:
         if constrained and not args.path:
             raise MrlibError("with --audio only --path applies (keyframes, loops and "

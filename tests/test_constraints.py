@@ -381,3 +381,18 @@ def test_sample_cli_constraints(tmp_path, clips):
         1
     ] * 4
     assert main([*base, "--keyframes", str(kf)]) == 1  # needs --seconds
+    # --fit-steps reaches the noise fit: 0 steps is the library's unfitted in-between,
+    # which the default (fitted) one is not
+    from mrlib.io import load_motion
+    from mrlib.sample import load_model
+
+    bare = tmp_path / "bare"
+    argv = [*base[:-1], str(bare), "--keyframes", str(kf), "--seconds", "2", "--fit-steps", "0"]
+    assert main(argv) == 0
+    got = load_motion(next(bare.glob("*.npz")))
+    want = C.generate_with_keyframes(load_model(ckpt), C.load_keyframes(kf), got.num_frames,
+                                     "walk_sad", seed=0, steps=0)  # fmt: skip
+    np.testing.assert_allclose(got.poses, want.poses, atol=1e-5)
+    fitted = load_motion(next(p for p in out.glob("*.npz") if "keyframes" in p.name))
+    assert np.abs(fitted.poses - got.poses).max() > 1e-3
+    assert main([*base, "--loop", "--seconds", "2", "--fit-steps", "5"]) == 1
