@@ -452,9 +452,7 @@ def _cmd_train_speech(args) -> int:
         device=args.device if args.resume is not None else None,
         progress=not args.no_progress,
     )
-    state = "interrupted; resume with --resume" if res.interrupted else "done"
-    print(f"{state} in {res.wall_time_s:.0f} s -> {res.checkpoint}")
-    return 130 if res.interrupted else 0
+    return _report_training(res)
 
 
 # -- sample --------------------------------------------------------------------------------
