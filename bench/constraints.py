@@ -286,26 +286,38 @@ def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body, cle
 def run_parts(model, body, a, seeds, results) -> None:
     labs = model.labels
     print("\n## Body parts (upper / lower from different labels)\n")
-    print("| upper | lower | film: fidelity upper / lower | splice: fidelity upper / lower |")
-    print("|---|---|---|---|")
+    methods = {"film": ("film", False), "splice": ("splice", False),
+               "splice, gait-aligned": ("splice", True)}  # fmt: skip
+    print("| upper | lower | " + " | ".join(f"{k}: fidelity upper / lower, coordination"
+                                          for k in methods) + " |")  # fmt: skip
+    print("|---|---|" + "---|" * len(methods))
     results["parts"] = []
     length = 2 * int(model.lengths[:, -1].max())
     for up, low in itertools.permutations(labs, 2):
         parts = {"upper": up, "lower": low}
         row = {"upper": up, "lower": low}
-        for method in ("film", "splice"):
+        cells = []
+        for key, (method, align) in methods.items():
             ms = C.generate_parts(model, parts, length, seed=0, num_samples=a.samples,
-                                  method=method, body=body)  # fmt: skip
+                                  method=method, align_gait=align, body=body)  # fmt: skip
             ms = ms if isinstance(ms, list) else [ms]
-            row[method] = C.part_fidelity(ms, model, parts)
+            row[key] = C.part_fidelity(ms, model, parts)
+            row[key]["coordination"] = float(np.mean([C.arm_leg_coordination(m, body) for m in ms]))
+            f = row[key]
+            cells.append(
+                f"{100 * f['upper']:.1f} / {100 * f['lower']:.1f} %, {f['coordination']:.2f}"
+            )
         results["parts"].append(row)
-        print(f"| {up} | {low} | {100 * row['film']['upper']:.1f} / {100 * row['film']['lower']:.1f} % | "
-              f"{100 * row['splice']['upper']:.1f} / {100 * row['splice']['lower']:.1f} % |", flush=True)  # fmt: skip
-    for method in ("film", "splice"):
-        f = [[r[method]["upper"], r[method]["lower"]] for r in results["parts"]]
-        print(
-            f"{method}: mean fidelity {100 * np.mean(f):.1f} %, worst part {100 * np.min(f):.1f} %"
-        )
+        print(f"| {up} | {low} | " + " | ".join(cells) + " |", flush=True)
+    for key in methods:
+        f = [[r[key]["upper"], r[key]["lower"]] for r in results["parts"]]
+        co = [r[key]["coordination"] for r in results["parts"]]
+        print(f"{key}: mean fidelity {100 * np.mean(f):.1f} %, worst part {100 * np.min(f):.1f} %; "
+              f"arm-leg coordination mean {np.mean(co):.2f}, lowest {np.min(co):.2f}")  # fmt: skip
+    clips = {model.labels[model.clip_labels[k]]: features_to_motion(x, model.fps, betas=model.betas)
+             for k, x in enumerate(model.features)}  # fmt: skip
+    print("training clips' arm-leg coordination: " + ", ".join(
+        f"{lab} {C.arm_leg_coordination(m, body):.2f}" for lab, m in clips.items()))  # fmt: skip
     second_takes(model, body, results)
 
 

@@ -515,6 +515,12 @@ def _add_sample(sub):
         help="a label per body part (upper, lower, left_arm, right_arm), e.g. "
         "upper=walk_happy,lower=walk_sad",
     )
+    p.add_argument(
+        "--in-step",
+        action="store_true",
+        help="with --parts: retime each part to the gait of the part holding the pelvis, so "
+        "the arms swing in step with the legs (mrlib.constraints.phase_align)",
+    )
     c = p.add_mutually_exclusive_group()
     c.add_argument(
         "--path",
@@ -666,6 +672,8 @@ def _cmd_sample(args) -> int:
     from mrlib.sample import generate, load_model
 
     constrained = args.path or args.keyframes or args.loop or args.prefix
+    if args.in_step and not args.parts:
+        raise MrlibError("--in-step applies to --parts only")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
         raise MrlibError("--fit-steps applies to --keyframes and --continue only")
     if args.audio is not None:
@@ -688,7 +696,7 @@ def _cmd_sample(args) -> int:
         from mrlib.constraints import generate_parts
 
         motions = generate_parts(model, args.parts, length, seed=args.seed, num_samples=args.num,
-                                 fix_contacts=not args.raw)  # fmt: skip
+                                 fix_contacts=not args.raw, align_gait=args.in_step)  # fmt: skip
         return _write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
     kw = {}
     if args.crossover:

@@ -163,9 +163,20 @@ class Motion:
                 f"frames (more than {MAX_FRAMES}); choose a lower fps"
             )
         t = np.arange(n_out) * (self.fps / fps)  # positions in input frames
+        return self.at_frames(t).replace(fps=float(fps))
+
+    def at_frames(self, t) -> Motion:
+        """The motion at fractional frame positions ``t`` (a 1-D array, clipped to the
+        clip): rotations by slerp between the neighbouring frames, translation linearly,
+        contact labels from the nearer frame. Same frame rate; ``len(t)`` frames."""
+        t = np.asarray(t, np.float64).reshape(-1)
+        if t.size == 0 or not np.isfinite(t).all():
+            raise MotionValueError("at_frames needs a non-empty array of finite frame positions")
+        T = self.num_frames
+        t = np.clip(t, 0, T - 1)
         i0 = np.clip(np.floor(t).astype(np.int64), 0, T - 1)
         i1 = np.clip(i0 + 1, 0, T - 1)
-        w = (t - i0).astype(np.float64)
+        w = t - i0
         aa = torch.from_numpy(self.poses.astype(np.float64))
         q0 = roma.rotvec_to_unitquat(aa[i0])
         q1 = roma.rotvec_to_unitquat(aa[i1])
@@ -177,7 +188,7 @@ class Motion:
         contacts = None
         if self.contacts is not None:
             contacts = self.contacts[np.where(w < 0.5, i0, i1)]
-        return self.replace(poses=poses, trans=trans, contacts=contacts, fps=float(fps))
+        return self.replace(poses=poses, trans=trans, contacts=contacts)
 
 
 def _slerp(q0: torch.Tensor, q1: torch.Tensor, w: torch.Tensor) -> torch.Tensor:

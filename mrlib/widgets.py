@@ -233,13 +233,14 @@ def interactive_parts(
     import matplotlib.pyplot as plt
     from IPython.display import display
 
-    from mrlib.constraints import generate_parts, part_fidelity
+    from mrlib.constraints import arm_leg_coordination, generate_parts, part_fidelity
 
     body = resolve_body(body, shared=True)
     labels = list(model.labels)
     upper = w.Dropdown(options=labels, value=labels[0], description="upper body")
     lower = w.Dropdown(options=labels, value=labels[-1], description="lower body")
     method = w.ToggleButtons(options=["splice", "film"], value="splice", description="method")
+    in_step = w.Checkbox(value=False, description="splice: arms in step with the legs")
     seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
     guidance = w.FloatSlider(
         value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
@@ -251,9 +252,10 @@ def interactive_parts(
         parts = {"upper": upper.value, "lower": lower.value}
         sampler = replace(model, guidance=float(guidance.value))  # shares the networks
         m = generate_parts(sampler, parts, length, seed=int(seed.value), method=method.value,
-                           body=body)  # fmt: skip
+                           align_gait=bool(in_step.value), body=body)  # fmt: skip
         windows = min(len(m), int(model.lengths[:, -1].min())) >= 30
         fid = part_fidelity([m], model, parts) if windows else {}
+        coordination = arm_leg_coordination(m, body)
         image = crop_to_bodies(render_meshes(m, body, frames=evenly_spaced_frames(len(m), frames)))
         fig, ax = plt.subplots(figsize=(10, 4))
         ax.imshow(image)
@@ -261,7 +263,8 @@ def interactive_parts(
         kept = ", ".join(f"{p} {100 * f:.0f}%" for p, f in fid.items())
         ax.set_title(
             f"upper body {upper.value}, lower body {lower.value} ({method.value})"
-            + (f"; windows keeping their part's label: {kept}" if kept else ""),
+            + (f"; windows keeping their part's label: {kept}" if kept else "")
+            + f"; arm-leg coordination {coordination:.2f}",
             fontsize=10,
         )
         with out:
@@ -270,9 +273,10 @@ def interactive_parts(
         plt.close(fig)
         return m
 
-    for c in (upper, lower, method, seed, guidance):
+    for c in (upper, lower, method, in_step, seed, guidance):
         c.observe(lambda change: update(), names="value")
-    return w.VBox([w.HBox([upper, lower]), w.HBox([method, seed, guidance]), out]), update
+    rows = [w.HBox([upper, lower]), w.HBox([method, in_step]), w.HBox([seed, guidance]), out]
+    return w.VBox(rows), update
 
 
 def interactive_inbetween(

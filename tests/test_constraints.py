@@ -330,6 +330,32 @@ def test_spliced_parts_take_each_group_from_its_own_label(model):
         C.parse_parts("upper")
 
 
+def test_phase_align_puts_the_arms_in_step_with_the_legs(body):
+    # two procedural walks of different cadence (1.3 and 2.2 steps/s) and phase: the
+    # spliced body's arms swing out of step with its legs unless retimed to them
+    legs = synthetic_walk("walk_sad", seconds=6.0, fps=30.0, seed=0, body=body)
+    arms = synthetic_walk("walk_happy", seconds=12.0, fps=30.0, seed=1, body=body)
+    assert C.arm_leg_coordination(legs, body) > 0.8 and C.arm_leg_coordination(arms, body) > 0.8
+    plain = C.splice_parts({"upper": arms, "lower": legs})
+    in_step = C.splice_parts({"upper": arms, "lower": legs}, align=True, body=body)
+    assert in_step.num_frames == plain.num_frames == legs.num_frames
+    assert abs(C.arm_leg_coordination(plain, body)) < 0.3
+    assert C.arm_leg_coordination(in_step, body) > 0.9
+    low = list(C.part_joints("lower"))
+    assert np.array_equal(in_step.poses[:, low], legs.poses[:, low])  # the legs are kept
+    # retimed, the arms' gait phase follows the legs' (up to whole cycles)
+    d = C.gait_phase(C.phase_align(arms, legs, body), body) - C.gait_phase(legs, body)
+    assert np.abs(np.angle(np.exp(1j * d[15:-15]))).max() < 0.5
+    # nothing to align: a body standing still, or a source with too few strides
+    still = legs.replace(poses=np.repeat(legs.poses[:1], legs.num_frames, 0),
+                         trans=np.repeat(legs.trans[:1], legs.num_frames, 0))  # fmt: skip
+    assert C.gait_phase(still, body) is None
+    assert C.phase_align(arms, still, body) is None
+    assert C.phase_align(arms.slice(0, 60), legs, body) is None
+    kept = C.splice_parts({"upper": arms, "lower": still}, align=True, body=body)
+    assert np.array_equal(kept.poses, C.splice_parts({"upper": arms, "lower": still}).poses)
+
+
 def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, body, monkeypatch):
     pytest.importorskip("ipywidgets")
     import mrlib.widgets
@@ -338,7 +364,7 @@ def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, 
         mrlib.widgets, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
     )  # the real one takes seconds
     box, update = mrlib.widgets.interactive_parts(model, body=body, length=40)
-    controls = {c.description: c for row in box.children[:2] for c in row.children}
+    controls = {c.description: c for row in box.children[:-1] for c in row.children}
     assert controls["guidance"].value == 0.0
     for method in ("splice", "film"):
         controls["method"].value = method
@@ -375,6 +401,9 @@ def test_sample_cli_constraints(tmp_path, clips):
     assert main([*base, "--keyframes", str(kf), "--seconds", "2"]) == 0
     assert main([*base, "--continue", files[0], "--seconds", "1"]) == 0
     assert main(["sample", ckpt, "--parts", "upper=wave,lower=walk_sad", "--out", str(out)]) == 0
+    assert main(["sample", ckpt, "--in-step", "--out", str(out)]) == 1  # needs --parts
+    step = ["sample", ckpt, "--parts", "upper=wave,lower=walk_sad", "--in-step"]
+    assert main([*step, "--out", str(tmp_path / "in_step")]) == 0
     names = sorted(p.name for p in out.glob("*.npz"))
     assert len(names) == 5, names
     assert [sum(w in n for n in names) for w in ("path", "loop", "keyframes", "continued")] == [

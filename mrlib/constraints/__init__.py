@@ -17,10 +17,13 @@ and ``docs/results.md``; ``notebooks/06_constraints.ipynb`` shows them with widg
 
 from mrlib.constraints.compose import (
     PARTS,
+    arm_leg_coordination,
+    gait_phase,
     generate_parts,
     parse_parts,
     part_fidelity,
     part_joints,
+    phase_align,
     splice_parts,
 )
 from mrlib.constraints.keyframes import (
@@ -67,6 +70,9 @@ __all__ = [
     "parse_parts",
     "generate_parts",
     "splice_parts",
+    "gait_phase",
+    "phase_align",
+    "arm_leg_coordination",
     "part_fidelity",
     "generate_loop",
     "loop_seam",

@@ -5,6 +5,11 @@ group's joint rotations taken from its own (the root and the contact labels from
 group holding the pelvis). It works across models too (:func:`splice_parts`: upper
 body from a speech model, legs from a label model).
 
+Each part of a splice keeps its own sample's timing, so arms and legs drawn at two
+cadences swing out of step; ``align_gait`` retimes the other parts to the gait of the
+part holding the pelvis (:func:`gait_phase`: the phase of the ankles' stride from the
+analytic signal, Hilbert transform; :func:`arm_leg_coordination` measures the result).
+
 ``method="film"``: one generator pass, each group's channels modulated by its own
 condition's FiLM parameters at every level (``LevelGenerator.modulate``; the
 channel-to-joint map of the skeleton-aware convolutions says which channels are a
@@ -32,6 +37,9 @@ __all__ = [
     "parse_parts",
     "generate_parts",
     "splice_parts",
+    "gait_phase",
+    "phase_align",
+    "arm_leg_coordination",
     "part_fidelity",
 ]
 
@@ -103,10 +111,15 @@ def generate_parts(
     num_samples: int = 1,
     method: str = "splice",
     fix_contacts: bool = True,
+    align_gait: bool = False,
     body=None,
 ):
     """A label model's motion with each body part under its own label (method: module
     docstring), e.g. ``parts={"upper": "walk_happy", "lower": "walk_sad"}``.
+    ``align_gait`` (splice): each other part is taken from a sample retimed to the gait
+    of the part holding the pelvis (:func:`phase_align`), so the arms swing in step with
+    the legs; it costs some of the part's own label where the labels' cadences differ
+    (``docs/results.md``, "Body parts").
 
     Returns:
         ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``) or a list.
@@ -127,18 +140,23 @@ def generate_parts(
     groups = _groups(parts)
     tag = ",".join(f"{p}={c}" for p, c in parts.items())
     if method == "splice":
-        motions = {
-            c: generate(
-                model, c, length=length, seed=seed, num_samples=num_samples, fix_contacts=False
-            )  # fmt: skip
-            for _, c in groups
-        }
+
+        def draw(c, n):
+            ms = generate(model, c, length=n, seed=seed, num_samples=num_samples,
+                          fix_contacts=False)  # fmt: skip
+            return [ms] if isinstance(ms, Motion) else ms
+
+        base_c = next(c for js, c in groups if 0 in js)
+        motions = {base_c: draw(base_c, length)}
+        # the other labels' samples twice as long, so that retimed to the pelvis part's
+        # gait (align_gait) they do not run out of strides
+        n = 2 * motions[base_c][0].num_frames if align_gait else length
+        motions.update({c: draw(c, n) for _, c in groups if c not in motions})
         out = []
         for b in range(num_samples):
-            pick = {c: (ms if isinstance(ms, Motion) else ms[b]) for c, ms in motions.items()}
-            out.append(
-                splice_parts({js: pick[c] for js, c in groups}, name=f"{tag}_seed{seed}_{b}")
-            )
+            pick = {js: motions[c][b] for js, c in groups}
+            out.append(splice_parts(pick, name=f"{tag}_seed{seed}_{b}", align=align_gait,
+                                    body=body))  # fmt: skip
     else:
         Ws = [label_weights(model, c) for _, c in groups]
         lengths, _, _ = label_inputs(model, Ws[0], length)
@@ -161,18 +179,109 @@ def generate_parts(
     return out[0] if num_samples == 1 else out
 
 
-def splice_parts(parts: Mapping, name: str | None = None) -> Motion:
+# Gait phase (gait_phase): the legs' stride signal is the difference of the two ankles'
+# forward offsets from the pelvis, in the body's own frame, smoothed over GAIT_SMOOTH_S
+# seconds; a motion walks when that signal's standard deviation is at least GAIT_MIN_M.
+GAIT_SMOOTH_S = 0.1
+GAIT_MIN_M = 0.05
+
+
+def _stride_signal(motion: Motion, body=None) -> np.ndarray:
+    """``(T,)`` left minus right ankle forward offset from the pelvis (m), body frame."""
+    from scipy.ndimage import gaussian_filter1d
+
+    rel = _forward_offsets(motion, body)
+    f = rel[:, JOINT_NAMES.index("left_ankle")] - rel[:, JOINT_NAMES.index("right_ankle")]
+    return gaussian_filter1d(f - f.mean(), GAIT_SMOOTH_S * motion.fps, mode="nearest")
+
+
+def _forward_offsets(motion: Motion, body=None) -> np.ndarray:
+    """``(T, 24)`` each joint's forward offset from the pelvis (m) in the body's frame."""
+    from mrlib.plausibility import motion_kinematics
+    from mrlib.rotations import axis_angle_to_matrix
+
+    J = motion_kinematics(motion, body)[0]
+    R = axis_angle_to_matrix(torch.as_tensor(motion.poses[:, 0], dtype=torch.float64)).numpy()
+    rel = np.einsum("tji,tkj->tki", R, J - J[:, :1])  # R^T (J - pelvis)
+    return rel[..., 2]  # SMPL's body frame faces +z
+
+
+def arm_leg_coordination(motion: Motion, body=None) -> float:
+    """How much the arms swing in step with the legs: the correlation over time of each
+    wrist's forward offset from the pelvis with the opposite ankle's, averaged over the
+    two sides (1: in step, as in a walk; 0: unrelated; the Bandai walks' clips 0.44-0.95)."""
+    f = _forward_offsets(motion, body)
+    f = f - f.mean(0)
+    n = JOINT_NAMES.index
+
+    def corr(a: str, b: str) -> float:
+        x, y = f[:, n(a)], f[:, n(b)]
+        den = np.sqrt((x * x).sum() * (y * y).sum())
+        return float((x * y).sum() / den) if den > 0 else 0.0
+
+    return 0.5 * (corr("left_wrist", "right_ankle") + corr("right_wrist", "left_ankle"))
+
+
+def gait_phase(motion: Motion, body=None) -> np.ndarray | None:
+    """``(T,)`` the gait phase of ``motion`` in radians, unwrapped and non-decreasing:
+    the angle of the analytic signal (Hilbert transform) of its stride signal, the
+    ankles' forward offsets from the pelvis (module constants). None when the motion
+    does not walk (stride signal below ``GAIT_MIN_M``)."""
+    from scipy.signal import hilbert
+
+    f = _stride_signal(motion, body)
+    if f.size < 8 or f.std() < GAIT_MIN_M:
+        return None
+    phase = np.unwrap(np.angle(hilbert(f)))
+    return np.maximum.accumulate(phase)
+
+
+def phase_align(source: Motion, target: Motion, body=None) -> Motion | None:
+    """``source`` retimed to ``target``'s gait: ``target.num_frames`` frames of it,
+    frame ``t`` at the source time whose gait phase is ``target``'s at ``t`` (within
+    the source's first cycle at the start), so that a part taken from ``source`` (the
+    arms) swings in step with ``target``'s legs. None when either does not walk, or
+    when ``source`` has too few cycles to follow ``target`` to its end."""
+    if source.fps != target.fps:
+        raise MotionValueError(
+            f"phase_align needs one frame rate, got {source.fps} and {target.fps}"
+        )
+    ps, pt = gait_phase(source, body), gait_phase(target, body)
+    if ps is None or pt is None:
+        return None
+    # the target's phase on the source's branch, offset by whole cycles so that the
+    # start falls in the source's first cycle
+    want = pt + 2 * np.pi * np.ceil((ps[0] - pt[0]) / (2 * np.pi))
+    if want[-1] > ps[-1]:
+        return None
+    frames = np.arange(source.num_frames, dtype=np.float64)
+    keep = np.concatenate([[True], np.diff(ps) > 0])  # strictly increasing for interp
+    return source.at_frames(np.interp(want, ps[keep], frames[keep]))
+
+
+def splice_parts(
+    parts: Mapping, name: str | None = None, *, align: bool = False, body=None
+) -> Motion:
     """One motion from several: ``{part: Motion}`` (parts as :func:`part_joints` takes
     them, or joint-id tuples), each part's joint rotations from its motion; the root
     translation and contact labels from the motion of the part holding the pelvis. The
-    motions are cut to the shortest and must share a frame rate."""
+    motions must share a frame rate. ``align``: each other part's motion is first
+    retimed to the gait of the pelvis part's (:func:`phase_align`; left as it is where
+    either does not walk or it has too few cycles), so its arms swing with those legs.
+    The motions are then cut to the shortest."""
     groups = _groups(parts)
     motions = [m for _, m in groups]
     fps = {m.fps for m in motions}
     if len(fps) != 1:
         raise MotionValueError(f"motions to splice need one frame rate, got {sorted(fps)}")
-    T = min(m.num_frames for m in motions)
     base = next(m for js, m in groups if 0 in js)
+    if align:
+        aligned = []
+        for js, m in groups:
+            moved = None if 0 in js else phase_align(m, base, body)
+            aligned.append((js, m if moved is None else moved))
+        groups = aligned
+    T = min(m.num_frames for _, m in groups)
     poses = base.poses[:T].copy()
     for js, m in groups:
         poses[:, list(js)] = m.poses[:T, list(js)]
