@@ -148,10 +148,14 @@ def generate_parts(
 
         base_c = next(c for js, c in groups if 0 in js)
         motions = {base_c: draw(base_c, length)}
-        # the other labels' samples twice as long, so that retimed to the pelvis part's
-        # gait (align_gait) they do not run out of strides
-        n = 2 * motions[base_c][0].num_frames if align_gait else length
-        motions.update({c: draw(c, n) for _, c in groups if c not in motions})
+        T = motions[base_c][0].num_frames
+        for _, c in groups:
+            if c in motions:
+                continue
+            # retimed to the pelvis part's gait (align_gait), a sample of a label that
+            # walks slower needs more frames to cover as many strides
+            n = _frames_to_cover(model, base_c, c, T, body) if align_gait else length
+            motions[c] = draw(c, n)
         out = []
         for b in range(num_samples):
             pick = {js: motions[c][b] for js, c in groups}
@@ -234,6 +238,31 @@ def gait_phase(motion: Motion, body=None) -> np.ndarray | None:
         return None
     phase = np.unwrap(np.angle(hilbert(f)))
     return np.maximum.accumulate(phase)
+
+
+def _frames_to_cover(model, base, other, frames: int, body=None) -> int:
+    """Frames of a sample of label ``other`` that, retimed to the gait of ``frames``
+    frames of label ``base`` (:func:`phase_align`), do not run out of strides: by the
+    cadences of the model's training clips, the strides of ``base`` at half as many
+    again plus one cycle of ``other`` for the start; twice ``frames`` where a label's
+    clips do not walk."""
+    from mrlib.features import features_to_motion
+
+    def rate(label) -> float | None:  # radians of gait phase per frame
+        k = model.label_index(label)
+        rates = []
+        for x, lab in zip(model.features, model.clip_labels, strict=True):
+            if lab == k:
+                m = features_to_motion(x, model.fps, betas=model.betas)
+                ph = gait_phase(m, body)
+                if ph is not None and ph[-1] > ph[0]:
+                    rates.append((ph[-1] - ph[0]) / m.num_frames)
+        return float(np.median(rates)) if rates else None
+
+    ra, rb = rate(base), rate(other)
+    if ra is None or rb is None:
+        return 2 * frames
+    return int(np.ceil(1.5 * frames * max(1.0, ra / rb) + 2 * np.pi / rb))
 
 
 def phase_align(source: Motion, target: Motion, body=None) -> Motion | None:
