@@ -324,6 +324,11 @@ def test_spliced_parts_take_each_group_from_its_own_label(model):
     assert np.array_equal(m.poses[:, up], wave.poses[:, up])
     assert np.array_equal(m.poses[:, low], sad.poses[:, low])
     assert np.array_equal(m.trans, sad.trans)
+    # in step: the legs (and root) are still the pelvis part's own sample, at its length
+    step = C.generate_parts(model, parts, 30, seed=2, align_gait=True, fix_contacts=False)
+    assert step.num_frames == 30
+    assert np.array_equal(step.poses[:, low], sad.poses[:, low])
+    assert np.array_equal(step.trans, sad.trans)
     with pytest.raises(MotionValueError, match="overlap"):
         C.generate_parts(model, {"upper": "wave", "left_arm": "walk_sad"}, 30)
     with pytest.raises(MotionValueError, match="part=label"):
