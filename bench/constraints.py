@@ -196,9 +196,9 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
     key += "_noclean" if a.no_clean else ""
     print(f"JOINT_JERK {C.keyframes.JOINT_JERK:g}, feet {'planted' if clean else 'as generated'}\n")
     print(
-        "| from -> to (label) | steps | still | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) | unconstrained samples, same windows | the label's training clip |"
+        "| from -> to (label) | steps | still | max rotation error (deg) | max root error (cm) | jerk ratio at keyframes (start / middle / end) | unconstrained samples, same windows | the label's training clip | s per in-between |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     results[key] = []
     N = int(4 * fps)
     labs = model.labels
@@ -228,14 +228,16 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
         if a.ramp:
             cases.append((a.key_steps, a.still, True))
         for steps, still, ramp in cases:
-            rot, pos, jr = [], [], []
+            rot, pos, jr, dt = [], [], [], []
             for s in seeds:
+                t0 = time.perf_counter()
                 if ramp:
                     m = ramped_in_between(model, kfs, N, a_lab, b_lab, s, steps, still, body,
                                           clean)  # fmt: skip
                 else:
                     m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps,
                                                   still=still, clean=clean, body=body)  # fmt: skip
+                dt.append(time.perf_counter() - t0)
                 e = C.keyframe_errors(m, kfs)
                 rot.append(e["rotation_deg"])
                 pos.append(e["trans_cm"])
@@ -247,12 +249,12 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
                    "trans_cm": float(np.max(pos)), "jerk_ratio_mean": jr.mean(0).tolist(),
                    "jerk_ratio_max": jr.max(0).tolist(),
                    "unconstrained_jerk_ratio_mean": control.mean(0).tolist(),
-                   "label_clip_jerk_ratio": float(own)}  # fmt: skip
+                   "label_clip_jerk_ratio": float(own), "seconds": float(np.mean(dt))}  # fmt: skip
             results[key].append(row)
             print(f"| {a_lab} -> {row['to']} | {steps} | {still:g} | {row['rotation_deg']:.2g} | {row['trans_cm']:.2g} | "
                   + " / ".join(f"{m_:.2f} (max {x_:.2f})" for m_, x_ in zip(jr.mean(0), jr.max(0), strict=True))
                   + " | " + " / ".join(f"{c_:.2f}" for c_ in control.mean(0))
-                  + f" | {own:.2f} |", flush=True)  # fmt: skip
+                  + f" | {own:.2f} | {row['seconds']:.1f} |", flush=True)  # fmt: skip
 
 
 def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body, clean=True):
