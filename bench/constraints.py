@@ -20,6 +20,12 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
 * **parts**: upper body from one label, lower body from another, for every ordered
   pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
   on each label's second capture take, which the model never saw;
+* **sharpen**: each label's samples with the noise fitted towards that label on one
+  part (``mrlib.constraints.sharpen``, what ``generate_parts(..., sharpen=N)`` splices),
+  for each of ``--sharpen-steps``: the part's fidelity by the measure the fit lowers
+  (6D rotations) and by the part's joint positions in the body's frame, which it never
+  sees; coverage (eps 2 and 1) and global diversity of the part against the label's
+  clip; raw jerk over the clip's, raw foot skating, seconds per sample;
 * **loop**: 4 s loops by ``circular`` (begun at the calmest frame, the default, and at
   the sample's frame 0) and ``crossfade``, and raw samples closed on themselves: seam
   step over the 95th percentile of the loop's own steps.
@@ -31,6 +37,7 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
     python bench/constraints.py --only keyframes --ramp
     python bench/constraints.py --only keyframes --joint-jerk 0 --no-clean
     python bench/constraints.py --lr 2e-3 --only parts   # bench/condition_control.py --lr 2e-3's model
+    python bench/constraints.py --only sharpen --samples 10 --sharpen-steps 0,20,50,100
 
 Writes ``<run folder>/constraints.json`` (``constraints_guidance<G>.json`` with ``--guidance``).
 """
@@ -64,7 +71,7 @@ from mrlib.sample import generate  # noqa: E402
 from mrlib.train import train_or_reuse  # noqa: E402
 
 CLIPS = ["walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001"]
-SECTIONS = ("path", "keyframes", "parts", "loop")
+SECTIONS = ("path", "keyframes", "parts", "sharpen", "loop")
 
 
 def skate_share(m, body) -> float:
@@ -92,6 +99,11 @@ def main() -> int:
                     help="keyframes: mrlib.constraints.keyframes.JOINT_JERK [mrlib's]")  # fmt: skip
     ap.add_argument("--no-clean", action="store_true",
                     help="keyframes: do not plant the feet of the in-betweens")  # fmt: skip
+    ap.add_argument("--sharpen-steps", default=f"0,{C.SHARPEN_STEPS}",
+                    help="sharpen: steps of the noise fit to compare, comma-separated "
+                    f"[0,{C.SHARPEN_STEPS}]")  # fmt: skip
+    ap.add_argument("--sharpen-push", action="store_true",
+                    help="sharpen: the fit also pushes windows away from the other labels")  # fmt: skip
     ap.add_argument("--lr", type=float, default=None,
                     help="the model trained with this learning rate "
                     "(bench/condition_control.py --lr) [the preset's]")  # fmt: skip
@@ -144,6 +156,8 @@ def main() -> int:
         run_keyframes(model, body, a, train, train_jerk, seeds, results)
     if "parts" in a.only:
         run_parts(model, body, a, seeds, results)
+    if "sharpen" in a.only:
+        run_sharpen(model, body, a, results)
     if "loop" in a.only:
         run_loops(model, body, seeds, results)
     saved.write_text(json.dumps(results, indent=1, default=float))
@@ -321,6 +335,73 @@ def run_parts(model, body, a, seeds, results) -> None:
     print("training clips' arm-leg coordination: " + ", ".join(
         f"{lab} {C.arm_leg_coordination(m, body):.2f}" for lab, m in clips.items()))  # fmt: skip
     second_takes(model, body, results)
+
+
+def _body_frame_positions(m, body) -> np.ndarray:
+    """``(T, 24, 3)`` joint positions relative to the pelvis, in the body's own frame."""
+    from mrlib.rotations import axis_angle_to_matrix
+
+    J = motion_kinematics(m, body)[0]
+    R = axis_angle_to_matrix(torch.as_tensor(m.poses[:, 0], dtype=torch.float64)).numpy()
+    return np.einsum("tji,tkj->tki", R, J - J[:, :1])
+
+
+def run_sharpen(model, body, a, results) -> None:
+    """Samples of each label fitted towards it on one part (module docstring)."""
+    from mrlib.constraints.sharpen import part_columns
+    from mrlib.metrics import condition_fidelity, global_diversity
+
+    steps_list = [int(v) for v in a.sharpen_steps.split(",")]
+    length = 2 * int(model.lengths[:, -1].max())
+    clips = {model.labels[model.clip_labels[k]]: features_to_motion(x, model.fps, betas=model.betas)
+             for k, x in enumerate(model.features)}  # fmt: skip
+    refs = {lab: metric_features(m) for lab, m in clips.items()}
+    pos = {lab: _body_frame_positions(m, body) for lab, m in clips.items()}
+    jerk = {lab: mean_jerk(motion_kinematics(m, body)[0], model.fps) for lab, m in clips.items()}
+    how = "pulled and pushed" if a.sharpen_push else "pulled"
+    print(f"\n## Sharpened parts ({a.samples} samples of {length} frames per label and part, "
+          f"windows {how})\n")  # fmt: skip
+    print("| part | label | steps | fidelity: rotations (fitted) | joint positions (not fitted) "
+          "| coverage eps 2 / 1 | global div. | raw jerk | raw skating | s per sample |")  # fmt: skip
+    print("|---|---|---:|---:|---:|---|---:|---:|---:|---:|")
+    results["sharpen"] = []
+    for part in ("upper", "lower"):
+        cols = part_columns(part)
+        js = [j for j in C.part_joints(part) if j > 0]
+        pref = {lab: p[:, js].reshape(len(p), -1) for lab, p in pos.items()}
+        for lab in model.labels:
+            for steps in steps_list:
+                t0 = time.perf_counter()
+                raw = C.generate_sharpened(model, lab, (part,), length, seed=0,
+                                           num_samples=a.samples, steps=steps,
+                                           push=a.sharpen_push)  # fmt: skip
+                dt = (time.perf_counter() - t0) / a.samples
+                ms = [mrlib.cleanup_foot_contacts(m, body) for m in raw]
+                f = [metric_features(m)[:, cols] for m in ms]
+                ref = refs[lab][:, cols]
+                p = [_body_frame_positions(m, body)[:, js].reshape(m.num_frames, -1) for m in ms]
+                row = dict(
+                    part=part, label=lab, steps=steps, seconds=dt,
+                    fidelity=C.part_fidelity(ms, model, {part: lab})[part],
+                    positions=condition_fidelity([(q, lab) for q in p], pref),
+                    coverage=coverage(f, ref), coverage_eps1=coverage(f, ref, eps=1.0),
+                    global_div=global_diversity(f, ref),
+                    jerk=float(np.mean([mean_jerk(motion_kinematics(m, body)[0], model.fps)
+                                        for m in raw])) / jerk[lab],
+                    skating=float(np.mean([skate_share(m, body) for m in raw])),
+                )  # fmt: skip
+                results["sharpen"].append(row)
+                print(f"| {part} | {lab} | {steps} | {100 * row['fidelity']:.1f} % | "
+                      f"{100 * row['positions']:.1f} % | {100 * row['coverage']:.1f} / "
+                      f"{100 * row['coverage_eps1']:.1f} % | {row['global_div']:.3f} | "
+                      f"{row['jerk']:.2f} | {100 * row['skating']:.1f} % | {dt:.1f} |", flush=True)  # fmt: skip
+    for steps in steps_list:
+        rs = [r for r in results["sharpen"] if r["steps"] == steps]
+        fid = [r["fidelity"] for r in rs]
+        print(f"{steps} steps: parts >= 90 % {sum(v >= 0.9 for v in fid)} of {len(fid)}, "
+              f"worst {100 * min(fid):.1f} %, mean {100 * np.mean(fid):.1f} %; by joint positions "
+              f"mean {100 * np.mean([r['positions'] for r in rs]):.1f} %; global div. mean "
+              f"{np.mean([r['global_div'] for r in rs]):.3f}")  # fmt: skip
 
 
 def second_takes(model, body, results) -> None:

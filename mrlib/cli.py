@@ -478,7 +478,7 @@ def _add_sample(sub):
         "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5\n"
         "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render\n"
         "  mrlib sample ckpt.pt --label walk_happy --path circle:2 --seconds 20\n"
-        "  mrlib sample ckpt.pt --parts upper=walk_happy,lower=walk_sad\n"
+        "  mrlib sample ckpt.pt --parts upper=walk_happy,lower=walk_sad --sharpen\n"
         "  mrlib sample ckpt.pt --label walk_sad --loop --seconds 4\n"
         "  mrlib sample ckpt.pt --label walk_sad --keyframes kf.npz --seconds 6\n"
         "  mrlib sample ckpt.pt --label walk_sad --continue clip.bvh --seconds 5",
@@ -520,6 +520,18 @@ def _add_sample(sub):
         action="store_true",
         help="with --parts: retime each part to the gait of the part holding the pelvis, so "
         "the arms swing in step with the legs (mrlib.constraints.phase_align)",
+    )
+    p.add_argument(
+        "--sharpen",
+        type=_parse_steps,
+        nargs="?",
+        const=None,
+        default=0,
+        metavar="N",
+        help="with --parts: fit the noise for N Adam steps (default when given without N: "
+        "mrlib.constraints.SHARPEN_STEPS) so that each part's windows are nearer its own "
+        "label's training clips than any other label's; seconds per sample instead of "
+        "milliseconds (docs/results.md 'Body parts')",
     )
     c = p.add_mutually_exclusive_group()
     c.add_argument(
@@ -579,6 +591,7 @@ def _add_sample(sub):
     )
     p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("outputs/samples"))
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_cmd_sample)
 
 
@@ -596,6 +609,7 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
     from mrlib import constraints as C
 
     fit = {} if args.fit_steps is None else {"steps": args.fit_steps}
+    fit["progress"] = not args.no_progress
     out = []
     for b in range(args.num):
         seed = args.seed + b
@@ -674,6 +688,8 @@ def _cmd_sample(args) -> int:
     constrained = args.path or args.keyframes or args.loop or args.prefix
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
+    if args.sharpen != 0 and not args.parts:
+        raise MrlibError("--sharpen applies to --parts only")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
         raise MrlibError("--fit-steps applies to --keyframes and --continue only")
     if args.audio is not None:
@@ -693,10 +709,12 @@ def _cmd_sample(args) -> int:
     if args.parts:
         if constrained:
             raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
-        from mrlib.constraints import generate_parts
+        from mrlib.constraints import SHARPEN_STEPS, generate_parts
 
+        sharpen = SHARPEN_STEPS if args.sharpen is None else args.sharpen
         motions = generate_parts(model, args.parts, length, seed=args.seed, num_samples=args.num,
-                                 fix_contacts=not args.raw, align_gait=args.in_step)  # fmt: skip
+                                 fix_contacts=not args.raw, align_gait=args.in_step,
+                                 sharpen=sharpen, progress=not args.no_progress)  # fmt: skip
         return _write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
     kw = {}
     if args.crossover:

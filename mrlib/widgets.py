@@ -228,12 +228,13 @@ def interactive_parts(
     ``guidance`` for this view (``mrlib.sample.guided_weights``: above 0 each part keeps
     its label more often, at some distance from the training motion); every change
     regenerates and shows a mesh render of ``frames`` frames, titled with each part's
-    condition fidelity (``mrlib.constraints.part_fidelity``)."""
+    condition fidelity (``mrlib.constraints.part_fidelity``). "sharpen" fits the noise so
+    that each part shows its label (``generate_parts(..., sharpen=SHARPEN_STEPS)``)."""
     import ipywidgets as w
     import matplotlib.pyplot as plt
     from IPython.display import display
 
-    from mrlib.constraints import arm_leg_coordination, generate_parts, part_fidelity
+    from mrlib.constraints import SHARPEN_STEPS, arm_leg_coordination, generate_parts, part_fidelity
 
     body = resolve_body(body, shared=True)
     labels = list(model.labels)
@@ -241,6 +242,7 @@ def interactive_parts(
     lower = w.Dropdown(options=labels, value=labels[-1], description="lower body")
     method = w.ToggleButtons(options=["splice", "film"], value="splice", description="method")
     in_step = w.Checkbox(value=False, description="splice: arms in step with the legs")
+    sharpen = w.Checkbox(value=False, description="sharpen each part's label (seconds)")
     seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed")
     guidance = w.FloatSlider(
         value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
@@ -252,7 +254,8 @@ def interactive_parts(
         parts = {"upper": upper.value, "lower": lower.value}
         sampler = replace(model, guidance=float(guidance.value))  # shares the networks
         m = generate_parts(sampler, parts, length, seed=int(seed.value), method=method.value,
-                           align_gait=bool(in_step.value), body=body)  # fmt: skip
+                           align_gait=bool(in_step.value), body=body,
+                           sharpen=SHARPEN_STEPS if sharpen.value else 0)  # fmt: skip
         windows = min(len(m), int(model.lengths[:, -1].min())) >= 30
         fid = part_fidelity([m], model, parts) if windows else {}
         coordination = arm_leg_coordination(m, body)
@@ -262,7 +265,8 @@ def interactive_parts(
         ax.axis("off")
         kept = ", ".join(f"{p} {100 * f:.0f}%" for p, f in fid.items())
         ax.set_title(
-            f"upper body {upper.value}, lower body {lower.value} ({method.value})"
+            f"upper body {upper.value}, lower body {lower.value} ({method.value}"
+            + (", sharpened)" if sharpen.value else ")")
             + (f"; windows keeping their part's label: {kept}" if kept else "")
             + f"; arm-leg coordination {coordination:.2f}",
             fontsize=10,
@@ -273,9 +277,10 @@ def interactive_parts(
         plt.close(fig)
         return m
 
-    for c in (upper, lower, method, in_step, seed, guidance):
+    for c in (upper, lower, method, in_step, sharpen, seed, guidance):
         c.observe(lambda change: update(), names="value")
-    rows = [w.HBox([upper, lower]), w.HBox([method, in_step]), w.HBox([seed, guidance]), out]
+    rows = [w.HBox([upper, lower]), w.HBox([method, in_step]), w.HBox([seed, guidance]),
+            w.HBox([sharpen]), out]  # fmt: skip
     return w.VBox(rows), update
 
 

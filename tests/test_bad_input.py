@@ -232,6 +232,7 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
         "sample --out under /proc": (["sample", str(ckpt), "--out", "/proc/mrlib-x"], 1, "/proc"),
         "sample --device bogus": (["sample", str(ckpt), "--device", "bogus"], 2, "bogus"),
         "sample --fit-steps -1": (["sample", str(ckpt), "--fit-steps", "-1"], 2, "--fit-steps"),
+        "sample --sharpen -1": (["sample", str(ckpt), "--sharpen", "-1"], 2, "--sharpen"),
         "export to a missing folder": (
             ["export", str(clip), str(tmp / "no" / "dir" / "x.bvh")],
             1,

@@ -335,6 +335,77 @@ def test_spliced_parts_take_each_group_from_its_own_label(model):
         C.parse_parts("upper")
 
 
+def _normalised(model, motion) -> torch.Tensor:
+    """``(1, C, T)`` a motion as the generator's normalised output."""
+    from mrlib.features import motion_to_features
+
+    f = motion_to_features(motion).float()
+    return model.normalizer.normalize(f).T[None]
+
+
+def test_the_label_margin_is_zero_on_a_label_clip_and_not_under_another_label(model):
+    from mrlib.features import features_to_motion
+
+    k = model.clip_labels.index(model.label_index("walk_sad"))
+    clip = features_to_motion(model.features[k], model.fps, betas=model.betas)
+    x = _normalised(model, clip)
+    for part in ("upper", "lower"):
+        own = C.label_margin_objective(model, {part: "walk_sad"})(x)
+        other = C.label_margin_objective(model, {part: "wave"})(x)
+        assert float(own) < 1e-3, part  # every window is the clip itself
+        assert float(other) > C.MARGIN, part  # nearer walk_sad than wave by far
+    with pytest.raises(MotionValueError, match="margin"):
+        C.label_margin_objective(model, {"upper": "wave"}, margin=float("nan"))
+    with pytest.raises(MotionValueError, match="unknown label"):
+        C.label_margin_objective(model, {"upper": "jump"})
+
+
+def _own_distance(model, motion, part: str, label: str) -> float:
+    """Mean squared distance of a part's windows to their nearest window of the label's clip."""
+    from mrlib.constraints.sharpen import part_columns
+    from mrlib.fidelity import model_references
+    from mrlib.metrics import metric_features, nearest_windows
+
+    _, labels, feats = model_references(model)
+    cols = part_columns(part)
+    ref = feats[labels.index(label)][:, cols]
+    return float(nearest_windows(metric_features(motion)[:, cols], ref, 30, squared=True)[0].mean())
+
+
+def test_sharpened_parts_are_pulled_to_their_label_and_spliced_as_drawn(model):
+    # the plumbing model's walk_sad samples have the wave's arms (every upper-body window
+    # is nearer the wave clip): the fit pulls them towards the walk_sad clip
+    parts = {"upper": "walk_sad", "lower": "wave"}
+    up = list(C.part_joints("upper"))
+    kw = dict(seed=2, num_samples=2)
+    plain = C.generate_sharpened(model, "walk_sad", ("upper",), 40, steps=0, **kw)
+    sharp = C.generate_sharpened(model, "walk_sad", ("upper",), 40, steps=15, **kw)
+    drawn = generate(model, "walk_sad", length=40, fix_contacts=False, **kw)
+    for a, b in zip(plain, drawn, strict=True):  # no steps: the sampler's own draw
+        assert np.array_equal(a.poses, b.poses)
+    for a, b in zip(plain, sharp, strict=True):
+        gain = _own_distance(model, a, "upper", "walk_sad") - _own_distance(
+            model, b, "upper", "walk_sad"
+        )
+        assert gain > 1.0  # of about 64
+        assert b.meta["sampler"]["sharpen"]["steps"] == 15
+    # the splice takes the upper body from the sample fitted on it alone
+    one = C.generate_sharpened(model, "walk_sad", ("upper",), 40, seed=2, steps=15)[0]
+    m = C.generate_parts(model, parts, 40, seed=2, sharpen=15, fix_contacts=False)
+    assert np.array_equal(m.poses[:, up], one.poses[:, up])
+    film = C.generate_parts(model, parts, 40, seed=2, method="film", fix_contacts=False)
+    film_sharp = C.generate_parts(model, parts, 40, seed=2, method="film", sharpen=15,
+                                  fix_contacts=False)  # fmt: skip
+    gain = sum(_own_distance(model, film, p, c) - _own_distance(model, film_sharp, p, c)
+               for p, c in parts.items())  # fmt: skip
+    assert gain > 0.5
+    for bad in (-1, 1.5, True):
+        with pytest.raises(MotionValueError, match="sharpen"):
+            C.generate_parts(model, parts, 40, sharpen=bad)
+        with pytest.raises(MotionValueError, match="steps"):
+            C.generate_sharpened(model, "wave", ("upper",), 40, steps=bad)
+
+
 def test_phase_align_puts_the_arms_in_step_with_the_legs(body):
     # two procedural walks of different cadence (1.3 and 2.2 steps/s) and phase: the
     # spliced body's arms swing out of step with its legs unless retimed to them
@@ -409,6 +480,13 @@ def test_sample_cli_constraints(tmp_path, clips):
     assert main(["sample", ckpt, "--in-step", "--out", str(out)]) == 1  # needs --parts
     step = ["sample", ckpt, "--parts", "upper=wave,lower=walk_sad", "--in-step"]
     assert main([*step, "--out", str(tmp_path / "in_step")]) == 0
+    sharp = tmp_path / "sharp"
+    assert main([*step, "--sharpen", "3", "--no-progress", "--out", str(sharp)]) == 0
+    assert main([*base, "--sharpen", "3"]) == 1  # needs --parts
+    from mrlib.io import load_motion
+
+    fit = load_motion(next(sharp.glob("*.npz"))).meta["sampler"]["sharpen"]
+    assert fit["steps"] == 3 and fit["joints"] == [list(C.part_joints("lower"))]
     names = sorted(p.name for p in out.glob("*.npz"))
     assert len(names) == 5, names
     assert [sum(w in n for n in names) for w in ("path", "loop", "keyframes", "continued")] == [
@@ -417,7 +495,6 @@ def test_sample_cli_constraints(tmp_path, clips):
     assert main([*base, "--keyframes", str(kf)]) == 1  # needs --seconds
     # --fit-steps reaches the noise fit: 0 steps is the library's unfitted in-between,
     # which the default (fitted) one is not
-    from mrlib.io import load_motion
     from mrlib.sample import load_model
 
     bare = tmp_path / "bare"

@@ -8,7 +8,9 @@ usable the same way for label and speech models wherever it works on the output:
   feet planted.
 * :func:`generate_with_keyframes` / :func:`apply_keyframes` (``keyframes``): hold full
   or partial poses at given frames; :func:`continue_motion` extends a prefix.
-* :func:`generate_parts` / :func:`splice_parts` (``compose``): a condition per body part.
+* :func:`generate_parts` / :func:`splice_parts` (``compose``): a condition per body part;
+  :func:`generate_sharpened` (``sharpen``) fits a sample's noise so that each part shows
+  its label.
 * :func:`generate_loop` (``loop``): a loop whose end joins its start.
 
 How each works, and what was measured against what, is in the submodules' docstrings
@@ -47,6 +49,12 @@ from mrlib.constraints.path import (
     parse_path,
     path_error,
 )
+from mrlib.constraints.sharpen import (
+    MARGIN,
+    SHARPEN_STEPS,
+    generate_sharpened,
+    label_margin_objective,
+)
 
 __all__ = [
     "GroundPath",
@@ -74,6 +82,10 @@ __all__ = [
     "phase_align",
     "arm_leg_coordination",
     "part_fidelity",
+    "SHARPEN_STEPS",
+    "MARGIN",
+    "label_margin_objective",
+    "generate_sharpened",
     "generate_loop",
     "loop_seam",
     "tile_loop",

@@ -112,22 +112,30 @@ def generate_parts(
     method: str = "splice",
     fix_contacts: bool = True,
     align_gait: bool = False,
+    sharpen: int = 0,
     body=None,
+    progress: bool = False,
 ):
     """A label model's motion with each body part under its own label (method: module
     docstring), e.g. ``parts={"upper": "walk_happy", "lower": "walk_sad"}``.
     ``align_gait`` (splice): each other part is taken from a sample retimed to the gait
     of the part holding the pelvis (:func:`phase_align`), so the arms swing in step with
     the legs; it costs some of the part's own label where the labels' cadences differ
-    (``docs/results.md``, "Body parts").
+    (``docs/results.md``, "Body parts"). ``sharpen``: Adam steps of the noise fit that
+    moves each part's windows nearer its own label's training clips than any other's
+    (``mrlib.constraints.sharpen``; ``SHARPEN_STEPS`` is the benchmarked length, 0 is
+    off); it takes about as long per step as a sample takes to draw.
 
     Returns:
         ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``) or a list.
     """
+    from mrlib.constraints.optimise import optimise_noise
+    from mrlib.constraints.sharpen import generate_sharpened, label_margin_objective
     from mrlib.features import features_to_motions
     from mrlib.sample import (
+        check_conditions,
         cleanup_foot_contacts,
-        generate,
+        draw_noise,
         guided_weights,
         label_inputs,
         label_weights,
@@ -137,14 +145,16 @@ def generate_parts(
 
     if method not in ("film", "splice"):
         raise MotionValueError(f"method must be 'film' or 'splice', got {method!r}")
+    if isinstance(sharpen, bool) or not isinstance(sharpen, (int, np.integer)) or sharpen < 0:
+        raise MotionValueError(f"sharpen must be an integer >= 0 (steps), got {sharpen!r}")
     groups = _groups(parts)
     tag = ",".join(f"{p}={c}" for p, c in parts.items())
     if method == "splice":
 
         def draw(c, n):
-            ms = generate(model, c, length=n, seed=seed, num_samples=num_samples,
-                          fix_contacts=False)  # fmt: skip
-            return [ms] if isinstance(ms, Motion) else ms
+            own = [js for js, cc in groups if cc == c]  # the parts this sample gives
+            return generate_sharpened(model, c, own, n, seed=seed, num_samples=num_samples,
+                                      steps=sharpen, progress=progress)  # fmt: skip
 
         base_c = next(c for js, c in groups if 0 in js)
         motions = {base_c: draw(base_c, length)}
@@ -171,7 +181,16 @@ def generate_parts(
             [(m, G[i].expand(1, lengths[i], -1)) for m, G in zip(masks, Gs, strict=True)]
             for i in range(model.num_levels)
         ]
-        x = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num_samples)
+        if sharpen:
+            noises = draw_noise(lengths, amp, seed, num_samples, model.device)
+            cs = check_conditions(model, conds, lengths, num_samples)
+            loss_fn = label_margin_objective(model, {js: c for js, c in groups})
+            noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(sharpen),
+                                       progress=progress)  # fmt: skip
+            with torch.no_grad():
+                x = model.generator.run_batch(noises, cs)
+        else:
+            x = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num_samples)
         names = [f"{tag}_seed{seed}_{b}" for b in range(num_samples)]
         out = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
                                   normalizer=model.normalizer, label=tag, names=names)  # fmt: skip
@@ -329,17 +348,14 @@ def part_fidelity(
     """Condition fidelity measured on each part alone: the share of a part's windows
     whose nearest training window (on that part's joint rotations; the lower body also
     on the contact labels) belongs to the part's own label."""
+    from mrlib.constraints.sharpen import part_columns
     from mrlib.fidelity import model_references
     from mrlib.metrics import condition_fidelity, metric_features
 
     _, labels, feats = model_references(model)
     out = {}
     for part, cond in parts.items():
-        js = [j for j in part_joints(part) if j > 0]  # the metrics leave out the root joint
-        cols = np.concatenate([np.arange(6 * (j - 1), 6 * j) for j in js])
-        with_contacts = 0 in part_joints(part) or any(j in LOWER_BODY_JOINTS for j in js)
-        if with_contacts:
-            cols = np.concatenate([cols, 138 + np.arange(6)])
+        cols = part_columns(part)
         refs = {
             lab: np.concatenate(
                 [f[:, cols] for f, lb in zip(feats, labels, strict=True) if lb == lab]

@@ -74,7 +74,8 @@ def optimise_noise(
     from tqdm.auto import tqdm
 
     gen = model.generator
-    scale = [z.detach().std().clamp_min(1e-6) for z in noises]
+    # each sample's noise whitened by its own scale
+    scale = [z.detach().std(dim=(1, 2), keepdim=True).clamp_min(1e-6) for z in noises]
     eps = [
         (z.detach() / s).clone().requires_grad_(True) for z, s in zip(noises, scale, strict=True)
     ]
