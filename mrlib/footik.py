@@ -364,13 +364,14 @@ def _cleanup_ik(
     body = resolve_body(body)
     R, trans, betas = body.motion_inputs(motion)
     ids = list(body.foot_vertex_ids)
-    Rn, tn = R.double().numpy(), trans.double().numpy()
+    Rn, tn = R.double().cpu().numpy(), trans.double().cpu().numpy()
+    on = dict(device=body.device, dtype=body.dtype)  # a body on an accelerator stays there
     for _ in range(passes):  # each pass re-poses the feet on the planted ones' means
         with torch.no_grad():
             out = body.forward(
-                torch.from_numpy(Rn).float(), torch.from_numpy(tn).float(), betas, vertex_ids=ids
+                torch.from_numpy(Rn).to(**on), torch.from_numpy(tn).to(**on), betas, vertex_ids=ids
             )
-        J, F = out.joints.double().numpy(), out.vertices.double().numpy()
+        J, F = out.joints.double().cpu().numpy(), out.vertices.double().cpu().numpy()
         Rn, offset, info = plant_feet(
             Rn, J, F, motion.contacts, blend, move_root=move_root, root_smooth=root_smooth
         )
@@ -437,7 +438,7 @@ def cleanup_foot_contacts(
         p0 = body.forward(R, trans, betas, vertex_ids=ids).vertices  # (T, 6, 3)
     c = np.asarray(motion.contacts) > 0.5
     target = p0.clone()
-    active = torch.zeros(c.shape, dtype=torch.bool)
+    active = torch.zeros(c.shape, dtype=torch.bool, device=p0.device)
     for v in range(c.shape[1]):
         for s, e in contact_runs(c[:, v]).tolist():
             if e > s:
@@ -446,7 +447,7 @@ def cleanup_foot_contacts(
     if not active.any():
         return motion.replace()
     legs = list(LEG_JOINTS)
-    delta = torch.zeros(len(p0), len(legs), 3, requires_grad=True)
+    delta = torch.zeros(len(p0), len(legs), 3, device=R.device, dtype=R.dtype, requires_grad=True)
     opt = torch.optim.Adam([delta], lr=lr)
     for _ in range(iterations):
         opt.zero_grad()

@@ -8,6 +8,7 @@ import csv
 import math
 import os
 
+import numpy as np
 import pytest
 import torch
 
@@ -148,3 +149,44 @@ def test_speech_training_on_cuda(tmp_path, body, walks):
     res = speech_train(data, cfg, tmp_path, body=body, progress=False)
     assert _finite_log(res.log) > 0
     assert load_speech_model(res.checkpoint).model.trained_levels == 3
+
+
+def test_the_noise_fits_run_on_the_device_as_on_the_cpu(tmp_path, full_precision):
+    # the constraints' test-time fits (mrlib.constraints.optimise) build their targets on
+    # the model's device, and the foot clean-up runs on a body model there: a part's label
+    # sharpened, an in-between fitted to keyframes, a continued prefix, a path by noise
+    # optimisation and both clean-ups give the CPU's motion (the label windows of 30
+    # frames need 4 s clips at 10 fps)
+    from mrlib import constraints as C
+    from mrlib.body import load_body_model
+    from mrlib.footik import cleanup_foot_contacts
+
+    cpu_body, device_body = load_body_model(), load_body_model().to(DEVICE)
+    walks = [
+        synthetic_walk(s, seconds=4.0, fps=10.0, seed=k)
+        for k, s in enumerate(["walk_normal", "walk_happy", "walk_sad"])
+    ]
+    cfg = TrainConfig(model=TINY, block_iterations=(3, 2), n_critic=1, checkpoint_every=0,
+                      device=DEVICE)  # fmt: skip
+    data = TrainingSet.from_motions(walks)
+    res = train(data, cfg, tmp_path, body=device_body, progress=False)
+    kfs = [C.Keyframe.from_motion(walks[0], 0, 0), C.Keyframe.from_motion(walks[1], -1, 29)]
+    cases = {
+        "sharpened": lambda m, b: C.generate_sharpened(m, "walk_sad", ("upper",), 40, seed=1,
+                                                       steps=5)[0],
+        "keyframes": lambda m, b: C.generate_with_keyframes(m, kfs, 30, "walk_happy", seed=2,
+                                                            steps=5, body=b),
+        "continued": lambda m, b: C.continue_motion(m, walks[2], 10, "walk_sad", seed=3,
+                                                    steps=5, body=b),
+        "path": lambda m, b: C.generate_on_path(m, "circle:1", "walk_normal", seconds=3.0,
+                                                seed=4, method="optimise", steps=5, body=b),
+        "clean-up by optimisation": lambda m, b: cleanup_foot_contacts(
+            generate(m, "walk_sad", seed=5, fix_contacts=False), b, iterations=5,
+            method="optimise"),
+    }  # fmt: skip
+    on_device, on_cpu = load_model(res.checkpoint, DEVICE), load_model(res.checkpoint, "cpu")
+    for name, make in cases.items():
+        a, b = make(on_device, device_body), make(on_cpu, cpu_body)
+        assert np.isfinite(a.poses).all(), name
+        err = np.abs(a.poses - b.poses).max()
+        assert err < 1e-3, f"{name}: device and CPU differ by {err:.2e}"

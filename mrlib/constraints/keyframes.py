@@ -338,7 +338,7 @@ def keyframe_objective(
     near = np.zeros(len(centre), bool)
     for kf in keyframes:
         near |= np.abs(centre - kf.frame) <= STILL_S * model.fps
-    near_t = torch.from_numpy(near)
+    near_t = torch.from_numpy(near).to(model.device)
     still = float(still) if near.any() else 0.0
     if not (posed or len(roots) >= 2 or still > 0):
         return None
@@ -348,7 +348,7 @@ def keyframe_objective(
         per_joint = JOINT_JERK * (model.fps**3 / _clips_jerk(model, body)) ** 2
     tgt = [
         (kf.frame, [j for j in kf.joints if j > 0],
-         _sixd(axis_angle_to_matrix(torch.from_numpy(kf.poses))).float())
+         _sixd(axis_angle_to_matrix(torch.from_numpy(kf.poses))).float().to(model.device))
         for kf in posed
     ]  # fmt: skip
     gaps = [
@@ -445,11 +445,11 @@ def continue_motion(
     T = K + int(frames)
     noises, conds, label = label_setup(model, condition, conditions, blend, T, seed)
     six = _sixd(axis_angle_to_matrix(torch.from_numpy(prefix.poses[:, 1:].astype(np.float64))))
-    six = six.float()  # (K, 23, 6)
-    height = torch.from_numpy(prefix.trans[:, 1].astype(np.float32))
+    six = six.float().to(model.device)  # (K, 23, 6)
+    height = torch.from_numpy(prefix.trans[:, 1].astype(np.float32)).to(model.device)
     speed = torch.from_numpy(
         np.linalg.norm(np.gradient(prefix.trans[:, [0, 2]], axis=0), axis=1).astype(np.float32)
-    )
+    ).to(model.device)
 
     def loss_fn(x: torch.Tensor) -> torch.Tensor:
         d = decode(model, x)

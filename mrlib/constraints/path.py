@@ -457,7 +457,7 @@ def _optimise_onto_path(model, path, condition, conditions, blend, length, seed,
         s = pace * t
     xz = path.at(s)[0]
     # decoded translations start at the origin: ask for the path's steps from its start
-    target = torch.from_numpy(xz - xz[0]).float()  # (T, 2)
+    target = torch.from_numpy(xz - xz[0]).float().to(model.device)  # (T, 2)
 
     def loss_fn(x: torch.Tensor) -> torch.Tensor:
         return (decode(model, x)["trans"][0, :, [0, 2]] - target).pow(2).sum(-1).mean()
