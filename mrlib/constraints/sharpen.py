@@ -90,8 +90,9 @@ def label_margin_objective(
     windows of ``max(0, d_own - d_other + margin)``, averaged over the parts. It is 0
     for a motion whose every window is nearer its part's own label by ``margin``.
     ``push``: the gradient also flows through ``d_other``, pushing a window away from
-    the other labels as well as pulling it to its own; off by default, since pushed
-    windows leave the motion of every clip (``docs/results.md``, "Body parts")."""
+    the other labels as well as pulling it to its own; off by default: on the Bandai
+    walks it kept more diversity but made the samples jerkier and slide more than
+    pulling alone (``docs/results.md``, "Body parts")."""
     from mrlib.constraints.optimise import decode
     from mrlib.fidelity import model_references
     from mrlib.rotations import matrix_to_6d
