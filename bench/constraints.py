@@ -104,6 +104,9 @@ def main() -> int:
                     f"[0,{C.SHARPEN_STEPS}]")  # fmt: skip
     ap.add_argument("--sharpen-push", action="store_true",
                     help="sharpen: the fit also pushes windows away from the other labels")  # fmt: skip
+    ap.add_argument("--sharpen-prior", choices=("zero", "draw"), default=None,
+                    help="sharpen: the noise fit's prior centred on 0 or on the draw "
+                    "(mrlib.constraints.optimise.optimise_noise prior_centre) [mrlib's]")  # fmt: skip
     ap.add_argument("--lr", type=float, default=None,
                     help="the model trained with this learning rate "
                     "(bench/condition_control.py --lr) [the preset's]")  # fmt: skip
@@ -358,9 +361,10 @@ def run_sharpen(model, body, a, results) -> None:
     refs = {lab: metric_features(m) for lab, m in clips.items()}
     pos = {lab: _body_frame_positions(m, body) for lab, m in clips.items()}
     jerk = {lab: mean_jerk(motion_kinematics(m, body)[0], model.fps) for lab, m in clips.items()}
+    prior = {} if a.sharpen_prior is None else {"prior_centre": a.sharpen_prior}
     how = "pulled and pushed" if a.sharpen_push else "pulled"
     print(f"\n## Sharpened parts ({a.samples} samples of {length} frames per label and part, "
-          f"windows {how})\n")  # fmt: skip
+          f"windows {how}, prior {a.sharpen_prior or 'default'})\n")  # fmt: skip
     print("| part | label | steps | fidelity: rotations (fitted) | joint positions (not fitted) "
           "| coverage eps 2 / 1 | global div. | raw jerk | raw skating | s per sample |")  # fmt: skip
     print("|---|---|---:|---:|---:|---|---:|---:|---:|---:|")
@@ -374,7 +378,8 @@ def run_sharpen(model, body, a, results) -> None:
                 t0 = time.perf_counter()
                 raw = C.generate_sharpened(model, lab, (part,), length, seed=0,
                                            num_samples=a.samples, steps=steps,
-                                           push=a.sharpen_push)  # fmt: skip
+                                           push=a.sharpen_push,
+                                           **prior)  # fmt: skip
                 dt = (time.perf_counter() - t0) / a.samples
                 ms = [mrlib.cleanup_foot_contacts(m, body) for m in raw]
                 f = [metric_features(m)[:, cols] for m in ms]

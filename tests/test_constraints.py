@@ -372,6 +372,30 @@ def _own_distance(model, motion, part: str, label: str) -> float:
     return float(nearest_windows(metric_features(motion)[:, cols], ref, 30, squared=True)[0].mean())
 
 
+def test_the_noise_prior_centred_on_the_draw_leaves_unneeded_noise_alone(model):
+    # a loss that asks nothing of the output: Adam still moves every noise value towards
+    # 0 under the prior at 0, and none under the prior centred on the starting draw
+    from mrlib.constraints.optimise import optimise_noise
+    from mrlib.sample import check_conditions, draw_noise
+
+    W = label_weights(model, "walk_sad")
+    lengths, amp, conds = label_inputs(model, W, 40)
+    noises = draw_noise(lengths, amp, 3, 2, model.device)
+    cs = check_conditions(model, conds, lengths, 2)
+
+    def nothing(x):
+        return 0 * x.sum()
+
+    kept, _ = optimise_noise(model, noises, cs, nothing, steps=10, prior_centre="draw")
+    shrunk, _ = optimise_noise(model, noises, cs, nothing, steps=10)
+    for z, k, s in zip(noises, kept, shrunk, strict=True):
+        assert torch.allclose(k, z)
+        if z.abs().max() > 0:
+            assert float(s.abs().mean()) < 0.9 * float(z.abs().mean())
+    with pytest.raises(ValueError, match="prior_centre"):
+        optimise_noise(model, noises, cs, nothing, steps=1, prior_centre="mean")
+
+
 def test_sharpened_parts_are_pulled_to_their_label_and_spliced_as_drawn(model):
     # the plumbing model's walk_sad samples have the wave's arms (every upper-body window
     # is nearer the wave clip): the fit pulls them towards the walk_sad clip

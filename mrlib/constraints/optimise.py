@@ -56,6 +56,7 @@ def optimise_noise(
     steps: int = 100,
     lr: float = 0.05,
     prior: float = 1e-2,
+    prior_centre: str = "zero",
     circular: bool = False,
     progress: bool = False,
 ) -> tuple[list[torch.Tensor], list[float]]:
@@ -68,6 +69,11 @@ def optimise_noise(
         loss_fn: scalar loss of the generator's normalised output.
         steps, lr: Adam iterations and step size on the whitened noise ``e_i``.
         prior: weight of ``mean(e_i^2)`` (a draw of N(0, 1) has 1).
+        prior_centre: ``"zero"``: the prior as above; ``"draw"``: ``mean((e_i - e_i0)^2)``,
+            the distance from the starting draw instead. Adam scales each step to about
+            ``lr`` whatever the gradient's size, so under ``"zero"`` noise that the loss
+            does not need still shrinks towards 0 (a calmer, less diverse motion);
+            ``"draw"`` leaves it where it was drawn.
     Returns:
         The optimised noise maps and the loss after each step.
     """
@@ -79,6 +85,9 @@ def optimise_noise(
     eps = [
         (z.detach() / s).clone().requires_grad_(True) for z, s in zip(noises, scale, strict=True)
     ]
+    if prior_centre not in ("zero", "draw"):
+        raise ValueError(f"prior_centre must be 'zero' or 'draw', got {prior_centre!r}")
+    centre = [e.detach().clone() if prior_centre == "draw" else 0.0 for e in eps]
     opt = torch.optim.Adam(eps, lr=lr)
     history = []
     with frozen(gen), torch.enable_grad():
@@ -89,7 +98,7 @@ def optimise_noise(
             x = gen.run_batch(
                 [e * s for e, s in zip(eps, scale, strict=True)], conds, circular=circular
             )
-            reg = sum(e.pow(2).mean() for e in eps) / len(eps)
+            reg = sum((e - c).pow(2).mean() for e, c in zip(eps, centre, strict=True)) / len(eps)
             loss = loss_fn(x) + prior * reg
             loss.backward()
             opt.step()

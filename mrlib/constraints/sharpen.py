@@ -145,12 +145,16 @@ def generate_sharpened(
     steps: int = SHARPEN_STEPS,
     margin: float = MARGIN,
     push: bool = False,
+    prior_centre: str = "zero",
     progress: bool = False,
 ) -> list:
     """Raw samples of label ``condition`` (the draw of ``mrlib.sample.generate`` for
     ``seed``; the same samples when ``steps`` is 0) after ``steps`` Adam steps of the
     noise fit towards ``condition`` on each of ``parts`` (module docstring; ``margin``
-    and ``push`` as :func:`label_margin_objective`). Returns a
+    and ``push`` as :func:`label_margin_objective`; ``prior_centre`` as
+    ``mrlib.constraints.optimise.optimise_noise``: ``"zero"`` calms the motion as it
+    fits, ``"draw"`` keeps the sample's own jitter, at the same fidelity on the Bandai
+    walks, ``docs/results.md``). Returns a
     list of ``num_samples`` Motions with the generator's contact labels (feet not
     planted)."""
     from mrlib.constraints.compose import part_joints
@@ -176,7 +180,8 @@ def generate_sharpened(
     lengths, amp, conds = label_inputs(model, W, length)
     noises = draw_noise(lengths, amp, seed, num_samples, model.device)
     cs = check_conditions(model, conds, lengths, num_samples)
-    noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(steps), progress=progress)
+    noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(steps),
+                               prior_centre=prior_centre, progress=progress)  # fmt: skip
     with torch.no_grad():
         x = model.generator.run_batch(noises, cs)
     label = model.labels[model.label_index(condition)]
@@ -189,6 +194,7 @@ def generate_sharpened(
             "guidance": float(model.guidance), "labels": list(model.labels),
             "label_weights": W.tolist(),
             "sharpen": {"joints": [list(part_joints(p)) for p in parts], "steps": int(steps),
-                        "margin": float(margin), "push": bool(push)},
+                        "margin": float(margin), "push": bool(push),
+                        "prior_centre": prior_centre},
         }  # fmt: skip
     return motions
