@@ -49,6 +49,7 @@ import itertools
 import json
 import sys
 import time
+from inspect import signature
 from pathlib import Path
 
 import numpy as np
@@ -104,6 +105,8 @@ def main() -> int:
                     f"[0,{C.SHARPEN_STEPS}]")  # fmt: skip
     ap.add_argument("--sharpen-push", action="store_true",
                     help="sharpen: the fit also pushes windows away from the other labels")  # fmt: skip
+    ap.add_argument("--sharpen-margin", type=float, default=C.MARGIN,
+                    help=f"sharpen: the hinge's margin [{C.MARGIN}]")  # fmt: skip
     ap.add_argument("--sharpen-prior", choices=("zero", "draw"), default=None,
                     help="sharpen: the noise fit's prior centred on 0 or on the draw "
                     "(mrlib.constraints.optimise.optimise_noise prior_centre) [mrlib's]")  # fmt: skip
@@ -362,9 +365,10 @@ def run_sharpen(model, body, a, results) -> None:
     pos = {lab: _body_frame_positions(m, body) for lab, m in clips.items()}
     jerk = {lab: mean_jerk(motion_kinematics(m, body)[0], model.fps) for lab, m in clips.items()}
     prior = {} if a.sharpen_prior is None else {"prior_centre": a.sharpen_prior}
+    centre = a.sharpen_prior or signature(C.generate_sharpened).parameters["prior_centre"].default
     how = "pulled and pushed" if a.sharpen_push else "pulled"
     print(f"\n## Sharpened parts ({a.samples} samples of {length} frames per label and part, "
-          f"windows {how}, prior {a.sharpen_prior or 'default'})\n")  # fmt: skip
+          f"windows {how}, margin {a.sharpen_margin:g}, prior centred on {centre})\n")  # fmt: skip
     print("| part | label | steps | fidelity: rotations (fitted) | joint positions (not fitted) "
           "| coverage eps 2 / 1 | global div. | raw jerk | raw skating | s per sample |")  # fmt: skip
     print("|---|---|---:|---:|---:|---|---:|---:|---:|---:|")
@@ -378,7 +382,7 @@ def run_sharpen(model, body, a, results) -> None:
                 t0 = time.perf_counter()
                 raw = C.generate_sharpened(model, lab, (part,), length, seed=0,
                                            num_samples=a.samples, steps=steps,
-                                           push=a.sharpen_push,
+                                           push=a.sharpen_push, margin=a.sharpen_margin,
                                            **prior)  # fmt: skip
                 dt = (time.perf_counter() - t0) / a.samples
                 ms = [mrlib.cleanup_foot_contacts(m, body) for m in raw]

@@ -186,7 +186,7 @@ def generate_parts(
             cs = check_conditions(model, conds, lengths, num_samples)
             loss_fn = label_margin_objective(model, {js: c for js, c in groups})
             noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(sharpen),
-                                       progress=progress)  # fmt: skip
+                                       prior_centre="draw", progress=progress)  # fmt: skip
             with torch.no_grad():
                 x = model.generator.run_batch(noises, cs)
         else:

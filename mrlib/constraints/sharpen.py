@@ -15,8 +15,10 @@ nearest-neighbour decision,
 the nearest window of the part's own label's / of any other label's training clips, on
 the features of ``mrlib.metrics.metric_features`` (6D local rotations of the part's
 joints, with the contact labels for a part with leg joints). A window nearer its own
-label by ``margin`` costs nothing, so the fit leaves a sample alone once it shows its
-label and moves only the windows in doubt: classifier guidance (Dhariwal & Nichol 2021)
+label by ``margin`` costs nothing, and the fit's prior is centred on the sample's own
+draw (``optimise_noise(..., prior_centre="draw")``: centred on 0, Adam shrinks the noise
+no window needs and can still a motion), so the fit leaves a sample alone once it shows
+its label and moves only the windows in doubt: classifier guidance (Dhariwal & Nichol 2021)
 with the training clips' nearest-neighbour classifier, on the generator's own noise.
 GenMM (Li et al. 2023) gets the same by construction, building each part from the
 patches of its own example.
@@ -145,16 +147,16 @@ def generate_sharpened(
     steps: int = SHARPEN_STEPS,
     margin: float = MARGIN,
     push: bool = False,
-    prior_centre: str = "zero",
+    prior_centre: str = "draw",
     progress: bool = False,
 ) -> list:
     """Raw samples of label ``condition`` (the draw of ``mrlib.sample.generate`` for
     ``seed``; the same samples when ``steps`` is 0) after ``steps`` Adam steps of the
     noise fit towards ``condition`` on each of ``parts`` (module docstring; ``margin``
     and ``push`` as :func:`label_margin_objective`; ``prior_centre`` as
-    ``mrlib.constraints.optimise.optimise_noise``: ``"zero"`` calms the motion as it
-    fits, ``"draw"`` keeps the sample's own jitter, at the same fidelity on the Bandai
-    walks, ``docs/results.md``). Returns a
+    ``mrlib.constraints.optimise.optimise_noise``: ``"draw"`` leaves the noise the
+    hinge does not need as drawn, ``"zero"`` shrinks it, which calms a motion and can
+    still it altogether where few windows are in doubt, ``docs/results.md``). Returns a
     list of ``num_samples`` Motions with the generator's contact labels (feet not
     planted)."""
     from mrlib.constraints.compose import part_joints
