@@ -343,17 +343,9 @@ def run_parts(model, body, a, seeds, results) -> None:
     second_takes(model, body, results)
 
 
-def _body_frame_positions(m, body) -> np.ndarray:
-    """``(T, 24, 3)`` joint positions relative to the pelvis, in the body's own frame."""
-    from mrlib.rotations import axis_angle_to_matrix
-
-    J = motion_kinematics(m, body)[0]
-    R = axis_angle_to_matrix(torch.as_tensor(m.poses[:, 0], dtype=torch.float64)).numpy()
-    return np.einsum("tji,tkj->tki", R, J - J[:, :1])
-
-
 def run_sharpen(model, body, a, results) -> None:
     """Samples of each label fitted towards it on one part (module docstring)."""
+    from mrlib.constraints.compose import body_frame_joints
     from mrlib.constraints.sharpen import part_columns
     from mrlib.metrics import condition_fidelity, global_diversity
 
@@ -362,7 +354,7 @@ def run_sharpen(model, body, a, results) -> None:
     clips = {model.labels[model.clip_labels[k]]: features_to_motion(x, model.fps, betas=model.betas)
              for k, x in enumerate(model.features)}  # fmt: skip
     refs = {lab: metric_features(m) for lab, m in clips.items()}
-    pos = {lab: _body_frame_positions(m, body) for lab, m in clips.items()}
+    pos = {lab: body_frame_joints(m, body) for lab, m in clips.items()}
     jerk = {lab: mean_jerk(motion_kinematics(m, body)[0], model.fps) for lab, m in clips.items()}
     prior = {} if a.sharpen_prior is None else {"prior_centre": a.sharpen_prior}
     centre = a.sharpen_prior or signature(C.generate_sharpened).parameters["prior_centre"].default
@@ -388,7 +380,7 @@ def run_sharpen(model, body, a, results) -> None:
                 ms = [mrlib.cleanup_foot_contacts(m, body) for m in raw]
                 f = [metric_features(m)[:, cols] for m in ms]
                 ref = refs[lab][:, cols]
-                p = [_body_frame_positions(m, body)[:, js].reshape(m.num_frames, -1) for m in ms]
+                p = [body_frame_joints(m, body)[:, js].reshape(m.num_frames, -1) for m in ms]
                 row = dict(
                     part=part, label=lab, steps=steps, seconds=dt,
                     fidelity=C.part_fidelity(ms, model, {part: lab})[part],

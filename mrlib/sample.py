@@ -359,6 +359,16 @@ def label_inputs(
     return lengths, amp, conds
 
 
+def sampler_record(model: GenerativeModel, seed: int | None, index: int, W: torch.Tensor) -> dict:
+    """What made a label sample, as ``meta["sampler"]`` records it: seed, index in the
+    batch, the sampler's fine_noise and guidance, the labels and per-level weights ``W``."""
+    return {
+        "seed": seed, "index": index, "fine_noise": float(model.fine_noise),
+        "guidance": float(model.guidance), "labels": list(model.labels),
+        "label_weights": W.tolist(),
+    }  # fmt: skip
+
+
 def generate(
     model: GenerativeModel,
     condition: str | int | None = None,
@@ -409,11 +419,7 @@ def generate(
     names = [f"{label}_seed{seed}_{b}" for b in range(num_samples)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
     for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)
-        m.meta["sampler"] = {
-            "seed": seed, "index": b, "fine_noise": float(model.fine_noise),
-            "guidance": float(model.guidance), "labels": list(model.labels),
-            "label_weights": W.tolist(),
-        }  # fmt: skip
+        m.meta["sampler"] = sampler_record(model, seed, b, W)
     if fix_contacts:
         method = fix_contacts if isinstance(fix_contacts, str) else "ik"
         motions = [cleanup_foot_contacts(m, body, method=method) for m in motions]

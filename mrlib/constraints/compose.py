@@ -124,18 +124,16 @@ def generate_parts(
     (``docs/results.md``, "Body parts"). ``sharpen``: Adam steps of the noise fit that
     moves each part's windows nearer its own label's training clips than any other's
     (``mrlib.constraints.sharpen``; ``SHARPEN_STEPS`` is the benchmarked length, 0 is
-    off); it takes about as long per step as a sample takes to draw.
+    off); 50 steps take seconds per sample where a draw takes milliseconds
+    (``docs/results.md``, "Body parts").
 
     Returns:
         ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``) or a list.
     """
-    from mrlib.constraints.optimise import optimise_noise
-    from mrlib.constraints.sharpen import generate_sharpened, label_margin_objective
+    from mrlib.constraints.sharpen import generate_sharpened, sharpened_features
     from mrlib.features import features_to_motions
     from mrlib.sample import (
-        check_conditions,
         cleanup_foot_contacts,
-        draw_noise,
         guided_weights,
         label_inputs,
         label_weights,
@@ -182,13 +180,9 @@ def generate_parts(
             for i in range(model.num_levels)
         ]
         if sharpen:
-            noises = draw_noise(lengths, amp, seed, num_samples, model.device)
-            cs = check_conditions(model, conds, lengths, num_samples)
-            loss_fn = label_margin_objective(model, {js: c for js, c in groups})
-            noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(sharpen),
-                                       prior_centre="draw", progress=progress)  # fmt: skip
-            with torch.no_grad():
-                x = model.generator.run_batch(noises, cs)
+            x = sharpened_features(model, conds, lengths, amp, {js: c for js, c in groups},
+                                   seed=seed, num_samples=num_samples, steps=sharpen,
+                                   progress=progress)  # fmt: skip
         else:
             x = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num_samples)
         names = [f"{tag}_seed{seed}_{b}" for b in range(num_samples)]
@@ -218,15 +212,20 @@ def _stride_signal(motion: Motion, body=None) -> np.ndarray:
     return gaussian_filter1d(f - f.mean(), GAIT_SMOOTH_S * motion.fps, mode="nearest")
 
 
-def _forward_offsets(motion: Motion, body=None) -> np.ndarray:
-    """``(T, 24)`` each joint's forward offset from the pelvis (m) in the body's frame."""
+def body_frame_joints(motion: Motion, body=None) -> np.ndarray:
+    """``(T, 24, 3)`` joint positions relative to the pelvis (m), in the body's own frame
+    (the root orientation undone: SMPL's body faces +z)."""
     from mrlib.plausibility import motion_kinematics
     from mrlib.rotations import axis_angle_to_matrix
 
     J = motion_kinematics(motion, body)[0]
     R = axis_angle_to_matrix(torch.as_tensor(motion.poses[:, 0], dtype=torch.float64)).numpy()
-    rel = np.einsum("tji,tkj->tki", R, J - J[:, :1])  # R^T (J - pelvis)
-    return rel[..., 2]  # SMPL's body frame faces +z
+    return np.einsum("tji,tkj->tki", R, J - J[:, :1])  # R^T (J - pelvis)
+
+
+def _forward_offsets(motion: Motion, body=None) -> np.ndarray:
+    """``(T, 24)`` each joint's forward offset from the pelvis (m) in the body's frame."""
+    return body_frame_joints(motion, body)[..., 2]
 
 
 def arm_leg_coordination(motion: Motion, body=None) -> float:

@@ -42,6 +42,7 @@ __all__ = [
     "SHARPEN_STEPS",
     "part_columns",
     "label_margin_objective",
+    "sharpened_features",
     "generate_sharpened",
 ]
 
@@ -117,7 +118,10 @@ def label_margin_objective(
             raise MotionValueError(
                 f"no training window of {window} frames for {part}={label} or for the other labels"
             )
-        terms.append((torch.from_numpy(cols), torch.cat(own), torch.cat(other)))
+        on = model.device  # the references live where the generator runs, made once
+        terms.append(
+            (torch.from_numpy(cols).to(on), torch.cat(own).to(on), torch.cat(other).to(on))
+        )
 
     def loss_fn(x: torch.Tensor) -> torch.Tensor:
         if x.shape[-1] < window:
@@ -127,13 +131,34 @@ def label_margin_objective(
         f = torch.cat([six, d["contacts"].clamp(0, 1)], -1)  # as metric_features
         loss = x.new_zeros(())
         for cols, own, other in terms:
-            g = _windows(f[..., cols.to(x.device)], window).flatten(0, 1)
-            d_own = _nearest(g, own.to(x.device)) / window
-            d_other = _nearest(g if push else g.detach(), other.to(x.device)) / window
+            g = _windows(f[..., cols], window).flatten(0, 1)
+            d_own = _nearest(g, own) / window
+            d_other = _nearest(g if push else g.detach(), other) / window
             loss = loss + torch.relu(d_own - d_other + margin).mean()
         return loss / len(terms)
 
     return loss_fn
+
+
+def sharpened_features(
+    model, conds, lengths, amp, parts: Mapping, *, seed: int | None = None,
+    num_samples: int = 1, steps: int = SHARPEN_STEPS, margin: float = MARGIN,
+    push: bool = False, prior_centre: str = "draw", progress: bool = False,
+) -> torch.Tensor:  # fmt: skip
+    """Generator output ``(B, C, T)`` (normalised) for per-level conditions ``conds``
+    (as ``mrlib.sample.sample_features`` takes them) from the noise of ``seed``, after
+    ``steps`` Adam steps of the fit towards ``parts`` (``{part: label}``; the other
+    arguments as :func:`generate_sharpened`)."""
+    from mrlib.constraints.optimise import optimise_noise
+    from mrlib.sample import check_conditions, draw_noise
+
+    loss_fn = label_margin_objective(model, parts, margin=margin, push=push)
+    noises = draw_noise(lengths, amp, seed, num_samples, model.device)
+    cs = check_conditions(model, conds, lengths, num_samples)
+    noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(steps),
+                               prior_centre=prior_centre, progress=progress)  # fmt: skip
+    with torch.no_grad():
+        return model.generator.run_batch(noises, cs)
 
 
 def generate_sharpened(
@@ -160,15 +185,8 @@ def generate_sharpened(
     list of ``num_samples`` Motions with the generator's contact labels (feet not
     planted)."""
     from mrlib.constraints.compose import part_joints
-    from mrlib.constraints.optimise import optimise_noise
     from mrlib.features import features_to_motions
-    from mrlib.sample import (
-        check_conditions,
-        draw_noise,
-        generate,
-        label_inputs,
-        label_weights,
-    )
+    from mrlib.sample import generate, label_inputs, label_weights, sampler_record
 
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
         raise MotionValueError(f"steps must be an integer >= 0, got {steps!r}")
@@ -176,27 +194,19 @@ def generate_sharpened(
         out = generate(model, condition, length=length, seed=seed, num_samples=num_samples,
                        fix_contacts=False)  # fmt: skip
         return [out] if num_samples == 1 else out
-    loss_fn = label_margin_objective(model, {p: condition for p in parts}, margin=margin,
-                                     push=push)  # fmt: skip
     W = label_weights(model, condition)
     lengths, amp, conds = label_inputs(model, W, length)
-    noises = draw_noise(lengths, amp, seed, num_samples, model.device)
-    cs = check_conditions(model, conds, lengths, num_samples)
-    noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(steps),
-                               prior_centre=prior_centre, progress=progress)  # fmt: skip
-    with torch.no_grad():
-        x = model.generator.run_batch(noises, cs)
+    x = sharpened_features(model, conds, lengths, amp, {p: condition for p in parts},
+                           seed=seed, num_samples=num_samples, steps=steps, margin=margin,
+                           push=push, prior_centre=prior_centre, progress=progress)  # fmt: skip
     label = model.labels[model.label_index(condition)]
     names = [f"{label}_sharp_seed{seed}_{b}" for b in range(num_samples)]
     motions = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
                                   normalizer=model.normalizer, label=label, names=names)  # fmt: skip
     for b, m in enumerate(motions):  # as generate records it, and the fit
-        m.meta["sampler"] = {
-            "seed": seed, "index": b, "fine_noise": float(model.fine_noise),
-            "guidance": float(model.guidance), "labels": list(model.labels),
-            "label_weights": W.tolist(),
-            "sharpen": {"joints": [list(part_joints(p)) for p in parts], "steps": int(steps),
-                        "margin": float(margin), "push": bool(push),
-                        "prior_centre": prior_centre},
+        m.meta["sampler"] = sampler_record(model, seed, b, W)
+        m.meta["sampler"]["sharpen"] = {
+            "joints": [list(part_joints(p)) for p in parts], "steps": int(steps),
+            "margin": float(margin), "push": bool(push), "prior_centre": prior_centre,
         }  # fmt: skip
     return motions
