@@ -32,6 +32,7 @@ E     FiLM embedding size
 ====  =====================================================================
 """
 
+from mrlib import datasets
 from mrlib.body import BodyModel, BodyOutput, load_body_model
 from mrlib.config import ModelConfig, TrainConfig, get_preset, paper, tutorial
 from mrlib.contacts import DEFAULT_CONTACT_THRESHOLD, foot_contacts, foot_vertex_velocity
@@ -78,6 +79,7 @@ __all__ = [
     "load_motion",
     "save_motion",
     "load_label",
+    "datasets",
     # body and contacts
     "BodyModel",
     "BodyOutput",

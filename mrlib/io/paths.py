@@ -25,6 +25,8 @@ from mrlib.errors import MrlibError
 __all__ = [
     "DATA_DIR_ENV",
     "default_data_dir",
+    "CACHE_ENV",
+    "cache_root",
     "UnsafePathError",
     "safe_component",
     "unique_components",
@@ -32,6 +34,8 @@ __all__ = [
 ]
 
 DATA_DIR_ENV = "MRLIB_DATA_DIR"
+# An offline mirror of the dataset beside the repository (``../shared/...``), if any.
+SHARED_DATA_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "bandai-namco-motion-1"
 
 MAX_COMPONENT = 80  # characters of a sanitised name, before its hash suffix
 _ALLOWED = re.compile(r"[^A-Za-z0-9._+=-]+")
@@ -40,13 +44,30 @@ _ALLOWED = re.compile(r"[^A-Za-z0-9._+=-]+")
 def default_data_dir(data_dir: str | Path | None = None) -> Path:
     """The Bandai Namco dataset folder: ``data_dir`` when given, else ``$MRLIB_DATA_DIR``,
     else ``../shared/data/bandai-namco-motion-1`` beside the repository. The folder may
-    not exist; callers say so with their own error."""
+    not exist; callers say so with their own error. ``mrlib.datasets`` fetches the
+    clips into a cache when neither exists."""
     if data_dir is not None:
         return Path(data_dir).expanduser()
     env = os.environ.get(DATA_DIR_ENV)
     if env:
         return Path(env).expanduser()
-    return Path(__file__).resolve().parents[3] / "shared" / "data" / "bandai-namco-motion-1"
+    return SHARED_DATA_DIR
+
+
+CACHE_ENV = "MRLIB_CACHE_DIR"
+
+
+def cache_root() -> Path:
+    """mrlib's cache folder: ``$MRLIB_CACHE_DIR``, else the user's cache folder
+    (``~/.cache/mrlib`` on Linux, as ``platformdirs`` says elsewhere). Fetched data
+    (``mrlib.datasets``) and shared trained models (``mrlib.train.train_cached``) live
+    here."""
+    root = os.environ.get(CACHE_ENV)
+    if root:
+        return Path(root).expanduser()
+    import platformdirs  # a dependency of pooch
+
+    return Path(platformdirs.user_cache_dir("mrlib"))
 
 
 class UnsafePathError(MrlibError, ValueError):
