@@ -28,10 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
+from mrlib.config import PRESET_FPS
+
 __all__ = ["run_demo", "DATA_SAMPLES", "DEMO_FPS"]
 
 DATA_SAMPLES = Path(__file__).resolve().parents[1] / "data_samples"
-DEMO_FPS = 15.0  # the demo preset trains on the samples resampled to this rate
+DEMO_FPS = PRESET_FPS["demo"]  # the demo preset trains on the samples resampled to this rate
 STAGES = ("load", "retarget", "train", "sample", "crossover", "evaluate")
 
 
@@ -90,7 +92,8 @@ def _train_with_eta(data, cfg, out: Path, body):
         bar.set_postfix_str(f"block {min(b + 1, len(unit))}/{len(unit)}", refresh=False)
 
     try:
-        return train(data, cfg, out, body=body, progress=False, callback=callback)
+        # the demo's own folder: a rerun replaces the model it trained before
+        return train(data, cfg, out, body=body, progress=False, callback=callback, overwrite=True)
     finally:
         bar.close()
 

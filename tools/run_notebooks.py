@@ -1,0 +1,91 @@
+"""Execute the notebooks in place at their default budget, so the committed files carry
+their outputs (figures as PNG) and a reader on GitHub sees every figure without running.
+
+    python tools/run_notebooks.py                 # all of notebooks/*.ipynb, in order
+    python tools/run_notebooks.py notebooks/03_condition_crossover.ipynb
+
+Behind ``make notebooks``. Each notebook runs top to bottom in a fresh kernel from its
+own folder (in order, so that later notebooks reuse the models earlier ones trained:
+``mrlib.train.train_cached``). The wall time, the date and a SHA-256 of the code cells'
+source are written to the notebook's ``metadata["mrlib"]``;
+``tests/test_notebooks.py`` fails when a notebook's code no longer matches the outputs
+it carries. Outputs are kept only when the whole notebook ran without an error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+MAX_BYTES = 2_000_000  # the largest notebook we commit, outputs included
+
+
+def code_hash(nb: dict) -> str:
+    """SHA-256 of the notebook's code cells' source, in order (markdown edits do not
+    change it; any code edit does)."""
+    h = hashlib.sha256()
+    for cell in nb["cells"]:
+        if cell["cell_type"] == "code":
+            text = cell["source"] if isinstance(cell["source"], str) else "".join(cell["source"])
+            h.update(text.strip().encode() + b"\0")
+    return h.hexdigest()
+
+
+def run(path: Path, timeout: int) -> float:
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(path, as_version=4)
+    env_quick = os.environ.pop("MRLIB_QUICK", None)  # the default budget, never the smoke test
+    try:
+        client = NotebookClient(
+            nb,
+            timeout=timeout,
+            kernel_name="python3",
+            resources={"metadata": {"path": str(path.parent)}},
+        )
+        t0 = time.perf_counter()
+        client.execute()
+        wall = time.perf_counter() - t0
+    finally:
+        if env_quick is not None:
+            os.environ["MRLIB_QUICK"] = env_quick
+    nb.metadata["mrlib"] = {
+        "source_sha256": code_hash(nb),
+        "wall_time_s": round(wall, 1),
+        "executed": time.strftime("%Y-%m-%d"),
+        "machine": f"{platform.machine()}, {os.cpu_count()} CPUs, {platform.system()}",
+    }
+    for cell in nb.cells:  # execution counts from 1 in order; no widget state blobs
+        cell.get("metadata", {}).pop("execution", None)
+    nb.metadata.pop("widgets", None)
+    nbformat.write(nb, path)
+    size = path.stat().st_size
+    print(f"{path.name}: {wall:.0f} s, {size / 1e6:.2f} MB", flush=True)
+    if size > MAX_BYTES:
+        print(f"warning: {path.name} is over {MAX_BYTES / 1e6:g} MB with its outputs", flush=True)
+    return wall
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("notebooks", nargs="*", type=Path)
+    ap.add_argument("--timeout", type=int, default=1800, help="seconds per cell [1800]")
+    args = ap.parse_args(argv)
+    paths = args.notebooks or sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
+    times = {}
+    for p in paths:
+        times[p.name] = run(p.resolve(), args.timeout)
+    print(json.dumps({k: round(v, 1) for k, v in times.items()}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
