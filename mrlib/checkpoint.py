@@ -1,7 +1,8 @@
 """Checkpoint files: a plain dict of tensors and Python scalars/strings/lists.
 
 Written with ``torch.save`` to a temporary file in the same folder and moved into place
-with ``os.replace`` (atomic: a crash never leaves a half-written checkpoint), read with
+(``mrlib.io.outputs.atomic_write``: a crash never leaves a half-written checkpoint, and a
+symbolic link in its place is refused, not followed), read with
 ``torch.load(..., weights_only=True)`` (no pickled classes; safe to load from others).
 The training config is stored as a JSON string under ``"config"`` and also written as
 ``<checkpoint>.json`` next to the file.
@@ -30,7 +31,6 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
-import os
 import pickle
 import random
 from collections.abc import Iterator
@@ -41,6 +41,7 @@ import numpy as np
 import torch
 
 from mrlib.errors import MotionFileError, MrlibError
+from mrlib.io.outputs import atomic_write, write_text
 
 __all__ = [
     "FORMAT",
@@ -88,38 +89,21 @@ def state_checksum(state: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
-def _remove_stale_temporaries(path: Path) -> None:
-    """Remove ``.<name>.tmp<PID>`` files left by writers that were killed mid-write
-    (their process is gone); a live writer's file is left alone."""
-    for tmp in path.parent.glob(f".{path.name}.tmp*"):
-        pid = tmp.name.rsplit(".tmp", 1)[-1]
-        if not pid.isdigit() or int(pid) == os.getpid():
-            continue
-        try:
-            os.kill(int(pid), 0)
-        except ProcessLookupError:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass  # exists but not ours to signal: leave it
-
-
-def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
+def save_checkpoint(path: str | Path, state: dict[str, Any], *, overwrite: bool = True) -> Path:
     """Write ``state`` atomically to ``path`` (and its config to ``path.json``), with a
-    checksum of its content. A failed write (full disk, interruption) leaves the previous
-    file as it was and removes the temporary file."""
+    checksum of its content, through ``mrlib.io.outputs.atomic_write``: a failed write
+    (full disk, interruption) leaves the previous file as it was and removes the
+    temporary file; a symbolic link at ``path`` is refused, never followed;
+    ``overwrite=False`` refuses an existing file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     state = {"format": FORMAT, "version": FORMAT_VERSION, **state}
     state["checksum"] = state_checksum(state)
-    _remove_stale_temporaries(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
-        torch.save(state, tmp)
-        with open(tmp, "rb+") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        atomic_write(path, lambda fh: torch.save(state, fh), overwrite=overwrite)
+    except MrlibError:
+        raise
     except BaseException as exc:
-        tmp.unlink(missing_ok=True)
         if isinstance(exc, OSError):
             why = exc.strerror or str(exc)
         elif isinstance(exc, RuntimeError):  # torch's zip writer: a short or failed write
@@ -130,9 +114,13 @@ def save_checkpoint(path: str | Path, state: dict[str, Any]) -> Path:
             path, f"could not write the checkpoint: {why}; the previous one is kept"
         ) from exc
     if "config" in state:
-        jtmp = path.with_name(f".{path.name}.json.tmp{os.getpid()}")
-        jtmp.write_text(state["config"])
-        os.replace(jtmp, path.with_suffix(path.suffix + ".json"))
+        meta = path.with_name(path.name + ".json")
+        try:
+            write_text(meta, state["config"], overwrite=overwrite)
+        except OSError as exc:
+            raise CheckpointError(
+                meta, f"could not write the config: {exc.strerror or exc}; the previous one is kept"
+            ) from exc
     return path
 
 

@@ -564,9 +564,12 @@ def test_a_failed_write_keeps_the_previous_checkpoint(tmp_path, monkeypatch):
     path = save_checkpoint(tmp_path / "c.pt", {"w": torch.ones(3)})
     before = path.read_bytes()
 
-    def full_disk(obj, f, *a, **k):
-        with open(f, "wb") as fh:
-            fh.write(b"partial")
+    def full_disk(obj, f, *a, **k):  # f: the open temporary file (or a path)
+        if hasattr(f, "write"):
+            f.write(b"partial")
+        else:
+            with open(f, "wb") as fh:
+                fh.write(b"partial")
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(torch, "save", full_disk)

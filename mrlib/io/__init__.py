@@ -18,13 +18,15 @@ Everything returned is in mrlib's conventions (``mrlib.skeleton``): metres, Y up
 from __future__ import annotations
 
 import json
+import os
 import re
 from pathlib import Path
 
 from mrlib.errors import MotionFileError, MotionValueError, MrlibError, UnsupportedFormatError
-from mrlib.io.bvh import BVH, BVHSkeleton, parse_bvh, read_bvh, write_bvh
+from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, parse_bvh, read_bvh, write_bvh
 from mrlib.io.export import smpl_to_bvh
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
+from mrlib.io.outputs import check_writable, write_text
 from mrlib.io.paths import default_data_dir
 from mrlib.io.retarget import (
     JointMap,
@@ -171,6 +173,33 @@ def load_bvh(
     return motion if fps is None else motion.resample(fps)
 
 
+def _not_a_file(path: Path) -> str:
+    """Why ``path``, which is not a regular file (after following links), cannot be read."""
+    if path.is_symlink():
+        try:
+            target = os.readlink(path)
+        except OSError:
+            target = "?"
+        if not path.exists():
+            return f"is a broken symbolic link (to {target})"
+        return f"is a symbolic link to {target}, which is not a regular file"
+    if not os.path.lexists(path):
+        return "no such file"
+    import stat
+
+    mode = path.lstat().st_mode
+    kind = (
+        "a named pipe (FIFO)"
+        if stat.S_ISFIFO(mode)
+        else "a socket"
+        if stat.S_ISSOCK(mode)
+        else "a device"
+        if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+        else "something other than a file"
+    )
+    return f"is {kind}, not a regular file; mrlib reads regular files only"
+
+
 def load_motion(
     path: str | Path,
     fps: float | None = None,
@@ -211,7 +240,7 @@ def load_motion(
             path, f"unsupported file type '{ext}'; mrlib reads .bvh, .npz and EasyMocap folders"
         )
     if not path.is_file():
-        raise MotionFileError(path, "no such file")
+        raise MotionFileError(path, _not_a_file(path))
     try:
         if ext == ".bvh":
             return load_bvh(
@@ -239,14 +268,27 @@ def load_motion(
 
 
 def save_motion(
-    motion: Motion, path: str | Path, *, body=None, bvh_unit: str = "cm", euler_order: str = "ZXY"
+    motion: Motion,
+    path: str | Path,
+    *,
+    body=None,
+    bvh_unit: str = "cm",
+    euler_order: str = "ZXY",
+    overwrite: bool = True,
 ) -> Path:
     """Write ``motion`` to ``.npz`` (``save_npz``), ``.bvh`` (``smpl_to_bvh``: SMPL's
     skeleton for ``motion.betas``, ``bvh_unit`` cm or m, ``euler_order`` rotations) or
     ``.glb`` (``mrlib.io.gltf.save_glb``: the skinned body mesh with the animation).
 
+    Every format is written atomically and never through a symbolic link
+    (``mrlib.io.outputs``): a failed write leaves an earlier file as it was.
+    ``overwrite=False`` refuses an existing file (before any work).
+
     Raises:
         UnsupportedFormatError: any other extension.
+        OutputExistsError: ``path`` exists and ``overwrite`` is False.
+        OutputError: ``path`` is a symbolic link or not a regular file.
+        MotionFileError: the write failed (a missing folder, a full disk).
     """
     path = Path(path)
     ext = path.suffix.lower()
@@ -254,13 +296,16 @@ def save_motion(
         raise UnsupportedFormatError(
             path, f"unsupported file type '{ext}'; mrlib writes .bvh, .glb and .npz"
         )
+    check_writable(path, overwrite=overwrite)
     try:
         if ext == ".npz":
-            return save_npz(motion, path)
+            return save_npz(motion, path, overwrite=overwrite)
         if ext == ".glb":
             from mrlib.io.gltf import save_glb
 
-            return save_glb(motion, path, body=body)
-        return write_bvh(path, smpl_to_bvh(motion, body=body, unit=bvh_unit, order=euler_order))
+            return save_glb(motion, path, body=body, overwrite=overwrite)
+        bvh = smpl_to_bvh(motion, body=body, unit=bvh_unit, order=euler_order)
+        return write_text(path, format_bvh(bvh), overwrite=overwrite)
     except OSError as e:
-        raise MotionFileError(path, f"cannot write: {e.strerror or e}") from e
+        kept = "; the previous file is kept" if os.path.lexists(path) else ""
+        raise MotionFileError(path, f"cannot write: {e.strerror or e}{kept}") from e

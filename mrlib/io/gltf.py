@@ -23,6 +23,7 @@ import torch
 
 from mrlib.body import fit_betas, resolve_body
 from mrlib.io.bodyfit import rest_joints_for
+from mrlib.io.outputs import write_bytes
 from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = ["save_glb", "read_glb"]
@@ -52,13 +53,15 @@ def _top_weights(W: np.ndarray, k: int = INFLUENCES) -> tuple[np.ndarray, np.nda
     return idx.astype(np.uint16), w.astype(np.float32)
 
 
-def save_glb(motion, path: str | Path, *, body=None) -> Path:
+def save_glb(motion, path: str | Path, *, body=None, overwrite: bool = True) -> Path:
     """Write ``motion`` as a skinned, animated ``.glb`` (layout: module docstring).
 
     Args:
         motion: a ``mrlib.Motion``.
         path: the ``.glb`` to write.
         body: body model for the mesh, weights and rest joints (default: mrlib's).
+        overwrite: replace an existing file (atomically; never through a symbolic
+            link); False refuses it (``mrlib.io.outputs.OutputExistsError``).
 
     Returns:
         ``path``.
@@ -173,9 +176,8 @@ def save_glb(motion, path: str | Path, *, body=None) -> Path:
         },
     )
     gltf.set_binary_blob(bytes(blob))
-    path = Path(path)
-    gltf.save_binary(str(path))
-    return path
+    # atomic, never through a symbolic link (pygltflib's save_binary opens the name)
+    return write_bytes(path, b"".join(gltf.save_to_bytes()), overwrite=overwrite)
 
 
 def read_glb(path: str | Path) -> dict:

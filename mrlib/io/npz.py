@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.io.outputs import atomic_write
 from mrlib.io.retarget import (
     change_up_axis,
     default_body,
@@ -54,6 +55,44 @@ __all__ = ["load_npz", "save_npz", "load_easymocap", "POSE_WIDTHS"]
 # Pose vector widths and the body model they come from.
 POSE_WIDTHS = {72: "SMPL", 156: "SMPL-H", 165: "SMPL-X"}
 _FPS_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps")
+_USED_KEYS = frozenset(
+    ("poses", "trans", "betas", *_FPS_KEYS, "up_axis", "contacts", "label", "name", "meta_json")
+)
+# The most one array of an npz may hold, uncompressed: 4 hours of SMPL-X poses at 30 fps
+# in float64. Checked before the array is read, from the zip's record and the array's own
+# header, so a small file that inflates to gigabytes (a zip bomb) is refused, not read.
+MAX_ARRAY_BYTES = 256 * 2**20
+
+
+def _read_used_keys(path: Path, z) -> dict[str, Any]:
+    """The arrays of ``z`` (an open ``NpzFile``) that mrlib reads, each checked against
+    ``MAX_ARRAY_BYTES`` first; other keys are listed (value None), never read."""
+    data: dict[str, Any] = {}
+    names = set(z.zip.namelist())
+    for key in z.files:
+        if key not in _USED_KEYS:
+            data[key] = None
+            continue
+        member = f"{key}.npy" if f"{key}.npy" in names else key
+        size = z.zip.getinfo(member).file_size
+        with z.zip.open(member) as fh:
+            version = np.lib.format.read_magic(fh)
+            read_header = (
+                np.lib.format.read_array_header_1_0
+                if version == (1, 0)
+                else np.lib.format.read_array_header_2_0
+            )
+            shape, _, dtype = read_header(fh)
+        size = max(size, int(np.prod(shape, dtype=object)) * dtype.itemsize)
+        if size > MAX_ARRAY_BYTES:
+            raise MotionFileError(
+                path,
+                f"'{key}' holds {size / 2**20:.0f} MB uncompressed, more than the "
+                f"{MAX_ARRAY_BYTES // 2**20} MB mrlib reads per array; split the clip or "
+                "store fewer frames",
+            )
+        data[key] = z[key]
+    return data
 
 
 def _finite(path, key: str, arr: np.ndarray) -> np.ndarray:
@@ -137,7 +176,7 @@ def load_npz(
         if not isinstance(z, np.lib.npyio.NpzFile):
             raise MotionFileError(path, "not an .npz archive (a single .npy array?)")
         with z:
-            data = {k: z[k] for k in z.files}
+            data = _read_used_keys(path, z)
     except MotionFileError:
         raise
     except IsADirectoryError:
@@ -231,8 +270,11 @@ def load_npz(
     return motion if fps is None or file_fps is None else motion.resample(fps)
 
 
-def save_npz(motion: Motion, path: str | Path) -> Path:
+def save_npz(motion: Motion, path: str | Path, *, overwrite: bool = True) -> Path:
     """Write ``motion`` as an AMASS-style npz with ``up_axis="y"`` (mrlib's frame).
+
+    The file is written atomically and never through a symbolic link
+    (``mrlib.io.outputs.atomic_write``); ``overwrite=False`` refuses an existing file.
 
     Keys: ``poses (T, 72)``, ``trans (T, 3)``, ``betas``, ``mocap_framerate``,
     ``up_axis``, ``gender="neutral"``, and when present ``contacts (T, 6)``, ``label``,
@@ -255,9 +297,8 @@ def save_npz(motion: Motion, path: str | Path) -> Path:
         out["name"] = np.str_(motion.name)
     if motion.meta:
         out["meta_json"] = np.str_(json.dumps(motion.meta, default=str))
-    with open(path, "wb") as f:  # np.savez would append ".npz" to other suffixes
-        np.savez(f, **out)
-    return path
+    # a file object: np.savez would append ".npz" to other suffixes
+    return atomic_write(path, lambda f: np.savez(f, **out), overwrite=overwrite)
 
 
 def _natural_key(p: Path):

@@ -66,7 +66,7 @@ from mrlib.models import build_critics, build_generator
 from mrlib.pyramid import PackedLevels
 from mrlib.speech.align import downsample_levels, levels_to_residuals, speech_conditions
 from mrlib.speech.data import SpeechTrainingSet
-from mrlib.train import RandomDraw, Trainer, TrainResult
+from mrlib.train import RandomDraw, Trainer, TrainResult, check_run_folder
 
 __all__ = [
     "RANDOM_AUDIO",
@@ -393,6 +393,7 @@ class SpeechTrainer(Trainer):
             random_audio=str(state["speech"]["random_audio"]),
         )
         trainer.load_state_dict(state)
+        trainer.resumed_from = Path(path)
         return trainer
 
 
@@ -407,10 +408,13 @@ def speech_train(
     device: str | None = None,
     progress: bool = True,
     callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
+    overwrite: bool = False,
 ) -> TrainResult:
     """Train a speech-conditioned model (or continue one); ``mrlib.train.train`` for
     speech. ``data``, ``config`` and ``random_audio`` are ignored when resuming (the
-    checkpoint holds them); ``device`` then moves the run to another device."""
+    checkpoint holds them); ``device`` then moves the run to another device.
+    ``overwrite`` replaces a run already in ``out_dir`` (refused otherwise)."""
+    check_run_folder(out_dir, resume=resume, overwrite=overwrite)
     if resume is not None:
         trainer = SpeechTrainer.from_checkpoint(resume, out_dir=out_dir, body=body, device=device)
     else:
@@ -419,4 +423,4 @@ def speech_train(
                 None, "speech_train() needs data and config unless resume is given"
             )
         trainer = SpeechTrainer(data, config, out_dir, body=body, random_audio=random_audio)
-    return trainer.fit(progress=progress, callback=callback)
+    return trainer.fit(progress=progress, callback=callback, overwrite=overwrite)

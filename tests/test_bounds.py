@@ -1,0 +1,200 @@
+"""Work bounded before it starts: sample counts, seeds, level counts, sample lengths,
+network sizes from checkpoints and npz arrays are checked before anything is allocated,
+and the refusal names the flag or file, the limit and the way around it.
+
+Each case that could blow up runs in a subprocess under a memory cap (RLIMIT_DATA, so a
+regression fails there instead of swapping the machine) that reports its peak resident
+memory and time; the issue's acceptance is < 1 GB and < 30 s before the error."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib.config import ModelConfig, TrainConfig
+from mrlib.data import TrainingSet
+from mrlib.io import save_motion
+from mrlib.synthetic import synthetic_walk
+from mrlib.train import train
+
+CAP_BYTES = 3 * 2**30  # the child's data segment (torch alone takes ~0.4 GB)
+PEAK_MB = 1024
+SECONDS = 30
+
+TINY = TrainConfig(
+    model=ModelConfig(num_levels=2, gen_hidden=(24,), disc_hidden=(24,)),
+    block_iterations=(1,),
+    n_critic=1,
+    checkpoint_every=0,
+)
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory) -> Path:
+    data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
+    return train(data, TINY, tmp_path_factory.mktemp("ckpt"), progress=False).checkpoint
+
+
+def _with_config(src: Path, dst: Path, **model) -> Path:
+    state = torch.load(src, weights_only=True)
+    cfg = json.loads(state["config"])
+    cfg["model"].update(model)
+    state["config"] = json.dumps(cfg)
+    state.pop("checksum")
+    torch.save(state, dst)
+    return dst
+
+
+def _zip_bomb(path: Path, clip: Path, junk_mb: int) -> Path:
+    """``clip`` plus an unused key ``junk`` of ``junk_mb`` MB of zeros (a few hundred KB
+    compressed), streamed so that the test itself never holds it."""
+    path.write_bytes(clip.read_bytes())
+    header = {"descr": "|u1", "fortran_order": False, "shape": (junk_mb * 2**20,)}
+    with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED, compresslevel=1) as z:
+        with z.open("junk.npy", "w", force_zip64=True) as fh:
+            np.lib.format.write_array_header_2_0(fh, header)
+            chunk = bytes(2**20)
+            for _ in range(junk_mb):
+                fh.write(chunk)
+    return path
+
+
+def _forged_header(path: Path, clip: Path) -> Path:
+    """``clip`` with a ``betas`` array whose header claims 8 GB (its data is 80 bytes)."""
+    with np.load(clip) as z:
+        data = {k: z[k] for k in z.files if k != "betas"}
+    np.savez(path, **data)
+    header = {"descr": "<f8", "fortran_order": False, "shape": (10**9,)}
+    with zipfile.ZipFile(path, "a") as z, z.open("betas.npy", "w") as fh:
+        np.lib.format.write_array_header_1_0(fh, header)
+        fh.write(bytes(80))
+    return path
+
+
+def _run_capped(cases: list[list[str]]) -> list[dict]:
+    """Run ``mrlib.cli.main`` on every argv in a child under ``CAP_BYTES``; per case its
+    exit code, stderr and seconds, and the child's peak resident memory (MB) so far."""
+    script = textwrap.dedent(
+        f"""
+        import contextlib, io, json, resource, sys, time
+        resource.setrlimit(resource.RLIMIT_DATA, ({CAP_BYTES}, {CAP_BYTES}))
+        from mrlib.cli import main
+        for argv in json.loads(sys.argv[1]):
+            err, t = io.StringIO(), time.perf_counter()
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                try:
+                    code = main(argv)
+                except SystemExit as e:
+                    code = e.code
+            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+            print(json.dumps({{"code": code, "err": err.getvalue(),
+                               "s": time.perf_counter() - t, "peak_mb": peak}}))
+        """
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", script, json.dumps(cases)], capture_output=True, text=True
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    return [json.loads(line) for line in res.stdout.splitlines()]
+
+
+def _cases(tmp: Path, ckpt: Path) -> dict[str, tuple[list[str], int, str]]:
+    """name -> (argv, exit code, text the error must hold)."""
+    clip = save_motion(synthetic_walk("walk_sad", seconds=2.4, fps=10.0), tmp / "clip.npz")
+    slow = synthetic_walk("walk_sad", seconds=2.4, fps=10.0).replace(fps=0.001)
+    slow_clip = save_motion(slow, tmp / "slow.npz")  # 24 frames lasting 6.7 hours
+    bomb = _zip_bomb(tmp / "bomb.npz", clip, junk_mb=1100)
+    forged = _forged_header(tmp / "forged.npz", clip)
+    big = {
+        "kernel 100001": {"kernel_size": 100001},
+        "hidden 20000": {"gen_hidden": [20000]},
+        "levels 1000": {"num_levels": 1000},
+    }
+    ckpts = {k: _with_config(ckpt, tmp / f"{k.replace(' ', '_')}.pt", **v) for k, v in big.items()}
+    sample = ["sample", str(ckpt), "--out", str(tmp / "o")]
+    train_ = ["train", str(clip), "--no-progress", "--out", str(tmp / "t")]
+    return {
+        "sample --num 0": ([*sample, "--num", "0"], 2, "--num: must be at least 1"),
+        "sample --num -3": ([*sample, "--num", "-3"], 2, "--num: must be at least 1"),
+        "sample --num 10**9": ([*sample, "--num", "1000000000"], 2, "--num: must be at most"),
+        "sample --seed -1": ([*sample, "--seed", "-1"], 2, "--seed: must be in [0,"),
+        "sample --seed 2**40": ([*sample, "--seed", str(2**40)], 2, "--seed: must be in [0,"),
+        "train --seed -1": ([*train_, "--seed", "-1"], 2, "--seed: must be in [0,"),
+        "train --levels 1000": ([*train_, "--levels", "1000"], 2, "--levels: must be in [1, 32]"),
+        "train --levels 50": ([*train_, "--levels", "50"], 2, "--levels: must be in [1, 32]"),
+        "train --levels 0": ([*train_, "--levels", "0"], 2, "--levels: must be in [1, 32]"),
+        "sample --seconds 86400": ([*sample, "--seconds", "86400"], 1, "--seconds: 86400 s"),
+        "sample --seconds 700": ([*sample, "--seconds", "700"], 1, "join them with --continue"),
+        "sample --num 1000 --seconds 300": (
+            [*sample, "--num", "1000", "--seconds", "300"],
+            1,
+            "--num: 1000 samples of 3000 frames",
+        ),
+        "sample --continue a 0.001 fps clip": (
+            [*sample, "--continue", str(slow_clip), "--seconds", "2"],
+            1,
+            "--continue: the clip plus --seconds",
+        ),
+        **{
+            f"sample a checkpoint with {k}": (
+                ["sample", str(p), "--out", str(tmp / "o")],
+                1,
+                f"{p.name}: invalid checkpoint",
+            )
+            for k, p in ckpts.items()
+        },
+        "info of a zip bomb (unused key)": (["info", str(bomb)], 0, ""),
+        "export of a zip bomb (unused key)": (["export", str(bomb), str(tmp / "b.bvh")], 0, ""),
+        "info of a forged array header": (["info", str(forged)], 1, "'betas' holds 7629 MB"),
+    }
+
+
+def test_bounded_before_it_starts(checkpoint, tmp_path):
+    cases = _cases(tmp_path, checkpoint)
+    results = _run_capped([argv for argv, _, _ in cases.values()])
+    assert len(results) == len(cases)
+    for (name, (_, code, message)), r in zip(cases.items(), results, strict=True):
+        err = r["err"]
+        assert r["code"] == code, f"{name}: exit {r['code']}, {err!r}"
+        assert message in err and "Traceback" not in err, f"{name}: {err!r}"
+        if code == 1:  # one line, no exception class
+            assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, name
+            assert "Error:" not in err, f"{name}: {err!r}"
+        assert r["s"] < SECONDS, f"{name}: {r['s']:.1f} s"
+        assert r["peak_mb"] < PEAK_MB, f"{name}: peak {r['peak_mb']:.0f} MB"
+
+
+def test_pyramid_of_many_levels_fails_at_once():
+    from mrlib.errors import ClipTooShortError
+    from mrlib.pyramid import pyramid_lengths
+
+    for levels in (50, 1000):
+        t = time.perf_counter()
+        with pytest.raises(ClipTooShortError, match="fewer levels"):
+            pyramid_lengths(240, levels)
+        assert time.perf_counter() - t < 2
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"num_levels": 33}, "num_levels must be in"),
+        ({"kernel_size": 100001}, "kernel_size must be in"),
+        ({"gen_hidden": (20000,)}, "gen_hidden must have"),
+        ({"disc_hidden": (24,) * 17}, "disc_hidden must have"),
+    ],
+)
+def test_model_configs_are_bounded(change, message):
+    from mrlib.config import ConfigError
+
+    with pytest.raises(ConfigError, match=message):
+        ModelConfig(**change)
