@@ -1,15 +1,26 @@
 """Loading BVH files of every skeleton convention mrlib is tested on, with no joint map.
 
 For each convention of ``tests/rigs.py`` (Bandai Namco 1 and 2, CMU in both common
-conversions, Mixamo, LaFAN1, 3ds Max Biped, a generic game rig) and each source motion,
-the motion is written onto the rig by mrlib's BVH writer and loaded back with
+conversions, Mixamo, LaFAN1, 3ds Max Biped, a generic game rig; then Character Creator,
+DAZ Genesis, Unreal's mannequin and Biped with thighs under the pelvis), the stylised
+character (Mixamo's rig, head x1.6, legs x0.7, arms x1.2, torso x1.3) and the CMU and
+Xia motion-capture skeletons with their own bone lengths at 120 fps, and each source
+motion, the motion is written onto the rig by mrlib's BVH writer and loaded back with
 ``mrlib.load_motion`` and no ``joint_map``. Printed per convention and source:
 
 * map: the shipped map that fitted, or ``recognised`` (with its confidence);
-* fit mean / worst joint: the retargeting error ``load_motion`` reports (source joint
-  positions against the SMPL joints they drive, cm; worst = the largest per-joint mean);
+* mode: ``positions`` (SMPL's shape fitted to the joints) or ``rotations`` (the motion
+  transferred by rotations: proportions SMPL's shape space cannot reach);
+* fit mean / worst joint: the retargeting error ``load_motion`` reports (positions:
+  source joint positions against the SMPL joints they drive; rotations: the normalised
+  error, cm; worst = the largest per-joint mean);
 * round trip: the loaded motion's SMPL joints against the SMPL joints that made the file
-  (cm, mean over joints and frames, after removing the mean root offset);
+  (cm, mean over joints and frames, after removing the mean root offset; the rigs with a
+  body of their own do not have SMPL's joints, so none);
+* limb deg: mean angle between the loaded and the source motion's local rotations of
+  hips, knees, ankles, shoulders, elbows and wrists;
+* contacts: share of the file's foot contacts (ankle and toe joints slower than 0.3 leg
+  lengths per second) that the loaded motion has within one frame;
 * load time in seconds (this machine; compare within one run only).
 
     python bench/retarget_conventions.py                     # synthetic walk + Bandai clips
@@ -22,6 +33,7 @@ import argparse
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +46,7 @@ import rigs  # noqa: E402
 import mrlib  # noqa: E402
 from mrlib.io import default_data_dir  # noqa: E402
 from mrlib.io.bvh import write_bvh  # noqa: E402
+from mrlib.io.retarget import RetargetWarning  # noqa: E402
 from mrlib.synthetic import synthetic_walk  # noqa: E402
 
 
@@ -58,31 +71,58 @@ def main() -> int:
             sources[c] = m.slice(0, min(m.num_frames, int(args.seconds * m.fps)))
         else:
             print(f"(skipping {c}: {p} not found; set MRLIB_DATA_DIR)")
-    print(f"{'convention':15} {'source':18} {'map':16} {'fit mean':>9} {'worst joint':>22} "
-          f"{'round trip':>10} {'load s':>7}")  # fmt: skip
-    worst_all: dict[str, tuple[float, float]] = {}
+    print(f"{'convention':17} {'source':18} {'map':16} {'mode':9} {'fit mean':>8} "
+          f"{'worst joint':>22} {'round trip':>10} {'limb deg':>8} {'contacts':>8} "
+          f"{'load s':>7}")  # fmt: skip
+    worst_all: dict[str, list[float]] = {}
+    every = {**rigs.RIGS, "stylised": rigs.STYLISED, **rigs.MOCAP}
     with tempfile.TemporaryDirectory() as tmp:
-        for name, rig in rigs.RIGS.items():
+        for name, rig in every.items():
             for sname, src in sources.items():
-                path = write_bvh(Path(tmp) / f"{name}.bvh", rigs.write_rig(src, rig, body))
+                bvh = rigs.write_rig(src, rig, body)
+                path = write_bvh(Path(tmp) / f"{name}.bvh", bvh)
                 t0 = time.perf_counter()
-                m = mrlib.load_motion(path, body=body)
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always", RetargetWarning)
+                    m = mrlib.load_motion(path, body=body)
                 dt = time.perf_counter() - t0
                 per = m.meta["retarget_joint_error_cm"]
                 wj = max(per, key=per.get)
-                a, b = body.motion_joints(m), body.motion_joints(src)
-                d = (a - a[:, :1].mean(0)) - (b - b[:, :1].mean(0))
-                rt = 100 * float(np.linalg.norm(d, axis=-1).mean())
+                own = bool(rig.geometry or rig.proportions or rig.arms_down)
+                if rig.fps is not None:  # compare at the source's rate
+                    m = m.resample(src.fps)
+                rt = float("nan")
+                if not own:
+                    a, b = body.motion_joints(m), body.motion_joints(src)
+                    d = (a - a[:, :1].mean(0)) - (b - b[:, :1].mean(0))
+                    rt = 100 * float(np.linalg.norm(d, axis=-1).mean())
+                n = min(m.num_frames, src.num_frames)
+                deg = float(rigs.limb_angle_error(src.slice(0, n), m.slice(0, n)).mean())
+                jmap = mrlib.io.load_joint_map(m.meta["joint_map_pairs"])
+                ref = rigs.joint_contacts(rigs.rig_smpl_joints(bvh, rig, jmap), bvh.fps)
+                got = rigs.joint_contacts(body.motion_joints(m.resample(bvh.fps)), bvh.fps)
+                n = min(len(ref), len(got))
+                share, _ = rigs.contact_timing(ref[:n], got[:n])
                 conf = m.meta.get("joint_map_confidence")
                 label = m.meta["joint_map"] + (f" {conf:.2f}" if conf is not None else "")
                 mean = m.meta["retarget_error_mean_cm"]
-                print(f"{name:15} {sname[:18]:18} {label:16} {mean:8.2f}  {wj:>14} {per[wj]:6.2f} "
-                      f"{rt:10.2f} {dt:7.2f}")  # fmt: skip
-                prev = worst_all.get(name, (0.0, 0.0))
-                worst_all[name] = (max(prev[0], mean), max(prev[1], per[wj]))
-    print("\nper convention, over all sources: largest fit mean / largest per-joint mean (cm)")
-    for name, (mean, worst) in worst_all.items():
-        print(f"  {name:15} {mean:5.2f} / {worst:5.2f}")
+                flag = " warned" if caught else ""
+                print(f"{name:17} {sname[:18]:18} {label:16} {m.meta['retarget_mode']:9} "
+                      f"{mean:8.2f} {wj:>14} {per[wj]:6.2f} {rt:10.2f} {deg:8.2f} "
+                      f"{100 * share:7.0f}% {dt:7.2f}{flag}")  # fmt: skip
+                prev = worst_all.get(name, [0.0, 0.0, 0.0, 100.0])
+                worst_all[name] = [
+                    max(prev[0], mean),
+                    max(prev[1], per[wj]),
+                    max(prev[2], deg),
+                    min(prev[3], 100 * share),
+                ]
+    print(
+        "\nper convention, over all sources: largest fit mean / largest per-joint mean (cm), "
+        "largest limb angle error (deg), smallest share of contacts kept"
+    )
+    for name, (mean, worst, deg, share) in worst_all.items():
+        print(f"  {name:17} {mean:5.2f} / {worst:5.2f}   {deg:5.2f} deg   {share:4.0f}%")
     return 0
 
 

@@ -1,6 +1,8 @@
 """Skeleton recognition (mrlib.io.recognize) and retargeting of BVH files in the conventions
 users bring, written here by mrlib itself (tests/rigs.py): Bandai Namco 1 and 2, CMU in
-both common conversions, Mixamo, LaFAN1, 3ds Max Biped and a generic game rig."""
+both common conversions, Mixamo, LaFAN1, 3ds Max Biped (two layouts), a generic game rig,
+Character Creator (split hip, twist and share bones, 99 joints), DAZ Genesis (bend and
+twist bones on the limbs) and Unreal's mannequin (a ground root with IK chains)."""
 
 from __future__ import annotations
 
@@ -12,8 +14,8 @@ import mrlib
 from mrlib.errors import JointMapError
 from mrlib.io import default_data_dir, load_motion
 from mrlib.io.bvh import write_bvh
-from mrlib.io.recognize import name_parts
-from mrlib.io.retarget import UNITS
+from mrlib.io.recognize import is_helper, name_parts
+from mrlib.io.retarget import UNITS, retarget_bvh
 from mrlib.skeleton import JOINT_NAMES
 from mrlib.synthetic import synthetic_walk
 
@@ -63,6 +65,50 @@ EXPECTED = {
     "generic": (
         "recognised",
         {"left_elbow": "LeftLowerArm", "right_knee": "RightLowerLeg", "spine3": "Chest"},
+    ),
+    "character_creator": (
+        "recognised",
+        {
+            "pelvis": "CC_Base_Hip",  # legs and spine part at Pelvis and Waist below it
+            "spine1": "CC_Base_Waist",
+            "left_hip": "CC_Base_L_Thigh",
+            "right_knee": "CC_Base_R_Calf",
+            "left_foot": "CC_Base_L_ToeBase",
+            "neck": "CC_Base_NeckTwist01",  # a twist bone on the way to the head
+            "head": "CC_Base_Head",
+            "left_collar": "CC_Base_L_Clavicle",
+            "left_shoulder": "CC_Base_L_Upperarm",
+            "left_elbow": "CC_Base_L_Forearm",
+            "right_wrist": "CC_Base_R_Hand",
+            "left_hand": "CC_Base_L_Mid1",
+        },
+    ),
+    "daz_genesis": (
+        "recognised",
+        {
+            "pelvis": "hip",
+            "left_hip": "lThighBend",  # the twist bone is part of the thigh
+            "left_knee": "lShin",
+            "left_foot": "lToe",
+            "right_shoulder": "rShldrBend",
+            "right_elbow": "rForearmBend",
+            "right_wrist": "rHand",
+        },
+    ),
+    "unreal": (
+        "recognised",
+        {
+            "pelvis": "pelvis",
+            "left_hip": "thigh_l",
+            "left_knee": "calf_l",
+            "left_foot": "ball_l",
+            "right_elbow": "lowerarm_r",
+            "spine3": "spine_03",
+        },
+    ),
+    "biped_pelvis": (
+        "recognised",
+        {"left_hip": "Bip001 L Thigh", "right_elbow": "Bip001 R Forearm", "head": "Bip001 Head"},
     ),
 }
 
@@ -149,6 +195,69 @@ def test_a_spine_shorter_than_smpls_shares_its_bend(walk, default_body, tmp_path
     a2 = np.linalg.norm(m.poses[:, s2], axis=-1)
     a3 = np.linalg.norm(m.poses[:, s3], axis=-1)
     assert a2.mean() > 0.01 and np.allclose(a2, a3, atol=1e-6)  # an even split
+
+
+def test_helper_bones_are_told_from_body_joints():
+    for name in (
+        "CC_Base_L_ThighTwist01",
+        "CC_Base_R_KneeShareBone",
+        "upperarm_twist_01_l",
+        "lForearmTwist",
+        "ik_hand_gun",
+        "ik_foot_root",
+        "LeftArmRoll",
+    ):
+        assert is_helper(name), name
+    for name in ("CC_Base_L_Thigh", "lShin", "Hips", "mixamorig:LeftForeArm", "Bip01 L Toe0"):
+        assert not is_helper(name), name
+
+
+def test_a_split_hip_turns_with_the_legs_and_a_twisted_bone_with_its_twist(walk, default_body):
+    """Character Creator's pelvis is its Hip (legs and spine part below it); SMPL's pelvis
+    turns with the joint where the legs part. DAZ's thigh runs Bend -> Twist -> Shin: the
+    hip turns with the twist bone, which carries the thigh's whole rotation."""
+    from mrlib.io.retarget import _rotation_sources
+
+    for convention, expect in (
+        ("character_creator", {"pelvis": "CC_Base_Pelvis", "left_knee": "CC_Base_L_Calf"}),
+        (
+            "daz_genesis",
+            {
+                "pelvis": "pelvis",
+                "left_hip": "lThighTwist",
+                "left_knee": "lShin",
+                "right_shoulder": "rShldrTwist",
+                "right_elbow": "rForearmTwist",
+            },
+        ),
+    ):
+        bvh = rigs.write_rig(walk, rigs.RIGS[convention], default_body)
+        r = retarget_bvh(bvh, body=default_body)
+        src = r.joint_map.source_indices(bvh.skeleton.names)
+        rot = _rotation_sources(src, bvh.skeleton)
+        for smpl, joint in expect.items():
+            assert bvh.skeleton.names[rot[JOINT_NAMES.index(smpl)]] == joint, (convention, smpl)
+
+
+def test_twist_share_toe_finger_and_face_bones_change_nothing(walk, default_body):
+    """The same skeleton with and without Character Creator's extras (ground root, split
+    hip, twist and share bones, toes, fingers, face) gives the same motion."""
+    plain = [r for r in rigs.RIGS["character_creator"].joints if not rigs_extra(r[0])]
+    assert len(plain) < len(rigs.RIGS["character_creator"].joints) - 60
+    full = retarget_bvh(rigs.write_rig(walk, rigs.RIGS["character_creator"], default_body))
+    bare_rig = rigs.Rig("bare", tuple(plain), rest="bone", position_channels=("CC_Base_Hip",))
+    bare = retarget_bvh(rigs.write_rig(walk, bare_rig, default_body))
+    assert full.joint_map.mapping == bare.joint_map.mapping
+    np.testing.assert_allclose(full.poses, bare.poses, atol=1e-6)
+
+
+def rigs_extra(name: str) -> bool:
+    """Character Creator's joints beyond a plain humanoid's (twist, share, toes, fingers
+    other than the middle one, face, ribs)."""
+    twist = ("ThighTwist", "CalfTwist", "UpperarmTwist", "ForearmTwist")
+    extras = twist + ("Share", "Toe1", "Thumb", "Index", "Ring", "Pinky", "Mid2", "Mid3")
+    face = ("Facial", "Jaw", "Tongue", "Teeth", "Eye", "Ribs", "Breast")
+    return any(e in name for e in extras + face)
 
 
 @pytest.mark.parametrize(

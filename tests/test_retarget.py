@@ -1,18 +1,30 @@
 """Tests for mrlib.io.retarget and the BVH side of mrlib.io (load_motion/save_motion)."""
 
 import time
+import warnings
 
 import numpy as np
 import pytest
+import rigs
 import roma
 import torch
 
 from mrlib.errors import JointMapError, MotionFileError, UnsupportedFormatError
 from mrlib.io import load_bvh, load_label, load_motion, save_motion
-from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, matrix_to_euler, parse_bvh, read_bvh
+from mrlib.io.bvh import (
+    BVH,
+    BVHSkeleton,
+    format_bvh,
+    matrix_to_euler,
+    parse_bvh,
+    read_bvh,
+    write_bvh,
+)
 from mrlib.io.paths import default_data_dir
 from mrlib.io.retarget import (
+    RETARGET_WARN_CM,
     UNITS,
+    RetargetWarning,
     _solve_offset,
     calibrate_retarget,
     change_up_axis,
@@ -495,3 +507,213 @@ def test_load_time(bandai):
     # one minute is 1800 frames; the median clip is a few seconds
     per_frame = sum(s for _, s in bandai.values()) / sum(m.num_frames for m, _ in bandai.values())
     assert per_frame * 1800 < 2.0  # generous for a busy CI machine; see bench/load_speed.py
+
+
+# -- rigs of their own: stylised characters, Character Creator, motion-capture subjects -------
+def _transfer(source, rig, body, path):
+    """Write ``source`` on ``rig``, load it with no map (a RetargetWarning fails the
+    test) and measure the transfer: ``(motion, limb angle error (T, 12) in degrees, share
+    of the file's foot contacts kept within one frame, number of contacts)``."""
+    bvh = rigs.write_rig(source, rig, body)
+    write_bvh(path, bvh)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RetargetWarning)
+        m = load_motion(path, body=body)
+    if m.fps != source.fps:
+        m = m.resample(source.fps)
+    n = min(m.num_frames, source.num_frames)
+    angles = rigs.limb_angle_error(source.slice(0, n), m.slice(0, n))
+    jmap = load_joint_map(m.meta["joint_map_pairs"])
+    ref = rigs.joint_contacts(rigs.rig_smpl_joints(bvh, rig, jmap), bvh.fps)
+    got = rigs.joint_contacts(body.motion_joints(m.resample(bvh.fps)), bvh.fps)
+    n = min(len(ref), len(got))
+    share, count = rigs.contact_timing(ref[:n], got[:n])
+    return m, angles, share, count
+
+
+def _check_transfer(name, source, body, tmp_path):
+    rig = rigs.STYLISED if name == "stylised" else rigs.RIGS[name]
+    m, angles, share, count = _transfer(source, rig, body, tmp_path / f"{name}.bvh")
+    assert m.meta["joint_map"] == "recognised"
+    # the stylised body is beyond SMPL's human range (arms x1.2 over legs x0.7): its motion
+    # is transferred by rotations; Character Creator's body is SMPL's: fitted by positions
+    assert m.meta["retarget_mode"] == ("rotations" if name == "stylised" else "positions")
+    assert m.meta["retarget_error_mean_cm"] < 1.5
+    assert angles.mean() < 3.0, angles.mean(0)
+    assert count >= 10 and share >= 0.95, (share, count)
+    # the SMPL walk travels as far as the source (a leg-scaled root for the stylised one)
+    travel = np.linalg.norm(m.trans[-1, [0, 2]] - m.trans[0, [0, 2]])
+    src_travel = np.linalg.norm(source.trans[-1, [0, 2]] - source.trans[0, [0, 2]])
+    assert travel == pytest.approx(src_travel, rel=0.1)
+    return m
+
+
+@pytest.mark.parametrize("name", ["stylised", "character_creator"])
+def test_stylised_and_character_creator_rigs_keep_joint_angles_and_contacts(name, body, tmp_path):
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_happy", seconds=4.0, fps=30.0, body=body)
+    _check_transfer(name, walk, body, tmp_path)
+
+
+@needs_data
+@pytest.mark.parametrize("clip", ["walk_happy_001", "walk_old_001"])
+@pytest.mark.parametrize("name", ["stylised", "character_creator"])
+def test_stylised_and_character_creator_rigs_from_real_motion(name, clip, body, tmp_path):
+    """The issue's stylised character (head x1.6, legs x0.7, arms x1.2, torso x1.3) and
+    Character Creator's rig, written from real Bandai Namco motion: the limbs' local
+    rotations within 3 deg of the source's on average, 95 % of the foot contacts within
+    one frame."""
+    source = load_motion(DATA_DIR / "data" / f"dataset-1_{clip}.bvh", body=body)
+    _check_transfer(name, source, body, tmp_path)
+
+
+def test_a_character_larger_than_any_smpl_body_is_transferred_by_rotations(body, tmp_path):
+    """Human proportions at 1.8 times the size: SMPL's shape space cannot reach its legs,
+    so the root is scaled by leg length instead of the betas pinned at their bound."""
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_normal", seconds=4.0, fps=30.0, body=body)
+    giant = rigs.Rig(
+        "giant", rigs.RIGS["mixamo"].joints, proportions=tuple((g, 1.8) for g in rigs.GROUPS)
+    )
+    m, angles, share, count = _transfer(walk, giant, body, tmp_path / "giant.bvh")
+    assert m.meta["retarget_mode"] == "rotations" and not np.any(m.betas)
+    assert m.meta["retarget_leg_ratio"] == pytest.approx(1.0, abs=1e-6)
+    assert m.meta["retarget_error_mean_cm"] < 1.0 and m.meta["retarget_position_error_cm"] < 2
+    assert angles.mean() < 3.0 and share >= 0.95
+    # forced to fit positions it pins the betas and misses by a lot, and says so
+    from mrlib.io.retarget import retarget_bvh as rb
+
+    with pytest.warns(RetargetWarning, match="shape bound"):
+        r = rb(read_bvh(tmp_path / "giant.bvh"), body=body, transfer="positions")
+    assert len(r.betas_at_bound) >= 5 and r.error_mean_cm > 5.0
+
+
+@pytest.mark.parametrize("name", list(rigs.MOCAP))
+def test_motion_capture_skeletons_of_their_own_at_120_fps(name, body, tmp_path):
+    """CMU's and Xia et al.'s 31-joint skeletons with their subjects' bone lengths, at
+    120 fps: the shipped 'cmu' map, SMPL's shape fitted, no warning (their errors:
+    docs/notes/2026-12-04-rigs.md)."""
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
+    m, angles, _, _ = _transfer(walk, rigs.MOCAP[name], body, tmp_path / f"{name}.bvh")
+    assert m.meta["joint_map"] == "cmu" and m.meta["retarget_mode"] == "positions"
+    assert m.meta["retarget_error_mean_cm"] < RETARGET_WARN_CM
+
+
+# -- never silently wrong ----------------------------------------------------------------------
+def _wrong_maps(path, body) -> tuple[dict, dict]:
+    """Two mistakes a hand-written map makes: each arm's joints one joint down the chain
+    (the collar on the upper arm, ..., the wrist on the middle finger), and the legs
+    swapped left for right."""
+    pairs = dict(load_motion(path, body=body).meta["joint_map_pairs"])
+    shifted = dict(pairs)
+    for side in ("Left", "Right"):
+        chain = ("Arm", "ForeArm", "Hand", "HandMiddle1", "HandMiddle3")
+        for smpl, joint in zip(
+            ("collar", "shoulder", "elbow", "wrist", "hand"), chain, strict=True
+        ):
+            shifted[f"{side.lower()}_{smpl}"] = f"mixamorig:{side}{joint}"
+    swapped = dict(pairs)
+    for j in ("hip", "knee", "ankle", "foot"):
+        swapped[f"left_{j}"], swapped[f"right_{j}"] = pairs[f"right_{j}"], pairs[f"left_{j}"]
+    return shifted, swapped
+
+
+@pytest.fixture
+def wrong_map_clip(body, tmp_path):
+    """A Mixamo clip and two wrong maps for it (``_wrong_maps``)."""
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
+    path = write_bvh(tmp_path / "clip.bvh", rigs.write_rig(walk, rigs.RIGS["mixamo"], body))
+    return (path, *_wrong_maps(path, body))
+
+
+def test_a_clip_above_the_threshold_is_never_loaded_silently(wrong_map_clip, body):
+    path, shifted, _ = wrong_map_clip
+    with pytest.warns(RetargetWarning) as caught:
+        m = load_motion(path, body=body, joint_map=shifted)
+    text = str(caught[0].message)
+    assert m.meta["retarget_error_mean_cm"] > RETARGET_WARN_CM
+    assert m.meta["retarget_warning"] == text
+    assert str(path) in text and "worst joints: " in text
+    worst = max(m.meta["retarget_joint_error_cm"], key=m.meta["retarget_joint_error_cm"].get)
+    assert worst in text
+    assert "--write-map" in text and "--joint-map" in text and "--accept-retarget-error" in text
+    # the right map (recognised) loads without a word
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RetargetWarning)
+        good = load_motion(path, body=body)
+    assert good.meta["retarget_error_mean_cm"] < 1.0 and "retarget_warning" not in good.meta
+
+
+def test_a_map_that_fits_the_positions_but_not_a_body_is_reported(wrong_map_clip, body):
+    """Legs swapped: SMPL turned round with its legs crossed over reaches every joint
+    (under a centimetre) - with its hips turned 175 deg. The angles give it away."""
+    path, _, swapped = wrong_map_clip
+    with pytest.warns(RetargetWarning, match="no person holds") as caught:
+        m = load_motion(path, body=body, joint_map=swapped)
+    assert m.meta["retarget_error_mean_cm"] < RETARGET_WARN_CM
+    assert {"left_hip", "right_hip"} <= set(m.meta["retarget_implausible_joints"])
+    assert "left_hip" in str(caught[0].message)
+
+
+def test_train_refuses_such_a_clip_unless_told(wrong_map_clip, tmp_path, monkeypatch, capsys):
+    import json
+
+    import mrlib.train
+    from mrlib.cli import main
+
+    path, shifted, _ = wrong_map_clip
+    map_json = tmp_path / "map.json"
+    map_json.write_text(json.dumps(shifted))
+    args = ["train", str(path), "--joint-map", str(map_json), "--out", str(tmp_path / "run")]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "--accept-retarget-error" in err and str(path) in err
+    assert not (tmp_path / "run" / "checkpoint.pt").exists()
+
+    class Reached(Exception):
+        pass
+
+    def stop(*a, **k):
+        raise Reached
+
+    monkeypatch.setattr(mrlib.train, "train", stop)
+    with pytest.raises(Reached), pytest.warns(RetargetWarning):
+        main(args + ["--accept-retarget-error"])
+
+
+def test_info_shows_the_mode_and_the_shape_bounds_hit(body, tmp_path, capsys):
+    from mrlib.cli import main
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
+    path = write_bvh(tmp_path / "xia.bvh", rigs.write_rig(walk, rigs.MOCAP["xia_mocap"], body))
+    m = load_motion(path, body=body)
+    assert m.meta["retarget_betas_at_bound"]  # its hips are narrower than any SMPL body's
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    pinned = m.meta["retarget_betas_at_bound"]
+    assert f"body fit: motion transferred by positions; betas {pinned} at the shape bound" in out
+
+
+def test_hinge_twist_moves_rotations_not_positions(body):
+    """The hinge axes set the limbs' twist (step 3): the same joint positions as the
+    closed form, the elbows bending about SMPL's elbow axis."""
+    from mrlib.synthetic import synthetic_walk
+
+    walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
+    bvh = rigs.write_rig(walk, rigs.RIGS["lafan1"], body)
+    a = retarget_bvh(bvh, body=body)
+    b = retarget_bvh(bvh, body=body, hinge_twist=False)
+    assert a.error_mean_cm == pytest.approx(b.error_mean_cm, abs=1e-6)
+    ja = body.motion_joints(Motion(a.poses, a.trans, 30.0, betas=a.betas))
+    jb = body.motion_joints(Motion(b.poses, b.trans, 30.0, betas=b.betas))
+    np.testing.assert_allclose(ja, jb, atol=1e-4)
+    # the source's limbs turn as SMPL's: the hinge keeps them within a degree
+    m = Motion(a.poses, a.trans, 30.0, betas=a.betas)
+    assert rigs.limb_angle_error(walk, m).mean() < 1.0

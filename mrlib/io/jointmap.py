@@ -47,11 +47,16 @@ class JointMap:
         name: short identifier (``"bandai_namco"``, ``"cmu"``, ``"smpl"``, ``"custom"``).
         mapping: SMPL joint name -> source joint name; SMPL joints left out are unmapped.
         description: free text.
+        refit_torso: the map names joints of a family of skeletons whose spines differ
+            (CMU's subjects): retargeting also tries SMPL's spine and neck placed by the
+            skeleton's own geometry and keeps the better fit (``mrlib.io.recognize.
+            refit_torso``). JSON key ``"refit_torso": true``.
     """
 
     name: str
     mapping: Mapping[str, str]
     description: str = ""
+    refit_torso: bool = False
 
     def __post_init__(self) -> None:
         bad = [k for k in self.mapping if k not in JOINT_NAMES]
@@ -74,6 +79,7 @@ class JointMap:
         data = {
             "name": self.name,
             "description": self.description,
+            **({"refit_torso": True} if self.refit_torso else {}),
             "map": {k: self.mapping[k] for k in JOINT_NAMES if k in self.mapping},
         }
         path = Path(path)
@@ -93,8 +99,8 @@ SMPL_JOINT_MAP = JointMap(
 
 
 def joint_map_from_json(path: Path) -> JointMap:
-    """A map from ``{"name", "description", "map": {smpl: source}}`` or a flat
-    ``{smpl: source}`` JSON object."""
+    """A map from ``{"name", "description", "map": {smpl: source}}`` (and optionally
+    ``"refit_torso": true``) or a flat ``{smpl: source}`` JSON object."""
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError) as e:
@@ -104,6 +110,7 @@ def joint_map_from_json(path: Path) -> JointMap:
             str(data.get("name", Path(path).stem)),
             dict(data["map"]),
             str(data.get("description", "")),
+            data.get("refit_torso") is True,
         )
     if isinstance(data, dict) and all(isinstance(v, str) for v in data.values()):
         return JointMap(Path(path).stem, dict(data))

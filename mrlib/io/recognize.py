@@ -7,21 +7,30 @@ to the feet, the hands and the head. ``match_skeleton`` finds them in numbered s
 
 1. **Chains.** Bone lengths come from the rest offsets (they do not depend on the pose).
    End markers (leaf joints named ``end``, ``top``, ``nub``, ``tip``, ``site``) and
-   twist or roll joints are passed over.
+   helper joints (``twist``, ``roll``, ``share`` bones, ``ik`` and ``ctrl`` targets) with
+   nothing but helpers below them are passed over; a helper joint *on* a chain (a
+   ``NeckTwist`` under the head, a ``ThighTwist`` between thigh and shin) is part of the
+   bone it sits on (:func:`is_helper`).
 2. **Pelvis.** The joint nearest the root with three long branches (each at least a
    sixth of the tree's longest chain): the two most alike are the legs, the one that
-   branches again is the spine.
+   branches again is the spine. Or a *split hip*: a joint with two long branches, one
+   leading (within half a leg's length) to a joint where the two legs part, the other
+   to the spine (Character Creator's ``Hip`` -> ``Pelvis`` (legs) and ``Waist`` (spine),
+   or a lower and an upper body under a common root); the common joint is the pelvis.
 3. **Chest.** Down the spine, the first joint with two long branches that are alike: the
    arms; its remaining branch leads to the head.
-4. **Limbs.** On each leg and arm the two longest consecutive bones are thigh and shin,
-   upper arm and forearm: the hip, knee and ankle (toe base after it), the shoulder,
-   elbow and wrist (the collar before it, the hand joint on the finger chain after it,
-   at the distance from the wrist SMPL's hand joint has).
+4. **Limbs.** On each leg and arm (helper joints on the chain merged into their bone)
+   the two longest consecutive bones are thigh and shin,
+   upper arm and forearm: the hip, knee and ankle, the shoulder, elbow and wrist (the
+   collar before it); the toe and the hand joint are the joints after the ankle and the
+   wrist as far from them, in shin and forearm lengths, as SMPL's (the toe base, not a
+   mid-foot joint; a knuckle, not a finger base at the wrist).
 5. **Torso.** SMPL's spine1..3 and neck go to the joints of the pelvis-to-head chain
    nearest their own fraction of SMPL's arc length (dynamic programming: in order, one
    SMPL joint per source joint, spine3 at or below the chest and the neck at or above
-   it); a SMPL joint with no source joint near enough stays unmapped, and retargeting
-   spreads the rotation over it (``mrlib.io.retarget``).
+   it; a joint at its parent's place marks no point and is not used); a SMPL joint with
+   no source joint near enough stays unmapped, and retargeting spreads the rotation over
+   it (``mrlib.io.retarget``). ``refit_torso`` does the same for a shipped map.
 6. **Sides** from the names (``Left``, ``L``, ``_l``, ``.L``, ...), else from the pose:
    with up from the feet to the head and forward along the feet, left is ``up x
    forward`` (SMPL's convention: facing +Z, left at +X).
@@ -43,12 +52,21 @@ from mrlib.errors import JointMapError
 from mrlib.io.jointmap import JointMap
 from mrlib.skeleton import JOINT_NAMES
 
-__all__ = ["MIN_CONFIDENCE", "SkeletonMatch", "name_parts", "match_skeleton"]
+__all__ = [
+    "MIN_CONFIDENCE",
+    "SkeletonMatch",
+    "name_parts",
+    "is_helper",
+    "match_skeleton",
+    "refit_torso",
+]
 
 MIN_CONFIDENCE = 0.6
 
 _END = re.compile(r"(end|top|nub|tip|site|effector)$")
-_TWIST = re.compile(r"(twist|roll)")
+# helper bones: twist / roll / share (skinning helpers riding on a limb bone), IK and
+# control targets; matched on the core of the name (``name_parts``)
+_HELPER = re.compile(r"(twist|roll|share|helper|corrective)|^(ik|ctrl|ctl)")
 _PREFIX = re.compile(r"^(mixamorig\d*|bip0*\d+|def|jnt|j|b|bn|cc base|rig|sk)\s+")
 _SIDE_WORDS = {
     "left": "left",
@@ -65,7 +83,7 @@ _ROLES = {
     "neck": ("neck",),
     "head": ("head",),
     "collar": ("clavicle", "collar", "shoulder"),
-    "shoulder": ("upperarm", "arm", "shoulder", "humerus"),
+    "shoulder": ("upperarm", "arm", "shoulder", "shldr", "humerus"),
     "elbow": ("forearm", "lowerarm", "elbow"),
     "wrist": ("hand", "wrist"),
     "hand": ("finger", "index", "middle", "hand", "palm", "knuckle"),
@@ -116,6 +134,13 @@ def name_parts(name: str) -> tuple[str | None, str]:
     return side, core
 
 
+def is_helper(name: str) -> bool:
+    """Whether a joint name is a helper bone's: ``CC_Base_L_ThighTwist01``,
+    ``upperarm_twist_01_l``, ``CC_Base_L_KneeShareBone``, ``ik_hand_gun``, ... (not a
+    joint of the body's own chain, though it may sit on one)."""
+    return bool(_HELPER.search(name_parts(name)[1]))
+
+
 @dataclass(frozen=True)
 class SkeletonMatch:
     """What :func:`match_skeleton` found.
@@ -152,12 +177,17 @@ class _Tree:
                 self.children[p].append(j)
         self.bone = np.linalg.norm(np.asarray(offsets, np.float64), axis=-1)  # to the parent
         self.parts = [name_parts(n) for n in self.names]
-        # end markers and twist joints are passed over when following chains
-        self.skip = [
-            (not self.children[j] and bool(_END.search(self.parts[j][1])))
-            or bool(_TWIST.search(self.parts[j][1]))
-            for j in range(self.n)
-        ]
+        self.helper = [bool(_HELPER.search(core)) for _, core in self.parts]
+        end = [not self.children[j] and bool(_END.search(self.parts[j][1])) for j in range(self.n)]
+        # a body joint below: a joint that is neither a helper nor an end marker
+        body_below = [False] * self.n
+        for j in reversed(range(self.n)):  # parents precede children in a BVH
+            body_below[j] = any(
+                body_below[c] or not (self.helper[c] or end[c]) for c in self.children[j]
+            )
+        # end markers, and helper joints with no body joint below them, are passed over
+        # when following chains; a helper on the way to a body joint is part of its bone
+        self.skip = [end[j] or (self.helper[j] and not body_below[j]) for j in range(self.n)]
         # longest chain (bone length) from each joint down to a leaf
         self.down = np.zeros(self.n)
         for j in reversed(range(self.n)):  # parents precede children in a BVH
@@ -192,6 +222,29 @@ class _Tree:
             out.append(self.parents[out[-1]])
         return out[::-1]
 
+    def long_forks(self, j: int, length: float) -> int:
+        """Number of joints in the subtree of ``j`` (itself included) with two or more
+        long branches (the chest with the arms; a leg has none)."""
+        total, stack = 0, [j]
+        while stack:
+            k = stack.pop()
+            total += len(self.long_children(k, length)) >= 2
+            stack += [c for c in self.children[k] if not self.skip[c]]
+        return total
+
+    def first_fork(self, start: int, length: float) -> tuple[int | None, float]:
+        """Down from ``start`` along single long branches: the first joint with two or
+        more long branches and the bone length on the way there (None if none)."""
+        j, way = start, 0.0
+        while True:
+            kids = self.long_children(j, length)
+            if len(kids) >= 2:
+                return j, way
+            if not kids:
+                return None, way
+            j = kids[0]
+            way += self.bone[j]
+
     def branches(self, j: int) -> int:
         """Number of long branches in the subtree of ``j``."""
         total, stack = 0, [j]
@@ -215,15 +268,23 @@ def _pick_pair(tree: _Tree, kids: list[int], parent: int) -> tuple[int, int]:
     return min(pairs, key=lambda p: _alike(tree, p[0], p[1], parent))
 
 
-def _limb(tree: _Tree, start: int, roles: tuple[str, str, str]) -> tuple[list[int], int]:
-    """The chain from ``start`` and the index ``k`` of its upper bone (chain[k] ->
-    chain[k + 1] -> chain[k + 2]): the two longest consecutive bones, with a bonus for
-    names that fit ``roles`` (a long collar and a short forearm, as CMU's, are a near
-    tie on lengths alone)."""
-    ch = tree.chain(start)
+def _limb(
+    tree: _Tree, start: int, roles: tuple[str, str, str]
+) -> tuple[list[int], int, list[float]]:
+    """The chain from ``start`` (helper joints on it merged into their bone), the index
+    ``k`` of its upper bone (chain[k] -> chain[k + 1] -> chain[k + 2]) and the chain's
+    bone lengths (``seg[i]``: chain[i] -> chain[i + 1]). The upper bone starts the two
+    longest consecutive bones, with a bonus for names that fit ``roles`` (a long collar
+    and a short forearm, as CMU's, are a near tie on lengths alone)."""
+    full = tree.chain(start)
+    ch = [j for i, j in enumerate(full) if i == 0 or not tree.helper[j]]
     if len(ch) < 3:
         raise JointMapError(None, f"the limb at '{tree.names[start]}' has fewer than 3 joints")
-    seg = [tree.bone[ch[i + 1]] for i in range(len(ch) - 1)]
+    at = {j: i for i, j in enumerate(full)}
+    seg = [
+        float(sum(tree.bone[c] for c in full[at[a] + 1 : at[b] + 1]))
+        for a, b in zip(ch, ch[1:], strict=False)
+    ]
     top = max(seg[i] + seg[i + 1] for i in range(len(seg) - 1))
 
     def score(i: int) -> float:
@@ -233,14 +294,21 @@ def _limb(tree: _Tree, start: int, roles: tuple[str, str, str]) -> tuple[list[in
         return (seg[i] + seg[i + 1]) / max(top, 1e-9) + 0.1 * fits
 
     k = max(range(len(seg) - 1), key=score)
-    return ch, k
+    return ch, k, seg
 
 
-def _torso_assignment(fr_src: np.ndarray, fr_smpl: list[float], lo: list[int], hi: list[int]):
+def _torso_assignment(
+    fr_src: np.ndarray,
+    fr_smpl: list[float],
+    lo: list[int],
+    hi: list[int],
+    usable: list[bool] | None = None,
+):
     """Monotone assignment of SMPL torso joints (fractions ``fr_smpl``) to source chain
-    positions ``1..len-2`` (fractions ``fr_src``) or to nothing, position ``k`` of SMPL
-    joint ``i`` within ``[lo[i], hi[i]]``; cost ``|fraction difference|``, or ``UNMAPPED``
-    for a joint left out. Returns one position per SMPL joint (-1: unmapped)."""
+    positions ``1..len-2`` (fractions ``fr_src``; only the ``usable`` ones) or to
+    nothing, position ``k`` of SMPL joint ``i`` within ``[lo[i], hi[i]]``; cost ``|fraction
+    difference|``, or ``UNMAPPED`` for a joint left out. Returns one position per SMPL
+    joint (-1: unmapped)."""
     unmapped = 0.08
     n, m = len(fr_smpl), len(fr_src)
     best = {(-1, 0): (0.0, [])}  # (last position used, SMPL joints done) -> (cost, picks)
@@ -249,7 +317,8 @@ def _torso_assignment(fr_src: np.ndarray, fr_smpl: list[float], lo: list[int], h
         for (last, _), (cost, picks) in best.items():
             options = [(-1, unmapped)]
             for k in range(max(last + 1, lo[i]), min(hi[i], m - 2) + 1):
-                options.append((k, abs(fr_src[k] - fr_smpl[i])))
+                if usable is None or usable[k]:
+                    options.append((k, abs(fr_src[k] - fr_smpl[i])))
             for k, c in options:
                 key = (k if k >= 0 else last, i + 1)
                 cand = (cost + c, picks + [k])
@@ -257,6 +326,108 @@ def _torso_assignment(fr_src: np.ndarray, fr_smpl: list[float], lo: list[int], h
                     nxt[key] = cand
         best = nxt
     return min(best.values(), key=lambda v: v[0])[1]
+
+
+def _torso(
+    tree: _Tree, torso: list[int], chest_at: int, P: np.ndarray, hips: list[int], J: np.ndarray
+) -> dict[str, int]:
+    """SMPL's spine1..3 and neck on the pelvis-to-head chain ``torso`` (step 5): ``{smpl
+    name: source joint}``, those with no source joint near enough left out. Arc lengths
+    start between the hips ``P[:, hips]`` (where the pelvis joint sits differs between
+    rigs); a joint at its parent's place (a zero-length bone) marks no point of its own
+    and is not used."""
+    base = float(np.median(np.linalg.norm(P[:, torso[0]] - P[:, hips].mean(1), axis=-1)))
+    seg = [base] + [tree.bone[torso[i]] for i in range(1, len(torso))]
+    fr_src = np.cumsum(seg) / max(sum(seg), 1e-9)
+    torso_names = ("pelvis", "spine1", "spine2", "spine3", "neck", "head")
+    smpl_torso = [JOINT_NAMES.index(n) for n in torso_names]
+    smpl_hips = J[[JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")]].mean(0)
+    steps = [np.linalg.norm(J[smpl_torso[0]] - smpl_hips)]
+    steps += [np.linalg.norm(J[b] - J[a]) for a, b in zip(smpl_torso, smpl_torso[1:], strict=False)]
+    arc = np.cumsum(steps)
+    fr_smpl = list(arc[1:5] / arc[-1])
+    lo = [1, 1, 1, chest_at]
+    hi = [chest_at, chest_at, chest_at, len(torso) - 2]
+    usable = [seg[k] > 1e-3 * sum(seg) for k in range(len(torso))]
+    picks = _torso_assignment(fr_src, fr_smpl, lo, hi, usable)
+    names = ("spine1", "spine2", "spine3", "neck")
+    return {n: torso[k] for n, k in zip(names, picks, strict=True) if k >= 0}
+
+
+def refit_torso(jmap: JointMap, names, parents, offsets, positions, rest_joints) -> JointMap:
+    """``jmap`` with SMPL's spine1..3 and neck placed on the source's own spine by its
+    geometry (step 5), the other joints kept: a shipped map names the torso joints of one
+    skeleton, another skeleton with the same names may have its spine joints elsewhere
+    (CMU's chest joint, where the collars hang, sits a third of the way up from SMPL's
+    spine3 to its collars). Returns ``jmap`` itself when the pelvis, head or chest is not
+    mapped or nothing moves.
+
+    Args:
+        names, parents, offsets: the source skeleton; positions: ``(F, J, 3)`` joint
+            positions of a few frames; rest_joints: ``(24, 3)`` SMPL's.
+    """
+    m = dict(jmap.mapping)
+    need = ("pelvis", "head", "left_hip", "right_hip", "left_collar", "right_collar")
+    if any(n not in m for n in need):
+        return jmap
+    tree = _Tree(names, parents, offsets)
+    idx = {n: list(names).index(m[n]) for n in need}
+    try:
+        torso = tree.path(idx["pelvis"], idx["head"])
+    except ValueError:
+        return jmap
+
+    def up(j: int) -> list[int]:
+        out = [j]
+        while parents[out[-1]] >= 0:
+            out.append(parents[out[-1]])
+        return out
+
+    a, b = up(idx["left_collar"]), set(up(idx["right_collar"]))
+    chest = next(j for j in a if j in b)  # where the collars part
+    if chest not in torso or chest == torso[0] or chest == torso[-1]:
+        return jmap
+    P = np.asarray(positions, np.float64)
+    hips = [idx["left_hip"], idx["right_hip"]]
+    new = _torso(tree, torso, torso.index(chest), P, hips, np.asarray(rest_joints, np.float64))
+    for n in ("spine1", "spine2", "spine3", "neck"):
+        m.pop(n, None)
+    m.update({n: names[j] for n, j in new.items()})
+    if m == dict(jmap.mapping):
+        return jmap
+    order = {n: m[n] for n in JOINT_NAMES if n in m}
+    return JointMap(jmap.name, order, jmap.description + " (torso placed by its geometry)")
+
+
+def _find_pelvis(tree: _Tree, long: float) -> tuple[int, int, tuple[int, int]]:
+    """``(pelvis, first joint of the spine, the two legs' first joints)``: the joint
+    nearest the root where two legs and a spine part, together (three long branches) or
+    split (two long branches: one reaches a joint where the legs part, within half a
+    leg's length, the other holds the chest)."""
+    for j in sorted(range(tree.n), key=lambda j: tree.depth[j]):
+        kids = tree.long_children(j, long)
+        if len(kids) >= 3:
+            # the spine branches again (the chest); the legs do not
+            spine = max(kids, key=lambda c: (tree.long_forks(c, long), tree.branches(c)))
+            return j, spine, _pick_pair(tree, [k for k in kids if k != spine], j)
+        if len(kids) != 2:
+            continue
+        best = None
+        for a, b in (kids, kids[::-1]):  # a: towards the legs, b: the spine
+            fork, way = tree.first_fork(a, long)
+            if fork is None or not tree.long_forks(b, long):
+                continue
+            legs = tree.long_children(fork, long)
+            if len(legs) != 2 or any(tree.long_forks(c, long) for c in legs):
+                continue  # three branches there (a hip of its own), or arms with a head
+            way += tree.bone[a]
+            if way > 0.5 * min(tree.reach(fork, c) for c in legs):
+                continue  # the arms part far up the spine; the legs near the hip
+            if best is None or way < best[0]:
+                best = (way, b, (legs[0], legs[1]))
+        if best is not None:
+            return j, best[1], best[2]
+    raise JointMapError(None, "no joint where two legs and a spine part: not a humanoid tree")
 
 
 def match_skeleton(
@@ -292,14 +463,8 @@ def match_skeleton(
     size = max(tree.down[j] for j in range(tree.n) if tree.parents[j] < 0)
     if size <= 0:
         raise JointMapError(None, "the skeleton has no bone of non-zero length")
-    # 2. pelvis: nearest the root with three long branches
-    cands = [j for j in range(tree.n) if len(tree.long_children(j, size / 6)) >= 3]
-    if not cands:
-        raise JointMapError(None, "no joint where two legs and a spine part: not a humanoid tree")
-    pelvis = min(cands, key=lambda j: tree.depth[j])
-    kids = tree.long_children(pelvis, size / 6)
-    spine_child = max(kids, key=tree.branches)
-    leg_kids = _pick_pair(tree, [k for k in kids if k != spine_child], pelvis)
+    # 2. pelvis: nearest the root with three long branches, or a split hip
+    pelvis, spine_child, leg_kids = _find_pelvis(tree, size / 6)
     # 3. chest: down the spine, the first joint with two alike long branches
     chest, arm_kids, head_child = None, None, None
     for j in tree.chain(spine_child):
@@ -333,30 +498,15 @@ def match_skeleton(
     elif still is not None and len(head_chain) >= 2 and still[head_chain[-1]]:
         head_chain = head_chain[:-1]
     torso = tree.path(pelvis, chest) + head_chain
-    hips = [ch[k] for ch, k in legs.values()]
-    base = float(np.median(np.linalg.norm(P[:, pelvis] - P[:, hips].mean(1), axis=-1)))
-    seg = [base] + [tree.bone[torso[i]] for i in range(1, len(torso))]
-    fr_src = np.cumsum(seg) / max(sum(seg), 1e-9)
+    hips = [ch[k] for ch, k, _ in legs.values()]
     J = np.asarray(rest_joints, np.float64)
-    torso_names = ("pelvis", "spine1", "spine2", "spine3", "neck", "head")
-    smpl_torso = [JOINT_NAMES.index(n) for n in torso_names]
-    smpl_hips = J[[JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")]].mean(0)
-    steps = [np.linalg.norm(J[smpl_torso[0]] - smpl_hips)]
-    steps += [np.linalg.norm(J[b] - J[a]) for a, b in zip(smpl_torso, smpl_torso[1:], strict=False)]
-    arc = np.cumsum(steps)
-    fr_smpl = list(arc[1:5] / arc[-1])
-    c_at = torso.index(chest)
-    lo = [1, 1, 1, c_at]
-    hi = [c_at, c_at, c_at, len(torso) - 2]
-    picks = _torso_assignment(fr_src, fr_smpl, lo, hi)
     mapping = {"pelvis": tree.names[pelvis], "head": tree.names[torso[-1]]}
-    for name, k in zip(("spine1", "spine2", "spine3", "neck"), picks, strict=True):
-        if k >= 0:
-            mapping[name] = tree.names[torso[k]]
+    for name, j in _torso(tree, torso, torso.index(chest), P, hips, J).items():
+        mapping[name] = tree.names[j]
     # 6. sides: names, else the pose
     up_f = P[:, torso[-1]] - P[:, pelvis]  # (F, 3)
     foot_dirs = []
-    for ch, k in legs.values():
+    for ch, k, _ in legs.values():
         if len(ch) > k + 3:
             foot_dirs.append(P[:, ch[k + 3]] - P[:, ch[k + 2]])
     fwd_f = np.mean(foot_dirs, 0) if foot_dirs else None
@@ -373,7 +523,7 @@ def match_skeleton(
 
     checks: list[tuple[str, bool, str]] = []
     for label, store, roles in (
-        ("legs", legs, ("hip", "knee", "ankle", "foot")),
+        ("legs", legs, ("hip", "knee", "ankle")),
         ("arms", arms, ("shoulder", "elbow", "wrist")),
     ):
         starts = list(store)
@@ -383,28 +533,29 @@ def match_skeleton(
                 None, f"cannot tell the left from the right {label} (names and pose disagree)"
             )
         for s, side in zip(starts, sides, strict=True):
-            ch, k = store[s]
+            ch, k, lseg = store[s]
             for i, role in enumerate(roles):
                 if k + i < len(ch):
                     mapping[f"{side}_{role}"] = tree.names[ch[k + i]]
-            if label == "arms":
-                if k >= 1:
-                    mapping[f"{side}_collar"] = tree.names[ch[k - 1]]
-                # the hand joint: on the finger chain, as far from the wrist as SMPL's
-                wi = JOINT_NAMES.index(f"{side}_wrist")
-                want = np.linalg.norm(J[wi + 2] - J[wi]) / np.linalg.norm(J[wi] - J[wi - 2])
-                forearm = tree.bone[ch[k + 2]]
-                dist = np.cumsum([tree.bone[c] for c in ch[k + 3 :]])
-                if len(dist):
-                    best = int(np.argmin(np.abs(dist / max(forearm, 1e-9) - want)))
-                    ratio = dist[best] / max(forearm, 1e-9)
-                    if 0.5 * want <= ratio <= 2.0 * want:
-                        mapping[f"{side}_hand"] = tree.names[ch[k + 3 + best]]
+            if label == "arms" and k >= 1:
+                mapping[f"{side}_collar"] = tree.names[ch[k - 1]]
+            # the hand (toe) joint: on the chain after the wrist (ankle), as far from it,
+            # in forearm (shin) lengths, as SMPL's; a foot without one takes the next joint
+            mid, end, tip = roles[1:] + (("hand",) if label == "arms" else ("foot",))
+            a, b, c = (JOINT_NAMES.index(f"{side}_{r}") for r in (mid, end, tip))
+            want = np.linalg.norm(J[c] - J[b]) / np.linalg.norm(J[b] - J[a])
+            dist = np.cumsum(lseg[k + 2 :]) / max(lseg[k + 1], 1e-9)
+            if len(dist):
+                best = int(np.argmin(np.abs(dist - want)))
+                if 0.5 * want <= dist[best] <= 2.0 * want:
+                    mapping[f"{side}_{tip}"] = tree.names[ch[k + 3 + best]]
+                elif label == "legs":
+                    mapping[f"{side}_{tip}"] = tree.names[ch[k + 3]]
     # 7. plausibility and names
     for label, store in (("legs", legs), ("arms", arms)):
         ratios, lengths = [], []
-        for ch, k in store.values():
-            a, b = tree.bone[ch[k + 1]], tree.bone[ch[k + 2]]
+        for _, k, lseg in store.values():
+            a, b = lseg[k], lseg[k + 1]
             ratios.append(a / max(b, 1e-9))
             lengths.append(a + b)
         ok = all(0.6 <= r <= 1.7 for r in ratios)
@@ -413,15 +564,20 @@ def match_skeleton(
         )
         sym = abs(np.log(lengths[0] / max(lengths[1], 1e-9)))
         checks.append((f"{label}: left / right length", sym < 0.15, f"{np.exp(sym):.2f}"))
-    leg_len = np.mean([tree.bone[ch[k + 1]] + tree.bone[ch[k + 2]] for ch, k in legs.values()])
-    arm_len = np.mean([tree.bone[ch[k + 1]] + tree.bone[ch[k + 2]] for ch, k in arms.values()])
-    torso_len = sum(seg)
-    checks.append(("arm / leg length", 0.5 <= arm_len / leg_len <= 1.2, f"{arm_len / leg_len:.2f}"))
+    leg_len = np.mean([sg[k] + sg[k + 1] for _, k, sg in legs.values()])
+    arm_len = np.mean([sg[k] + sg[k + 1] for _, k, sg in arms.values()])
+    base = float(np.median(np.linalg.norm(P[:, pelvis] - P[:, hips].mean(1), axis=-1)))
+    torso_len = base + sum(tree.bone[torso[i]] for i in range(1, len(torso)))
+    # wide enough for stylised characters (long arms, short legs, a big head), narrow
+    # enough to tell a humanoid from a long-armed or long-bodied animal
     checks.append(
-        ("torso / leg length", 0.5 <= torso_len / leg_len <= 1.6, f"{torso_len / leg_len:.2f}")
+        ("arm / leg length", 0.45 <= arm_len / leg_len <= 1.5, f"{arm_len / leg_len:.2f}")
+    )
+    checks.append(
+        ("torso / leg length", 0.45 <= torso_len / leg_len <= 2.2, f"{torso_len / leg_len:.2f}")
     )
     # upright over the clip: the trunk points away from the feet
-    ankles = [P[:, ch[k + 2]] for ch, k in legs.values()]
+    ankles = [P[:, ch[k + 2]] for ch, k, _ in legs.values()]
     down_f = np.mean(ankles, 0) - P[:, pelvis]
     cos = (up_f * -down_f).sum(-1) / np.maximum(
         np.linalg.norm(up_f, axis=-1) * np.linalg.norm(down_f, axis=-1), 1e-9
