@@ -537,7 +537,8 @@ def plot_ground_paths(
         path: a ``mrlib.constraints.GroundPath`` or a spec (``"circle:2"``).
         body: body model for the pelvis and feet (default: mrlib's).
     Returns:
-        The Axes (x to the right, z up the page, metres, equal aspect).
+        The Axes (x to the right, z up the page, metres, equal aspect), its legend
+        under the plot.
     """
     import matplotlib.pyplot as plt
 
@@ -563,7 +564,8 @@ def plot_ground_paths(
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("z (m)")
-    ax.legend(fontsize=8, loc="best")
+    # below the axes: inside, a legend covers part of a path that fills the plot
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
     if title:
         ax.set_title(title, fontsize=10)
     return ax

@@ -6,6 +6,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 
+import importlib.util
+
 import numpy as np
 import pytest
 
@@ -125,3 +127,148 @@ def test_mesh_animation_moves_and_shows_contacts(body, tmp_path):
         render_mesh_animation([walk], tmp_path / "b.gif", body, titles=["a", "b"])
     with pytest.raises(MotionValueError, match="at least one"):
         render_mesh_animation([], tmp_path / "c.gif", body)
+
+
+# -- the notebook player -----------------------------------------------------------------------
+class _StubViewer:
+    """Stands in for trame's viewer: counts the pushes to the page."""
+
+    def __init__(self):
+        self.updates = 0
+        self.cameras = 0
+
+    def update(self):
+        self.updates += 1
+
+    def push_camera(self):
+        self.cameras += 1
+
+
+@pytest.fixture
+def stub_show(monkeypatch):
+    """``Plotter.show`` returns a plain widget with a stub viewer: no trame server."""
+    ipywidgets = pytest.importorskip("ipywidgets")
+    import pyvista as pv
+
+    view = ipywidgets.HTML()
+    view.viewer = _StubViewer()
+    monkeypatch.setattr(pv.Plotter, "show", lambda self, **kw: view)
+    return view
+
+
+@pytest.fixture(scope="module")
+def walk(body):
+    from mrlib.synthetic import synthetic_walk
+
+    return synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
+
+
+def test_live_3d_needs_a_kernel_a_live_backend_and_no_ci(monkeypatch):
+    import IPython
+    import pyvista as pv
+
+    from mrlib.render import live_3d
+
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.setattr(IPython, "get_ipython", lambda: None)
+    assert not live_3d()  # plain Python, pytest
+    kernel_shell = type("Shell", (), {"kernel": object()})()
+    monkeypatch.setattr(IPython, "get_ipython", lambda: kernel_shell)
+    monkeypatch.setattr(pv.global_theme, "_jupyter_backend", "client")
+    assert live_3d() == (importlib.util.find_spec("trame_pyvista") is not None)
+    monkeypatch.setattr(pv.global_theme, "_jupyter_backend", "static")
+    assert not live_3d()
+    monkeypatch.setattr(pv.global_theme, "_jupyter_backend", "client")
+    monkeypatch.setenv("CI", "true")
+    assert not live_3d()
+
+
+def test_play_motion_without_a_live_frontend_shows_a_still_picture(walk, body):
+    """The fallback of CI and of a notebook read on GitHub: a PNG strip (or a GIF)."""
+    import imageio.v3 as iio
+    from IPython.display import Image
+
+    from mrlib.render import play_motion
+
+    still = play_motion(walk, body, live=False, frames=3)
+    assert isinstance(still, Image) and still.format == "png"
+    img = iio.imread(still.data)
+    assert img.ndim == 3 and img.shape[1] > img.shape[0]  # a strip, wider than high
+    skin = (np.abs(img[..., :3].astype(int) - [212, 178, 148]).sum(-1) < 90).sum()
+    assert skin > 500
+    gif = play_motion(walk.slice(0, 12), body, live=False, still="gif", window_size=(160, 120))
+    assert gif.format == "gif" and len(iio.imread(gif.data, index=None)) > 1
+    with pytest.raises(MotionValueError, match="still"):
+        play_motion(walk, body, live=False, still="movie")
+
+
+def test_motion_player_poses_each_frame_and_swaps_motions(walk, body, stub_show):
+    from mrlib.render import MotionPlayer
+
+    player = MotionPlayer(walk, body, rate=10.0, window_size=(240, 160))
+    assert player.widget.children[0] is stub_show
+    assert player.frame.max == player.play.max == walk.num_frames - 1
+    assert player.play.step == 3 and player.play.interval == 100  # 30 fps at 10 redraws/s
+    before = stub_show.viewer.updates
+    player.frame.value = 12
+    assert stub_show.viewer.updates == before + 1
+    assert np.allclose(player.mesh.points, player.vertices(12))
+    assert np.abs(player.mesh.points[:, [0, 2]].mean(0)).max() < 0.3  # walks in place
+    normals = player.mesh.point_data["Normals"]
+    assert np.allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-4)
+    assert player.clock.value == "0.40 s of 2.00 s"
+    # contact spheres sit on the feet in contact, the others below the floor
+    centres = player.dots.points.reshape(len(player._foot), -1, 3).mean(1)
+    on_floor = centres[:, 1] > player._ground - 1.0
+    assert np.array_equal(on_floor, player._contacts[12])
+    with pytest.raises(MotionValueError, match="out of range"):
+        player.show_frame(walk.num_frames)
+    shorter = walk.slice(0, 20)
+    player.frame.value = 15
+    player.set_motion(shorter)
+    assert player.frame.max == 19 and player.frame.value == 0
+    assert stub_show.viewer.cameras == 1
+    assert np.allclose(player.mesh.points, player.vertices(0))
+    player.close()
+
+
+def test_motion_player_draws_frames_asked_from_other_threads_on_its_own(walk, body, stub_show):
+    """ipykernel hands widget messages to other threads; VTK must draw on the thread
+    that made its context, so those frames are passed to the player's event loop, and
+    only the newest one is drawn."""
+    import asyncio
+    import threading
+
+    from mrlib.render import MotionPlayer
+
+    async def main():
+        player = MotionPlayer(walk, body, window_size=(240, 160))
+        drawn = []
+        show = player.show_frame
+        player.show_frame = lambda t: (drawn.append((t, threading.get_ident())), show(t))
+        worker = threading.Thread(
+            target=lambda: [setattr(player.frame, "value", t) for t in (3, 5, 9)]
+        )
+        worker.start()
+        worker.join()
+        assert drawn == []  # nothing drawn on the worker
+        await asyncio.sleep(0.05)
+        assert drawn == [(9, threading.get_ident())]
+        assert np.allclose(player.mesh.points, player.vertices(9))
+        player.close()
+
+    asyncio.run(main())
+
+
+def test_vertex_normals_point_out_of_a_closed_mesh():
+    import pyvista as pv
+
+    from mrlib.render import vertex_normals
+
+    sphere = pv.Sphere(radius=1.0, theta_resolution=16, phi_resolution=16).triangulate()
+    v = np.asarray(sphere.points)
+    f = sphere.faces.reshape(-1, 4)[:, 1:]
+    n = vertex_normals(v, f)
+    assert n.shape == v.shape and n.dtype == np.float32
+    assert (np.sum(n * v, axis=1) > 0.95).all()  # a sphere's normals are its radii
+    assert np.allclose(vertex_normals(np.zeros((3, 3)), np.array([[0, 1, 2]])), 0.0)
