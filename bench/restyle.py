@@ -1,0 +1,341 @@
+"""Restyling unseen walks (``mrlib.restyle``) with a model of four Bandai walks.
+
+Run from the repository root (the Bandai Namco clips are found as ``mrlib.datasets``
+finds them)::
+
+    python bench/restyle.py --seed 0          # trains or reuses the demo model (5-8 min)
+    python bench/restyle.py --seed 1          # the second training seed
+    python bench/restyle.py --seed 0 --iterations 2   # a nearly untrained model: the negative
+    python bench/restyle.py --checkpoint ckpt.pt      # measure a given checkpoint
+    python bench/restyle.py --seed 0 --guidance 0.5   # restyled with label guidance
+    python bench/restyle.py --matrix 0-2              # the trained-model test's matrix
+
+Model: the ``demo`` preset trained on ``walk_{normal,happy,sad,angry}_001`` resampled
+to 15 fps (``mrlib.config.PRESET_FPS["demo"]``), through ``mrlib.train.train_cached``
+(the same model as notebook 03's for seed 0, reused from mrlib's cache).
+
+Inputs the model never saw: the second takes ``walk_{style}_002`` and the side walks
+``walk-left_{style}_001`` / ``walk-right_{style}_001`` of the four styles (12 clips
+with a label of the model: their own; ``walk_normal_002`` lasts 1.03 s, shorter than
+the 1.33 s the 8-level pyramid needs at 15 fps, and is refused), and four walks of
+other styles (no label of the model). Every input is restyled towards each label at
+every level ``k`` (seed 0, without the foot clean-up) and measured with
+``mrlib.restyle.restyle_evidence``:
+
+* **path**: mean ground distance of the restyled root from the input's (cm);
+* **low band kept**: its low band (split at level k's Nyquist, as
+  ``mrlib.control.crossover_evidence`` splits) nearer the input's than any training
+  clip's, share of (input, target) cases;
+* **residual given**: its high-frequency residual's RMS profile nearest the target
+  label's (4 pure samples per label), share of the (input, target != own label) pairs;
+  the **paired negative**: the same input restyled with its own label, share of those
+  pairs whose residual is nearest the (other) target all the same (chance: 1/4); and
+  the input itself, unrestyled, likewise;
+* **source share**: ``mrlib.restyle.RestyleShares.source_share``, mean over cases.
+
+Then, at ``--level``, the coarse gap of every input (``mrlib.restyle.coarse_gap``) and
+the same measures with ``invert=True`` (the coarse noise fitted), with its cost, also
+for two inputs far from walking; and the time per second of input of the direct route.
+
+``--matrix SEEDS`` measures instead the quantity of the trained-model test
+(``tests/test_restyle.py``, recipe 4 of ``tests/trained_models.py``: the recipe-2 model
+of ``walk_{angry,sad}_001``, 6 levels, 2-5 min of training, restyling six unseen takes
+of the two styles towards the other label) over training seeds x ``--matrix-threads``,
+and on the same recipe untrained (2 iterations per block), its negative.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from tutorial_checkpoint import add_iterations_arg, with_iterations
+
+import mrlib
+from mrlib.config import PRESET_FPS, get_preset
+from mrlib.data import TrainingSet
+from mrlib.errors import ClipTooShortError
+from mrlib.io.outputs import write_text
+from mrlib.metrics import metric_features
+from mrlib.restyle import (
+    coarse_gap,
+    restyle,
+    restyle_evidence,
+    restyle_lengths,
+    restyle_references,
+    restyle_shares,
+)
+from mrlib.sample import load_model
+from mrlib.synthetic import synthetic_walk
+from mrlib.train import train_cached
+
+ROOT = Path(__file__).resolve().parents[1]
+STYLES = ("normal", "happy", "sad", "angry")
+TRAIN = [f"walk_{s}_001" for s in STYLES]
+LABELLED = (
+    [f"walk_{s}_002" for s in STYLES]
+    + [f"walk-left_{s}_001" for s in STYLES]
+    + [f"walk-right_{s}_001" for s in STYLES]
+)
+OTHER = ["walk_tired_002", "walk_proud_002", "walk_old_002", "walk_active_002"]
+FAR = ["bow_normal_001", "byebye_normal_001"]  # not walks: the coarse gap is large
+
+
+def ints(text: str) -> list[int]:
+    """``"0-4"`` -> ``[0, 1, 2, 3, 4]``, ``"1,2"`` -> ``[1, 2]``."""
+    out = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out += list(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def own_label(name: str) -> str | None:
+    style = name.split("_")[1]
+    return f"walk_{style}" if style in STYLES else None
+
+
+def load(names: list[str]) -> dict[str, mrlib.Motion]:
+    source = mrlib.datasets.tutorial_clips(names)
+    if source.synthetic:
+        raise SystemExit(f"the Bandai Namco clips are needed: {source.note}")
+    return {n: mrlib.load_motion(p) for n, p in zip(names, source.paths, strict=True)}
+
+
+def residual_nearest(model, motion, ref) -> str:
+    """The label whose residual profile is nearest ``motion``'s (the input itself)."""
+    from mrlib.control import rms_profile, split_bands
+
+    p = rms_profile(split_bands(metric_features(motion, contacts=False), model.fps,
+                                ref.cutoff_hz)[1])  # fmt: skip
+    return min(ref.label_profiles, key=lambda k: np.linalg.norm(p - ref.label_profiles[k]))
+
+
+def sweep(model, inputs: dict, body, levels, sampler=None) -> list[dict]:
+    """One row per (input, target, level); ``sampler``: the model view that restyles
+    (default ``model``; the references are always ``model``'s own samples)."""
+    sampler = model if sampler is None else sampler
+    rows = []
+    for name, clip in inputs.items():
+        src = clip.resample(model.fps)
+        own = own_label(name)
+        try:
+            restyle_lengths(model, src.num_frames, name)
+        except ClipTooShortError as e:
+            print(f"refused: {e}")
+            continue
+        for k in levels:
+            ref = restyle_references(model, src.num_frames, k, num_samples=4)
+            itself = residual_nearest(model, src, ref)
+            made = {
+                lab: restyle(sampler, src, lab, k, seed=0, fix_contacts=False, body=body)
+                for lab in model.labels
+            }
+            evs = {lab: restyle_evidence(model, m, src, ref) for lab, m in made.items()}
+            for lab, ev in evs.items():
+                shares = restyle_shares(sampler, src, lab, levels=[k], seed=0, body=body)
+                rows.append({
+                    "input": name, "own": own, "target": lab, "level": k,
+                    "cutoff_hz": ev.cutoff_hz, "path_cm": ev.trajectory_cm,
+                    "low_holds": ev.low_holds, "nearest": ev.nearest_label,
+                    "negative_nearest": evs[own].nearest_label if own else None,
+                    "input_nearest": itself, "source_share": float(shares.source_share[0]),
+                    "ms_per_s": 1000 * made[lab].meta["restyle"]["seconds"] / src.duration,
+                })  # fmt: skip
+    return rows
+
+
+def pct(xs) -> str:
+    xs = list(xs)
+    return f"{100 * np.mean(xs):.0f}% ({sum(xs)}/{len(xs)})" if xs else "-"
+
+
+def level_table(rows: list[dict], L: int) -> str:
+    out = [
+        "| k | cutoff Hz | path cm mean (max) | low band kept | residual given | "
+        "paired negative | input itself | other styles: residual given | source share |",
+        "|" + "---|" * 9,
+    ]
+    for k in sorted({r["level"] for r in rows}):
+        rk = [r for r in rows if r["level"] == k]
+        pos = [r for r in rk if r["own"] and r["target"] != r["own"]]
+        oth = [r for r in rk if not r["own"]]
+        path = [r["path_cm"] for r in rk]
+        out.append(
+            f"| {k} | {np.mean([r['cutoff_hz'] for r in rk]):.2f} | "
+            f"{np.mean(path):.1f} ({np.max(path):.1f}) | {pct(r['low_holds'] for r in rk)} | "
+            f"{pct(r['nearest'] == r['target'] for r in pos)} | "
+            f"{pct(r['negative_nearest'] == r['target'] for r in pos)} | "
+            f"{pct(r['input_nearest'] == r['target'] for r in pos)} | "
+            f"{pct(r['nearest'] == r['target'] for r in oth)} | "
+            f"{100 * np.mean([r['source_share'] for r in rk]):.0f}% |"
+        )
+    return "\n".join(out)
+
+
+def inversion(model, inputs: dict, body, level: int, steps: int) -> tuple[list[dict], str]:
+    rows = []
+    for name, clip in inputs.items():
+        src = clip.resample(model.fps)
+        gap = coarse_gap(model, src, level, body=body)
+        ref = restyle_references(model, src.num_frames, level, num_samples=4)
+        for lab in model.labels:
+            for inv in (False, True):
+                t = time.perf_counter()
+                m = restyle(model, src, lab, level, seed=0, invert=inv, invert_steps=steps,
+                            fix_contacts=False, body=body)  # fmt: skip
+                dt = time.perf_counter() - t
+                ev = restyle_evidence(model, m, src, ref)
+                fit = m.meta["restyle"]["invert"] or {}
+                rows.append({
+                    "input": name, "own": own_label(name), "target": lab, "invert": inv,
+                    "gap": gap.ratio, "seconds": dt, "clip_s": src.duration,
+                    "rms_before": fit.get("rms_before"), "rms_after": fit.get("rms_after"),
+                    "path_cm": ev.trajectory_cm, "low_holds": ev.low_holds,
+                    "low_to_source": ev.low_to_source, "nearest": ev.nearest_label,
+                })  # fmt: skip
+    out = [
+        "| input | gap ratio | route | s per restyle | fit RMS before -> after | path cm | "
+        "low band kept | low to input | residual given |",
+        "|" + "---|" * 9,
+    ]
+    for name in inputs:
+        for inv in (False, True):
+            rr = [r for r in rows if r["input"] == name and r["invert"] == inv]
+            pos = [r for r in rr if r["target"] != r["own"]]
+            fit = (
+                f"{np.mean([r['rms_before'] for r in rr]):.3f} -> "
+                f"{np.mean([r['rms_after'] for r in rr]):.3f}"
+                if inv
+                else "-"
+            )
+            out.append(
+                f"| {name} | {rr[0]['gap']:.2f} | {'inverted' if inv else 'direct'} | "
+                f"{np.mean([r['seconds'] for r in rr]):.3f} | {fit} | "
+                f"{np.mean([r['path_cm'] for r in rr]):.1f} | {pct(r['low_holds'] for r in rr)} | "
+                f"{np.mean([r['low_to_source'] for r in rr]):.3f} | "
+                f"{pct(r['nearest'] == r['target'] for r in pos)} |"
+            )
+    return rows, "\n".join(out)
+
+
+def matrix(seeds: list[int], threads: list[int], untrained: bool) -> int:
+    """The trained-model test's quantity (``tests/trained_models.py``, recipe 4: the
+    recipe-2 model of two Bandai walks) over training seeds x torch thread counts, and
+    on the same recipe untrained (2 iterations per block)."""
+    import sys
+    import tempfile
+
+    sys.path.insert(0, str(ROOT / "tests"))
+    import trained_models as tm
+
+    from mrlib.io import default_data_dir
+    from mrlib.threads import policy
+
+    body = mrlib.load_body_model()
+    inputs = tm.restyle_inputs(default_data_dir())
+    print("| variant | seed | threads | mean log ratio | min | residual nearest target | s |")
+    print("|---|---|---|---|---|---|---|")
+    for variant in ["trained"] + ["untrained"] * untrained:
+        for seed in seeds:
+            for n in threads:
+                t = time.perf_counter()
+                cfg = tm.detail_config(seed, 2 if variant == "untrained" else 300)
+                clips = tm.detail_clips(default_data_dir(), body)
+                with tempfile.TemporaryDirectory() as tmp, policy(n):
+                    model = tm.train_recipe(clips, cfg, tmp, body, n)
+                    r = tm.restyle_log_ratios(model, inputs)
+                print(f"| {variant} | {seed} | {n} | {r[:, 0].mean():.3f} | {r[:, 0].min():.3f} "
+                      f"| {100 * r[:, 1].mean():.0f}% | {time.perf_counter() - t:.0f} |",
+                      flush=True)  # fmt: skip
+    return 0
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--seed", type=int, default=0, help="training seed [0]")
+    add_iterations_arg(p, "iterations per block (overrides the demo preset's; 2: untrained)")
+    p.add_argument("--level", type=int, default=None, help="level of the inversion table [L//2]")
+    p.add_argument("--invert-steps", type=int, default=None, help="Adam steps of the fit")
+    p.add_argument("--no-inversion", action="store_true", help="skip the inversion table")
+    p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
+    p.add_argument("--guidance", type=float, default=None,
+                   help="restyle with this GenerativeModel.guidance [the model's: 0]")  # fmt: skip
+    p.add_argument("--json", type=Path, default=None, help="also write the rows here")
+    p.add_argument("--checkpoint", type=Path, default=None,
+                   help="measure this checkpoint instead of the cached demo model")  # fmt: skip
+    p.add_argument(
+        "--matrix", default=None, metavar="SEEDS",
+        help="instead: the trained-model test's quantity over these training seeds (e.g. "
+        "0-4) x --matrix-threads, and on untrained models",
+    )  # fmt: skip
+    p.add_argument("--matrix-threads", default="1,2", help="thread counts of --matrix [1,2]")
+    a = p.parse_args(argv)
+    if a.matrix is not None:
+        return matrix(ints(a.matrix), ints(a.matrix_threads), untrained=True)
+    torch.set_num_threads(a.threads)
+
+    body = mrlib.load_body_model()
+    fps = PRESET_FPS["demo"]
+    clips = [c.resample(fps) for c in load(TRAIN).values()]
+    data = TrainingSet.from_motions(clips, body=body)
+    cfg, _ = with_iterations(get_preset("demo").replace(seed=a.seed), a.iterations)
+    t = time.perf_counter()
+    if a.checkpoint is not None:
+        model, how = load_model(a.checkpoint), f"loaded {a.checkpoint}"
+        cfg = model.config
+    else:
+        model, record = train_cached(data, cfg, body=body, progress=False)
+        how = "reused" if record.reused else f"trained in {time.perf_counter() - t:.0f} s"
+        how += f" ({record.checkpoint})"
+    print(f"{data}\ndemo preset, training seed {cfg.seed}, iterations {cfg.block_iterations}: "
+          f"{how}", flush=True)  # fmt: skip
+    L = model.num_levels
+    level = L // 2 if a.level is None else a.level
+
+    inputs = load(LABELLED + OTHER)
+    t = time.perf_counter()
+    sampler = model
+    if a.guidance is not None:  # the restyles only: the references stay the model's own
+        sampler = dataclasses.replace(model, guidance=a.guidance)
+        print(f"restyling with guidance {a.guidance:g}")
+    rows = sweep(model, inputs, body, range(1, L), sampler)
+    print(f"\nrestyled {len(rows)} cases in {time.perf_counter() - t:.0f} s "
+          f"({len(inputs)} inputs x {len(model.labels)} labels x {L - 1} levels)\n")  # fmt: skip
+    print(level_table(rows, L) + "\n", flush=True)
+
+    speed = [r["ms_per_s"] for r in rows]
+    long_walk = synthetic_walk("walk_normal", seconds=120.0, fps=fps, body=body)
+    t = time.perf_counter()
+    restyle(model, long_walk, model.labels[0], level, seed=0, fix_contacts=False, body=body)
+    long_ms = 1000 * (time.perf_counter() - t) / long_walk.duration
+    print(f"direct route: median {statistics.median(speed):.1f} ms per second of input "
+          f"(max {max(speed):.1f}); a 120 s clip in one pass: {long_ms:.1f} ms per "
+          "second\n")  # fmt: skip
+
+    inv_rows = []
+    if not a.no_inversion:
+        from mrlib.restyle import INVERT_STEPS
+
+        steps = INVERT_STEPS if a.invert_steps is None else a.invert_steps
+        chosen = {n: inputs[n] for n in ("walk_sad_002", "walk-right_happy_001", "walk_old_002")}
+        chosen |= load(FAR)
+        inv_rows, table = inversion(model, chosen, body, level, steps)
+        print(f"inversion at level {level}, {steps} Adam steps (targets: every label)\n")
+        print(table + "\n", flush=True)
+    if a.json is not None:
+        a.json.parent.mkdir(parents=True, exist_ok=True)
+        summary = {"seed": a.seed, "iterations": list(cfg.block_iterations), "rows": rows,
+                   "inversion": inv_rows}  # fmt: skip
+        write_text(a.json, json.dumps(summary, indent=1), overwrite=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

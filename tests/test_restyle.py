@@ -1,0 +1,336 @@
+"""Restyling a clip that is not the model's own (mrlib.restyle).
+
+The models here are plumbing models (two iterations per block): the tests check what
+restyling guarantees by construction (which levels the clip reaches, the root's path and
+facing, lengths, frame rates, errors). What it achieves with a trained model is measured
+by ``bench/restyle.py`` (``docs/notes/2026-12-04-restyle.md``); the claim asserted on a
+trained model is at the end, with its untrained negative."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.features import features_to_motion, motion_to_features
+from mrlib.models import LevelGenerator
+from mrlib.pyramid import pyramid_lengths, resample_linear
+from mrlib.restyle import (
+    coarse_gap,
+    restyle,
+    restyle_evidence,
+    restyle_level,
+    restyle_references,
+    restyle_shares,
+)
+from mrlib.synthetic import synthetic_walk
+
+
+@pytest.fixture(scope="module")
+def model(sad_wave_model):
+    return sad_wave_model  # labels walk_sad, wave; 4 levels at 10 fps
+
+
+@pytest.fixture(scope="module")
+def clip(body):
+    """A happy walk at 30 fps: another label, another frame rate than the model's."""
+    return synthetic_walk("walk_happy", seconds=5.0, fps=30.0, body=body)
+
+
+def _yaw(motion, theta: float):
+    """``motion`` turned about the vertical by ``theta`` (about the origin)."""
+    from mrlib.constraints.path import yaw_matrix
+    from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+    R = yaw_matrix(theta)
+    poses = motion.poses.astype(np.float64).copy()
+    R0 = axis_angle_to_matrix(torch.from_numpy(poses[:, 0])).numpy()
+    poses[:, 0] = matrix_to_axis_angle(torch.from_numpy(R @ R0)).numpy()
+    return motion.replace(poses=poses, trans=motion.trans @ R.T)
+
+
+def _heading(motion) -> np.ndarray:
+    from mrlib.rotations import axis_angle_to_matrix
+
+    R = axis_angle_to_matrix(torch.from_numpy(motion.poses[:, 0].astype(np.float64))).numpy()
+    return np.unwrap(np.arctan2(R[:, 0, 2], R[:, 2, 2]))
+
+
+# -- what comes out ---------------------------------------------------------------------------
+def test_restyle_resamples_to_the_model_and_records_what_made_it(model, clip, body, tmp_path):
+    m = restyle(model, clip, "wave", 2, seed=0, body=body)
+    at_model = clip.resample(model.fps)
+    assert m.fps == model.fps and m.num_frames == at_model.num_frames == 50
+    assert m.label == "wave" and np.isfinite(m.poses).all() and m.contacts.shape == (50, 6)
+    assert np.allclose(m.betas, clip.betas)
+    info = m.meta["restyle"]
+    assert (info["label"], info["level"], info["keep"], info["seed"]) == ("wave", 2, "coarse", 0)
+    assert info["invert"] is None and info["seconds"] > 0 and info["source_fps"] == 30.0
+    # the clip at the model's rate gives the same result: resampling is the first step
+    same = restyle(model, at_model, "wave", 2, seed=0, body=body)
+    np.testing.assert_allclose(same.poses, m.poses, atol=1e-5)
+    # a file works as well as a Motion
+    from mrlib.io import save_motion
+
+    path = save_motion(clip, tmp_path / "clip.npz")
+    from_file = restyle(model, path, "wave", 2, seed=0, body=body)
+    np.testing.assert_allclose(from_file.poses, m.poses, atol=1e-4)
+
+
+def test_restyle_is_seeded(model, clip, body):
+    a = restyle(model, clip, "walk_sad", 1, seed=3, fix_contacts=False, body=body)
+    b = restyle(model, clip, "walk_sad", 1, seed=3, fix_contacts=False, body=body)
+    c = restyle(model, clip, "walk_sad", 1, seed=4, fix_contacts=False, body=body)
+    assert np.array_equal(a.poses, b.poses)
+    assert np.abs(a.poses - c.poses).max() > 1e-4  # the label's levels have their noise
+    d = restyle(model, clip, "wave", 1, seed=3, fix_contacts=False, body=body)
+    assert np.abs(a.poses - d.poses).max() > 1e-4  # and their label
+
+
+def test_the_fine_levels_run_on_the_clips_level_k(model, clip, body, monkeypatch):
+    """With every level generator the identity on its upsampled input, keep='coarse'
+    returns the clip's level k upsampled level by level: the clip is what the fine
+    levels start from."""
+    monkeypatch.setattr(LevelGenerator, "forward", lambda self, x_up, z, c, *a, **k: x_up)
+    src = clip.resample(model.fps)
+    L = model.num_levels
+    for k in (1, L - 1):
+        got = restyle(model, src, "wave", k, align=False, fix_contacts=False, body=body)
+        x = model.normalizer.normalize(motion_to_features(src, body)).T[None]
+        lengths = pyramid_lengths(src.num_frames, L, model.config.model.scale_factor, 3)
+        want = resample_linear(x, lengths[k - 1])
+        for n in lengths[k:]:  # up, level by level
+            want = resample_linear(want, n)
+        want = want[0].T
+        want = features_to_motion(model.normalizer.denormalize(want), model.fps)
+        np.testing.assert_allclose(got.poses[:, 1:], want.poses[:, 1:], atol=1e-4)
+
+
+def test_the_root_travels_and_faces_as_the_clip(model, clip, body):
+    src = _yaw(clip, np.pi / 2).resample(model.fps)  # a walk along +X: unlike the training
+    for keep in ("coarse", "detail"):
+        m = restyle(model, src, "wave", 2, keep=keep, seed=0, fix_contacts=False, body=body)
+        path = np.linalg.norm(m.trans[:, [0, 2]] - src.trans[:, [0, 2]], axis=1)
+        assert path.mean() < 0.05, keep  # the low band of the ground velocity is the clip's
+        assert np.allclose(m.trans[0, [0, 2]], src.trans[0, [0, 2]], atol=1e-6)
+        dyaw = np.degrees(_heading(m) - _heading(src))
+        assert abs(dyaw.mean()) < 3, keep  # the low band of the facing is the clip's
+    # keep='detail': both bands of the ground velocity are the clip's
+    np.testing.assert_allclose(m.trans[:, [0, 2]], src.trans[:, [0, 2]], atol=1e-4)
+    # without the turn to the training clips' facing the model sees a walk along +X
+    straight = restyle(model, src, "wave", 2, seed=0, fix_contacts=False, body=body)
+    turned = restyle(model, src, "wave", 2, seed=0, align=False, fix_contacts=False, body=body)
+    assert straight.meta["restyle"]["align_deg"] == pytest.approx(-90, abs=5)
+    assert np.abs(straight.poses[:, 1:] - turned.poses[:, 1:]).max() > 1e-3
+
+
+def test_keep_detail_takes_the_coarse_levels_from_the_label(model, clip, body):
+    a = restyle(model, clip, "wave", 2, keep="detail", seed=0, fix_contacts=False, body=body)
+    b = restyle(model, clip, "wave", 2, keep="coarse", seed=0, fix_contacts=False, body=body)
+    c = restyle(model, clip, "wave", 2, keep="detail", seed=1, fix_contacts=False, body=body)
+    assert a.meta["restyle"]["keep"] == "detail" and a.name.endswith("_restyled_wave_detail2")
+    assert np.abs(a.poses - b.poses).max() > 1e-3
+    assert np.abs(a.poses - c.poses).max() > 1e-4  # the coarse levels are drawn
+    assert set(np.unique(a.contacts)) <= {0.0, 1.0}
+
+
+def test_a_long_clip_runs_in_one_pass(model, body, monkeypatch):
+    long_walk = synthetic_walk("walk_sad", seconds=120.0, fps=10.0, body=body)
+    calls = []
+    forward = LevelGenerator.forward
+
+    def counted(self, x_up, *a, **k):
+        calls.append(x_up.shape[-1])
+        return forward(self, x_up, *a, **k)
+
+    monkeypatch.setattr(LevelGenerator, "forward", counted)
+    m = restyle(model, long_walk, "wave", 2, seed=0, fix_contacts=False, body=body)
+    assert m.num_frames == 1200
+    assert len(calls) == model.num_levels - 2 and calls[-1] == 1200  # one call per level
+
+
+def test_inversion_fits_the_coarse_levels_to_the_clip(model, clip, body):
+    m = restyle(model, clip, "walk_sad", 2, seed=0, invert=True, invert_steps=30,
+                fix_contacts=False, body=body)  # fmt: skip
+    fit = m.meta["restyle"]["invert"]
+    assert fit["steps"] == 30 and fit["rms_after"] < fit["rms_before"]
+    direct = restyle(model, clip, "walk_sad", 2, seed=0, fix_contacts=False, body=body)
+    assert np.abs(m.poses - direct.poses).max() > 1e-3
+    assert np.linalg.norm(m.trans[:, [0, 2]] - direct.trans[:, [0, 2]], axis=1).mean() < 0.05
+
+
+# -- errors -------------------------------------------------------------------------------------
+def test_restyle_refuses_what_it_cannot_do(model, clip, body):
+    L = model.num_levels
+    assert restyle_level(model, None) == L - 2
+    for bad in (0, L, 1.5, True, "2"):
+        with pytest.raises(MotionValueError, match="level"):
+            restyle(model, clip, "wave", bad, body=body)
+    with pytest.raises(MotionValueError, match="unknown label 'walk_proud'"):
+        restyle(model, clip, "walk_proud", body=body)
+    with pytest.raises(ClipTooShortError, match="too short to restyle.*at least"):
+        restyle(model, clip.slice(0, 12), "wave", body=body)  # 4 frames at 10 fps
+    with pytest.raises(MotionValueError, match="keep must be one of"):
+        restyle(model, clip, "wave", keep="both", body=body)
+    with pytest.raises(MotionValueError, match="keep='coarse' only"):
+        restyle(model, clip, "wave", keep="detail", invert=True, body=body)
+    with pytest.raises(MotionValueError, match="invert_steps"):
+        restyle(model, clip, "wave", invert=True, invert_steps=0, body=body)
+    speech_like = dataclasses.replace(model, labels=["speech"])  # condition != one-hot labels
+    with pytest.raises(MotionValueError, match="label-conditioned"):
+        restyle(speech_like, clip, "speech", body=body)
+
+    class SpeechModel:  # what mrlib.speech.load_speech_model returns, in outline
+        feature_config, model = None, model
+
+    with pytest.raises(MotionValueError, match="speech-conditioned"):
+        restyle(SpeechModel(), clip, "wave", body=body)
+
+
+# -- measures -----------------------------------------------------------------------------------
+def test_coarse_gap_is_zero_on_a_training_clip_and_grows_away_from_it(model, sad_wave_clips, body):
+    walk = sad_wave_clips[0]  # the training walk_sad, at the model's rate already
+    own = coarse_gap(model, walk, 2, body=body, align=False)
+    assert own.distance < 1e-4 and own.nearest_clip == model.clip_names[0]
+    assert own.spread > 0 and own.ratio < 1e-3
+    assert coarse_gap(model, walk, 2, body=body).ratio < 0.05  # turned to the clips' mean
+    other = synthetic_walk("walk_happy", seconds=4.0, fps=10.0, body=body)
+    far = _yaw(other, 0.6).replace(trans=other.trans * [1, 0.7, 1])  # turned and crouched
+    assert coarse_gap(model, far, 2, body=body, align=False).ratio > 0.2
+
+
+def test_restyle_evidence_and_shares(model, clip, body):
+    src = clip.resample(model.fps)
+    m = restyle(model, src, "wave", 2, seed=0, fix_contacts=False, body=body)
+    ref = restyle_references(model, m.num_frames, 2, num_samples=2)
+    assert set(ref.label_profiles) == {"walk_sad", "wave"} and len(ref.clip_lows) == 2
+    ev = restyle_evidence(model, m, clip, ref)  # the source at any frame rate
+    assert ev.label == "wave" and ev.level == 2 and ev.trajectory_cm < 5
+    assert ev.cutoff_hz == pytest.approx(ref.cutoff_hz) and ev.nearest_label in ref.label_profiles
+    assert isinstance(ev.low_holds, bool) and isinstance(ev.high_holds, bool)
+    with pytest.raises(MotionValueError, match="not a restyling"):
+        restyle_evidence(model, m, src.slice(0, 40), ref)
+    with pytest.raises(MotionValueError, match="references for 50 frames at level 2"):
+        restyle_evidence(model, restyle(model, src, "wave", 1, body=body), src, ref)
+    sh = restyle_shares(model, src, "wave", seed=0, body=body)
+    assert sh.levels == (1, 2, 3) and sh.to_source.shape == sh.to_label.shape == (3,)
+    assert ((sh.source_share > 0) & (sh.source_share < 1)).all()
+    assert sh.to_source[-1] < sh.to_source[0]  # more of the clip kept at a higher level
+    assert "| 3 |" in sh.to_markdown()
+
+
+# -- the command line ---------------------------------------------------------------------------
+def test_restyle_cli(tmp_path):
+    from pathlib import Path
+
+    from mrlib.cli import main
+    from mrlib.io import load_motion
+
+    samples = Path(__file__).resolve().parents[1] / "data_samples"
+    files = [str(samples / f"{n}.npz") for n in ("walk_sad", "wave")]
+    run = tmp_path / "run"
+    assert main(["train", *files, "--iterations", "1", "--levels", "3", "--fps", "10",
+                 "--no-progress", "--out", str(run)]) == 0  # fmt: skip
+    ckpt = str(run / "checkpoint.pt")
+    clip = str(samples / "walk_happy.npz")
+    out = tmp_path / "o"
+    base = ["restyle", ckpt, clip, "--label", "wave", "--out", str(out)]
+    assert main([*base, "--glb"]) == 0
+    got = sorted(p.name for p in out.iterdir())
+    stem = "walk_happy_to_wave_coarse1_seed0_0"
+    assert got == [f"{stem}.bvh", f"{stem}.glb", f"{stem}.npz"], got
+    m = load_motion(out / f"{stem}.npz")
+    assert m.meta["restyle"]["level"] == 1 and m.fps == 10.0 and m.num_frames == 80
+    assert main(base) == 1  # refuses to overwrite
+    assert main([*base, "--overwrite", "--raw"]) == 0
+    assert main([*base, "--keep", "detail", "--level", "2", "--seed", "1"]) == 0
+    assert (out / "walk_happy_to_wave_detail2_seed1_0.npz").is_file()
+    assert main([*base, "--invert", "3", "--no-progress"]) == 0
+    assert (out / "walk_happy_to_wave_coarse1_inverted_seed0_0.npz").is_file()
+    assert main([*base, "--level", "3"]) == 1  # 1..L-1
+    assert main([*base[:-4], "--label", "jump", "--out", str(out)]) == 1
+    assert main([*base, "--keep", "detail", "--invert"]) == 1
+    short = tmp_path / "short.npz"
+    from mrlib.io import save_motion
+
+    save_motion(load_motion(clip).slice(0, 9), short)
+    assert main(["restyle", ckpt, str(short), "--label", "wave", "--out", str(out)]) == 1
+
+
+# -- the style claim on a trained model --------------------------------------------------------
+# Asserted on the mean log distance ratio over its twelve cases (six unseen takes, levels 3
+# and 4), with the bound that ``python bench/restyle.py --matrix 0-2`` checks over training
+# seeds 0-2 x torch threads 1 and 2 (means 1.18-1.38, every case >= 0.50; untrained
+# -0.005 to -0.001: docs/notes/2026-12-04-restyle.md), and its paired negative: the same
+# recipe untrained fails the bound.
+import trained_models as tm  # noqa: E402
+
+from mrlib.io import default_data_dir  # noqa: E402
+
+BANDAI = default_data_dir()
+needs_bandai = pytest.mark.skipif(
+    not BANDAI.is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
+)
+RESTYLE_LOG_MEAN = 0.5
+
+
+def _restyle_claim(r: np.ndarray) -> bool:
+    return r[:, 0].mean() > RESTYLE_LOG_MEAN and r[:, 0].min() > 0
+
+
+@pytest.fixture(scope="module")
+def detail_model(tmp_path_factory, body):
+    """Two Bandai walks (angry, sad) at 15 fps, the ``tutorial`` losses at 6 levels and
+    300 iterations per block (2-5 min on 2 cores): recipe 2 of ``trained_models``."""
+    out = tmp_path_factory.mktemp("restyle_detail_model")
+    return tm.train_recipe(tm.detail_clips(BANDAI, body), tm.detail_config(seed=0), out, body)
+
+
+@pytest.mark.slow
+@needs_bandai
+def test_restyling_unseen_walks_gives_them_the_other_labels_detail(detail_model):
+    """Other takes of the angry and sad walks (second takes, side walks), restyled towards
+    the other label at levels 3 and 4: the residual is nearer that label's than when the
+    same take is restyled with its own label (the paired negative), in every case."""
+    r = tm.restyle_log_ratios(detail_model, tm.restyle_inputs(BANDAI))
+    assert _restyle_claim(r), r
+
+
+@pytest.mark.slow
+@needs_bandai
+def test_the_restyle_claim_fails_on_an_untrained_model(tmp_path, body):
+    clips = tm.detail_clips(BANDAI, body)
+    model = tm.train_recipe(clips, tm.detail_config(seed=0, iterations=2), tmp_path, body)
+    assert not _restyle_claim(tm.restyle_log_ratios(model, tm.restyle_inputs(BANDAI)))
+
+
+# -- the widget ---------------------------------------------------------------------------------
+def test_interactive_restyle_builds_and_redraws(model, clip, body, monkeypatch):
+    ipywidgets = pytest.importorskip("ipywidgets")
+    import mrlib.widgets
+    from mrlib.widgets import RestyleView, interactive_restyle
+
+    box, update = interactive_restyle(model, clip, body, render=False, label="wave", level=1)
+    assert isinstance(box, ipywidgets.VBox)
+    view = update()
+    assert isinstance(view, RestyleView) and view.image is None
+    assert view.motion.num_frames == view.source.num_frames == view.label_sample.num_frames
+    assert view.shares.levels == (1, 2, 3) and "at levels 2-4" in view.title
+    want = restyle(model, clip, "wave", 1, seed=0, body=body)
+    np.testing.assert_allclose(view.motion.poses, want.poses, atol=1e-5)
+    controls = {c.description: c for row in box.children[:3] for c in row.children}
+    controls["level k"].value = 3
+    assert update().motion.meta["restyle"]["level"] == 3
+    controls["keep"].value = "detail"
+    assert controls["invert (fit the coarse noise; seconds)"].disabled
+    assert update().motion.meta["restyle"]["keep"] == "detail"
+
+    def fake_render(motion, body, frames=None, **kw):  # the real one takes seconds
+        return np.zeros((40, 120, 3), np.uint8)
+
+    monkeypatch.setattr(mrlib.widgets, "render_meshes", fake_render)
+    _, update = interactive_restyle(model, clip, body, frames=3)
+    assert update().image.shape == (40, 120, 3)

@@ -1,0 +1,211 @@
+"""Tests for mrlib.widgets, driven as a person drives them (control values set, the
+callbacks they trigger) on a plumbing model: the busy state of a redraw, the status line
+(its title kept current, invalid values reported there), labels in full, controls that do
+nothing disabled, and the 3D player following the sample."""
+
+from __future__ import annotations
+
+import html
+import re
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np
+import pytest
+
+import mrlib.widgets as W
+from mrlib.errors import MotionValueError
+
+ipywidgets = pytest.importorskip("ipywidgets")
+
+
+@pytest.fixture(scope="module")
+def model(sad_wave_model):
+    return sad_wave_model
+
+
+@pytest.fixture(autouse=True)
+def quick_render(monkeypatch):
+    """Mesh renders take seconds; a blank picture stands in."""
+    monkeypatch.setattr(W, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3)))
+
+
+def controls_of(box) -> dict:
+    """Every control of a view by its description, wherever it sits in the box."""
+    found, todo = {}, [box]
+    while todo:
+        w = todo.pop()
+        todo += list(getattr(w, "children", ()))
+        if getattr(w, "description", ""):
+            found[w.description] = w
+    return found
+
+
+def status_of(box) -> str:
+    """The status line's HTML."""
+    return next(w for w in _walk(box) if "mrlib-status" in w._dom_classes).value
+
+
+def text_of(box) -> str:
+    """The status line as a person reads it."""
+    return html.unescape(re.sub("<[^>]+>", "", status_of(box)))
+
+
+def _walk(box):
+    todo = [box]
+    while todo:
+        w = todo.pop()
+        todo += list(getattr(w, "children", ()))
+        yield w
+
+
+def test_crossover_title():
+    assert W.crossover_title("a", "b", 1.0, 2, 4, 0) == (
+        "coarse 'a' at levels 1-2, fine 'b' at levels 3-4 (seed 0)"
+    )
+    assert "fine '0.20 a + 0.80 b'" in W.crossover_title("a", "b", 0.8, 2, 4, 0)
+    # one label: the same on both sides, or nothing of the fine one left
+    assert W.crossover_title("wave", "wave", 0.8, 2, 4, 3) == "'wave' at every level (seed 3)"
+    assert W.crossover_title("a", "b", 0.0, 2, 4, 1) == "'a' at every level (seed 1)"
+
+
+def test_crossover_shows_drawing_with_controls_disabled_then_the_current_title(
+    model, body, monkeypatch
+):
+    seen = []
+    generate = W.generate
+
+    def watched(*args, **kw):  # what the page shows while the sample is made
+        seen.append((status_of(box), [c.disabled for c in controls.values()]))
+        return generate(*args, **kw)
+
+    monkeypatch.setattr(W, "generate", watched)
+    box, update = W.interactive_crossover(model, body, frames=2, window=10)
+    controls = controls_of(box)
+    assert "not drawn yet" in text_of(box)
+    update()
+    assert "drawing..." in seen[-1][0] and all(seen[-1][1])
+    assert not any(c.disabled for c in controls.values())  # restored
+    assert "coarse 'walk_sad' at levels 1-2, fine 'wave' at levels 3-4 (seed 0)" in text_of(box)
+    assert "nearest-window labels" in text_of(box)
+    # a change redraws through the control's observer; the status follows every redraw
+    controls["seed"].value = 4
+    assert len(seen) == 2 and "(seed 4)" in text_of(box)
+    controls["coarse"].value = "wave"  # coarse = fine: one label, not '0.00 wave + 1.00 wave'
+    assert "'wave' at every level (seed 4)" in text_of(box)
+    controls["fine weight"].value = 0.8
+    assert "'wave' at every level" in text_of(box)
+
+
+def test_invalid_values_are_reported_and_the_last_picture_stays(model, body):
+    box, update = W.interactive_crossover(model, body, frames=2, window=10)
+    controls = controls_of(box)
+    first = update()
+    drawn = status_of(box)
+    controls["fine weight"].value = float("nan")  # sliders clamp, but NaN passes
+    assert "mrlib-error" in status_of(box)
+    shown = text_of(box)
+    assert "not drawn: fine weight must be a number in [0, 1], got nan" in shown
+    assert first.title in shown  # says what the picture still shows
+    assert not any(c.disabled for c in controls.values())
+    with pytest.raises(MotionValueError, match="fine weight"):
+        update()  # called directly, the error is raised as well
+    controls["fine weight"].value = 1.0
+    assert status_of(box) == drawn  # the same picture again
+    controls["guidance"].max = 5.0
+    controls["guidance"].min = 2.0  # clamps the value into range: a valid redraw
+    assert "mrlib-done" in status_of(box)
+
+
+def test_parts_labels_in_full_and_arms_in_step_only_for_splice(model, body, monkeypatch):
+    import mrlib.constraints
+
+    calls = []
+    generate_parts = mrlib.constraints.generate_parts
+
+    def recorded(*args, **kw):
+        calls.append(kw)
+        return generate_parts(*args, **kw)
+
+    monkeypatch.setattr(mrlib.constraints, "generate_parts", recorded)
+    box, update = W.interactive_parts(model, body=body, length=40)
+    controls = controls_of(box)
+    in_step = controls["arms in step with the legs (splice)"]
+    sharpen = controls["sharpen each part's label (takes seconds)"]
+    for box_ in (in_step, sharpen):
+        assert box_.style.description_width == "initial" and box_.layout.width == "auto"
+        assert not box_.indent and len(box_.tooltip) > 40
+    in_step.value = True
+    assert calls[-1]["align_gait"] is True
+    assert "(splice, arms in step, seed 0)" in text_of(box)
+    controls["method"].value = "film"
+    assert in_step.disabled and in_step.value  # kept for splice, not used by film
+    assert calls[-1]["align_gait"] is False and calls[-1]["method"] == "film"
+    assert "(film, seed 0)" in text_of(box)
+    assert in_step.disabled  # the redraw's restore keeps it disabled
+    controls["method"].value = "splice"
+    assert not in_step.disabled and calls[-1]["align_gait"] is True
+
+
+def test_path_status_and_busy_text(model, body, monkeypatch):
+    import mrlib.constraints
+
+    seen = []
+    on_path = mrlib.constraints.generate_on_path
+
+    def watched(*args, **kw):
+        seen.append(status_of(box))
+        kw["method"] = "bend"  # optimising takes seconds; the status is what is checked
+        return on_path(*args, **kw)
+
+    monkeypatch.setattr(mrlib.constraints, "generate_on_path", watched)
+    box, update = W.interactive_path(model, body, seconds=3.0)
+    controls = controls_of(box)
+    update()
+    assert seen[-1].endswith("drawing...</span>")
+    assert "'walk_sad' on circle:2 (bend, seed 0): the pelvis" in text_of(box)
+    assert "cm from the path on average" in text_of(box)
+    controls["method"].value = "optimise"
+    assert "fitting the noise" in seen[-1]
+    assert "(optimise, seed 0)" in text_of(box)
+
+
+def test_inbetween_changing_clip_redraws_once(model, body, sad_wave_clips, monkeypatch):
+    import mrlib.constraints
+
+    calls = []
+    with_keyframes = mrlib.constraints.generate_with_keyframes
+
+    def counted(*args, **kw):
+        calls.append(kw)
+        return with_keyframes(*args, **kw)
+
+    monkeypatch.setattr(mrlib.constraints, "generate_with_keyframes", counted)
+    clips = {c.label: c for c in sad_wave_clips}
+    box, update = W.interactive_inbetween(model, clips, body, seconds=2.0, steps=0)
+    controls = controls_of(box)
+    update()
+    assert "walk_sad[0] -> walk_sad -> wave[35] (seed 0); keyframe error" in text_of(box)
+    n = len(calls)
+    controls["from clip"].value = "wave"  # the frame slider is clamped: one redraw
+    assert len(calls) == n + 1
+    assert "wave[0] -> walk_sad -> wave[" in text_of(box)
+
+
+def test_the_3d_player_follows_the_sample(model, body, monkeypatch):
+    shown = []
+    monkeypatch.setattr(W, "play_motion", lambda m, body, **kw: shown.append((m, kw)) or "still")
+    box, update = W.interactive_crossover(model, body, frames=2, window=10)
+    controls = controls_of(box)
+    view = update()
+    assert shown == []  # off until asked for
+    controls["3D player"].value = True
+    assert shown[-1][0] is view.motion and shown[-1][1]["still"] == "gif"
+    assert "(seed 0)" in text_of(box)  # the status of the picture, not "opening..."
+    controls["seed"].value = 2
+    assert shown[-1][0] is not view.motion and len(shown) == 2  # the new sample
+    controls["3D player"].value = False
+    controls["seed"].value = 3
+    assert len(shown) == 2  # off: nothing drawn
