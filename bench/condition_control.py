@@ -37,10 +37,10 @@ import json
 import time
 from pathlib import Path
 
-import torch
 from tutorial_checkpoint import add_iterations_arg, with_iterations
 
 import mrlib
+import mrlib.threads
 from mrlib import control, fidelity
 from mrlib.config import get_preset
 from mrlib.data import TrainingSet
@@ -81,7 +81,7 @@ def main(argv=None) -> int:
         "--out", type=Path, default=None, help="run folder [outputs/condition_control/...]"
     )
     a = p.parse_args(argv)
-    torch.set_num_threads(a.threads)
+    mrlib.threads.apply_policy(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
 
     paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
     missing = [str(q) for q in paths if not q.is_file()]

@@ -61,6 +61,7 @@ sys.path.insert(0, str(ROOT / "bench"))
 from tutorial_checkpoint import add_iterations_arg, with_iterations  # noqa: E402
 
 import mrlib  # noqa: E402
+import mrlib.threads  # noqa: E402
 from mrlib import constraints as C  # noqa: E402
 from mrlib.config import get_preset  # noqa: E402
 from mrlib.data import TrainingSet  # noqa: E402
@@ -118,7 +119,7 @@ def main() -> int:
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
-    torch.set_num_threads(a.threads)
+    mrlib.threads.apply_policy(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
     if not all(p.is_file() for p in paths):
         ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")

@@ -57,17 +57,16 @@ def main(argv: list[str] | None = None) -> int:
 
     import dataclasses
 
-    import torch
-
     import mrlib
     from mrlib.config import demo
     from mrlib.data import TrainingSet
     from mrlib.demo import DATA_SAMPLES, headline_table
     from mrlib.evaluate import evaluate_model
     from mrlib.sample import load_model
+    from mrlib.threads import apply_policy
     from mrlib.train import train
 
-    torch.set_num_threads(args.threads)
+    apply_policy(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     cfg = demo().replace(seed=args.seed)
     if args.iterations:
         its = tuple(int(v) for v in args.iterations.split(","))

@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     threads = [int(t) for t in args.threads.split(",")]
     rows, result = [], {"frames": T, "fps": model.fps, "machine": platform.machine()}
     for th in threads:
-        torch.set_num_threads(th)
+        mrlib.threads.apply_policy(th)  # explicit: mrlib's own calls keep it (mrlib.threads)
         for n in (1, 8, 64):
             reps = args.repeats if n < 64 else max(1, args.repeats - 1)
             new = _best(
@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
             rows.append((f"generate {n} x 1 min, {th} thread(s)", new, old))
             result[f"generate_{n}_threads_{th}_s"] = new
             result[f"packed_{n}_threads_{th}_s"] = old
-    torch.set_num_threads(threads[-1])
+    mrlib.threads.apply_policy(threads[-1])
     # a one-minute walk with contacts labelled from its own motion (a barely trained model
     # predicts few contacts, which would leave the clean-up nothing to do)
     m = mrlib.synthetic.synthetic_walk("walk_normal", seconds=60.0, fps=model.fps, body=body)

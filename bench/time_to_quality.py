@@ -472,7 +472,9 @@ def main(argv=None) -> int:
             p.error(f"--iterations wants integers, got {args.iterations!r}")
     if args.eval_every < 1 or args.samples < 1 or args.threads < 1:
         p.error("--eval-every, --samples and --threads must be positive")
-    torch.set_num_threads(args.threads)
+    from mrlib.threads import apply_policy
+
+    apply_policy(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     import tempfile
 
     import mrlib

@@ -54,14 +54,14 @@ def run_one(
 ) -> list[dict]:
     """Train one model in this process and measure it: a row per sampler ``fine_noise``
     (default: mrlib's ``FINE_NOISE``)."""
-    import torch
     import trained_models as tm
 
     from mrlib.body import load_body_model
     from mrlib.io import default_data_dir
     from mrlib.sample import FINE_NOISE
+    from mrlib.threads import apply_policy
 
-    torch.set_num_threads(threads)
+    apply_policy(threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     body = load_body_model()
     iterations = 2 if variant == "untrained" else 300
     t0 = time.time()

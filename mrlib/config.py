@@ -67,8 +67,13 @@ __all__ = [
     "demo",
     "speech_paper",
     "speech_tutorial",
+    "speech_demo",
     "SPEECH_NUM_LEVELS",
     "PRESETS",
+    "PRESET_FPS",
+    "PRESET_SUMMARIES",
+    "preset_names",
+    "describe_presets",
     "get_preset",
     "training_config",
     "block_iterations_for",
@@ -81,6 +86,14 @@ __all__ = [
 
 
 SPEECH_NUM_LEVELS = 10  # L for speech-guided synthesis (paper, Sec. 3.2)
+
+# Bounds on network sizes, checked before anything is allocated (a config may come from
+# a checkpoint someone else wrote): far above any preset, far below what would exhaust
+# memory. The paper uses 8-10 levels, kernels of 5 and widths up to 256.
+MAX_LEVELS = 32
+MAX_KERNEL_SIZE = 65
+MAX_HIDDEN = 2048  # channels of one hidden layer
+MAX_HIDDEN_LAYERS = 16
 
 
 class ConfigError(MrlibError, ValueError):
@@ -118,14 +131,28 @@ class ModelConfig:
     critic_contacts: bool = False
 
     def __post_init__(self):
-        if self.num_levels < 1:
-            raise ConfigError(f"num_levels must be >= 1, got {self.num_levels}")
+        if not 1 <= self.num_levels <= MAX_LEVELS:
+            raise ConfigError(
+                f"num_levels must be in [1, {MAX_LEVELS}], got {self.num_levels} (the paper "
+                "uses 8 for labels, 10 for speech)"
+            )
         if not self.scale_factor > 1:
             raise ConfigError(f"scale_factor must be > 1, got {self.scale_factor}")
         if self.kernel_size % 2 != 1:
             raise ConfigError(f"kernel_size must be odd, got {self.kernel_size}")
+        if not 1 <= self.kernel_size <= MAX_KERNEL_SIZE:
+            raise ConfigError(
+                f"kernel_size must be in [1, {MAX_KERNEL_SIZE}], got {self.kernel_size}"
+            )
         if not self.gen_hidden or not self.disc_hidden:
             raise ConfigError("gen_hidden and disc_hidden need at least one layer")
+        for name in ("gen_hidden", "disc_hidden"):
+            widths = tuple(getattr(self, name))
+            if len(widths) > MAX_HIDDEN_LAYERS or not all(1 <= w <= MAX_HIDDEN for w in widths):
+                raise ConfigError(
+                    f"{name} must have at most {MAX_HIDDEN_LAYERS} layers of 1 to {MAX_HIDDEN} "
+                    f"channels, got {widths}"
+                )
         if self.critic_band not in ("full", "detail", "level"):
             raise ConfigError(
                 f"critic_band must be 'full', 'detail' or 'level', got {self.critic_band!r}"
@@ -355,6 +382,14 @@ def speech_tutorial() -> TrainConfig:
     )
 
 
+def speech_demo() -> TrainConfig:
+    """``speech_tutorial``'s networks and losses on a budget of minutes on two CPU cores
+    (700 iterations instead of 3900), for notebook 04's default run on a handful of
+    synthetic clips: enough for the arms to follow the loudness, not for the tutorial's
+    measured synchrony."""
+    return speech_tutorial().replace(block_iterations=(300, 150, 100, 75, 75), checkpoint_every=0)
+
+
 def ganimator_mode(config: TrainConfig) -> TrainConfig:
     """``config`` for a GANimator-style baseline (one model per clip, Li et al. 2022): no
     style mixing (one label, nothing to mix) and unconditional critics."""
@@ -368,7 +403,47 @@ PRESETS = {
     "demo": demo,
     "speech_paper": speech_paper,
     "speech_tutorial": speech_tutorial,
+    "speech_demo": speech_demo,
 }
+
+
+# Frame rate a preset trains at when it wants one (clips are resampled to it first): the
+# demo budget trains at 15 fps, half the Bandai clips' rate, for minutes on two CPU cores.
+PRESET_FPS = {"demo": 15.0}
+
+# One line per preset for ``--help`` (``mrlib train``, ``train-speech``, ``demo``); times
+# are on 2 CPU cores, measured in ``docs/results.md``. Speech presets are ``speech_*``.
+PRESET_SUMMARIES = {
+    "paper": "the paper's: 15k + 3 x 25k iterations, full-width networks (use a GPU)",
+    "tutorial": "CPU budget: narrower networks, 800 iterations per block (~20 min)",
+    "demo": "tutorial networks, 800/600/400/300 iterations, 1 critic step (minutes)",
+    "speech_paper": "the paper's speech setting: 10 levels, the label schedule (use a GPU)",
+    "speech_tutorial": "CPU budget for ~12 speech clips of 10 s: 3900 iterations (20-30 min)",
+    "speech_demo": "speech_tutorial's networks, 700 iterations (minutes; notebook 04's default)",
+}
+
+
+def preset_names(kind: str | None = None) -> list[str]:
+    """Names of ``PRESETS`` in registry order: all of them, or those for ``kind``
+    ``"labels"`` or ``"speech"`` (the ``speech_*`` ones)."""
+    if kind not in (None, "labels", "speech"):
+        raise ConfigError(f"kind must be 'labels' or 'speech', got {kind!r}")
+    names = list(PRESETS)
+    if kind is None:
+        return names
+    return [n for n in names if n.startswith("speech_") == (kind == "speech")]
+
+
+def describe_presets(kind: str | None = None) -> str:
+    """A ``--help`` block: one line per preset of ``kind`` (see :func:`preset_names`),
+    its name, its fps when it sets one, and :data:`PRESET_SUMMARIES`."""
+    names = preset_names(kind)
+    width = max(map(len, names))
+    lines = []
+    for n in names:
+        fps = f" [{PRESET_FPS[n]:g} fps]" if n in PRESET_FPS else ""
+        lines.append(f"  {n:<{width}}  {PRESET_SUMMARIES.get(n, '')}{fps}".rstrip())
+    return "\n".join(lines)
 
 
 def get_preset(name: str) -> TrainConfig:

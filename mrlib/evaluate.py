@@ -60,6 +60,7 @@ from mrlib.calibration import (  # noqa: F401  (part of this module's API before
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.io import default_data_dir  # noqa: F401  (part of this module's API)
 from mrlib.motion import Motion
+from mrlib.threads import with_policy
 
 __all__ = [
     "SampleFn",
@@ -639,6 +640,7 @@ def _clip_index(model: Any, key: str) -> int:
     raise KeyError(f"{key!r} is neither a clip nor a label of this model ({model.clip_names})")
 
 
+@with_policy
 def evaluate_model(
     model: Any,
     baselines: Mapping[str, Any] | None = None,

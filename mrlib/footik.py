@@ -43,6 +43,7 @@ from mrlib.errors import MotionValueError
 from mrlib.motion import Motion
 from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from mrlib.skeleton import NUM_JOINTS, PARENTS
+from mrlib.threads import with_policy
 
 __all__ = [
     "LEGS",
@@ -390,6 +391,7 @@ def _cleanup_ik(
     return motion.replace(poses=poses, trans=tn.astype(np.float32), meta=meta)
 
 
+@with_policy
 def cleanup_foot_contacts(
     motion: Motion,
     body=None,

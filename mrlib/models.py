@@ -62,10 +62,17 @@ def skeleton_mask(
 class SkeletonConv1d(nn.Module):
     """Temporal convolution whose weight is masked by the skeleton (Aberman et al. 2020).
 
-    ``weight (C_out, C_in, K)`` is multiplied by the fixed ``mask (C_out, C_in, 1)`` (a
-    buffer, never trained) at every call, so an output joint only mixes channels of its
-    neighbourhood. ``mask=None`` gives an ordinary dense convolution. Padding is reflect,
-    per sample (``PackedLevels.pad_index``).
+    ``weight (C_out, C_in, K)`` is zero outside the fixed ``mask (C_out, C_in, 1)`` (a
+    buffer, never trained), so an output joint only mixes channels of its neighbourhood.
+    ``mask=None`` gives an ordinary dense convolution. Padding is reflect, per sample
+    (``PackedLevels.pad_index``).
+
+    The masked entries are zeroed at initialisation and on loading a state dict, and
+    their gradient is zeroed once per backward (a post-accumulate-grad hook), so they
+    stay zero under Adam and the forward convolves with the weight as it is. Masking
+    the weight at every call instead (``weight * mask``, the same numbers) cost a copy
+    of it per call, and made training the ``demo`` preset on one CPU thread 9 % slower
+    (``python bench/busy_machine.py --extras``).
     """
 
     def __init__(
@@ -80,6 +87,16 @@ class SkeletonConv1d(nn.Module):
             mask = torch.ones(out_channels, in_channels, dtype=torch.bool)
         self.register_buffer("mask", mask.to(torch.float32)[..., None], persistent=True)
         self.reset_parameters()
+        if not bool(mask.all()):
+            self.weight.register_post_accumulate_grad_hook(self._mask_grad)
+
+    def _mask_grad(self, weight: torch.Tensor) -> None:
+        weight.grad.mul_(self.mask)
+
+    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):
+        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
+        with torch.no_grad():
+            self.weight.mul_(self.mask)  # zero already in any checkpoint mrlib writes
 
     def reset_parameters(self) -> None:
         # PyTorch's default conv init (kaiming_uniform with a=sqrt(5)) has bound 1/sqrt(fan_in);
@@ -102,7 +119,7 @@ class SkeletonConv1d(nn.Module):
         else:
             B, C, _ = x.shape
             xp = x.gather(2, pad_index.expand(B, C, -1))  # (B, C_in, T + 2p), reflect-padded
-        return F.conv1d(xp, self.weight * self.mask, self.bias)
+        return F.conv1d(xp, self.weight, self.bias)  # masked entries are zero (see above)
 
     def extra_repr(self) -> str:
         co, ci, k = self.weight.shape

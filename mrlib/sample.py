@@ -24,6 +24,7 @@ from mrlib.footik import cleanup_foot_contacts, contact_skating
 from mrlib.models import MultiResGenerator, build_generator
 from mrlib.motion import Motion
 from mrlib.pyramid import PackedLevels, level_fps, pyramid_lengths
+from mrlib.threads import with_policy
 
 __all__ = [
     "GenerativeModel",
@@ -369,6 +370,7 @@ def sampler_record(model: GenerativeModel, seed: int | None, index: int, W: torc
     }  # fmt: skip
 
 
+@with_policy
 def generate(
     model: GenerativeModel,
     condition: str | int | None = None,

@@ -303,3 +303,32 @@ def test_level_band_critic_reads_the_band_it_is_given():
     with pytest.raises(ValueError, match="needs band"):
         critic(x, pad, a, band[..., :30])
     assert PatchCritic(dataclasses.replace(TINY, critic_band="level")).band == "full"
+
+
+def test_masked_weights_stay_zero_through_training_and_loading():
+    """The forward uses the weight as it is: its masked entries must stay zero, so their
+    gradient is masked (once per backward) and a loaded state dict is masked too."""
+    torch.manual_seed(0)
+    conv = SkeletonConv1d(C, 48, 5, skeleton_mask(hidden_channel_joint(48), IO, 2))
+    off = ~conv.mask.expand_as(conv.weight).bool()
+    opt = torch.optim.Adam(conv.parameters(), lr=0.1)
+    x = torch.randn(2, C, 30)
+    for _ in range(3):
+        opt.zero_grad()
+        conv(x).square().sum().backward()
+        conv(x).sum().backward()  # a second backward accumulates: still masked
+        assert (conv.weight.grad[off] == 0).all() and (conv.weight.grad[~off] != 0).any()
+        opt.step()
+    assert (conv.weight.detach()[off] == 0).all()
+    expected = torch.nn.functional.conv1d(
+        torch.nn.functional.pad(x, (2, 2), mode="reflect"), conv.weight * conv.mask, conv.bias
+    )
+    assert torch.equal(conv(x), expected)
+    state = {k: v.clone() for k, v in conv.state_dict().items()}
+    state["weight"] = torch.randn_like(state["weight"])
+    conv.load_state_dict(state)
+    assert (conv.weight.detach()[off] == 0).all()
+    assert torch.equal(conv.weight.detach()[~off], state["weight"][~off])
+    dense = SkeletonConv1d(C, 8, 5, None)
+    dense(x).sum().backward()
+    assert (dense.weight.grad != 0).all()

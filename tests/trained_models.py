@@ -18,7 +18,6 @@ import os
 from pathlib import Path
 
 import numpy as np
-import torch
 
 from mrlib.config import ModelConfig, TrainConfig, tutorial
 from mrlib.control import crossover_evidence
@@ -143,10 +142,51 @@ def reconstruction_errors(model) -> np.ndarray:
 def train_recipe(clips, cfg: TrainConfig, out: str | os.PathLike, body, threads: int = 1):
     """Train ``cfg`` on ``clips`` with ``threads`` torch threads (restored afterwards)
     and return the loaded model."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(threads)
-    try:
+    from mrlib.threads import policy
+
+    with policy(threads):  # explicit, so training keeps it whatever mrlib's default
         res = train(TrainingSet.from_motions(clips, body=body), cfg, out, body=body, progress=False)
-    finally:
-        torch.set_num_threads(before)
     return load_model(res.checkpoint)
+
+
+# -- recipe 4: restyling unseen Bandai walks (mrlib.restyle) with the recipe-2 model --------
+RESTYLE_FILES = tuple(
+    f"dataset-1_{kind}_{style}_{take}.bvh"
+    for style in ("angry", "sad")
+    for kind, take in (("walk", "002"), ("walk-left", "001"), ("walk-right", "001"))
+)
+RESTYLE_LEVELS = (3, 4)  # of the recipe's 6: the clip keeps levels 1..k
+
+
+def restyle_inputs(data_dir: Path) -> dict:
+    """Takes the recipe-2 model never saw, at 15 fps: the second takes and the side walks
+    of the two styles, by file name (their own label is ``walk_<style>``)."""
+    import mrlib
+
+    return {f: mrlib.load_motion(Path(data_dir) / "data" / f, fps=15.0) for f in RESTYLE_FILES}
+
+
+def restyle_log_ratios(model, inputs: dict, levels=RESTYLE_LEVELS) -> np.ndarray:
+    """``(P, 2)`` over the (input, level) cases, the target the label the input is not:
+    ``log(d_own / d_target)``, where ``d_l`` is the distance of the residual profile of
+    the input restyled towards label ``l`` to the target's profile (> 0: restyling
+    towards the target brings the residual nearer the target than the paired negative,
+    the input restyled with its own label, does), and 1 where the restyled residual's
+    nearest label is the target."""
+    from mrlib.restyle import restyle, restyle_evidence, restyle_references
+
+    out = []
+    for name, clip in inputs.items():
+        own = "walk_" + name.split("_")[2]
+        (target,) = [lab for lab in model.labels if lab != own]
+        for level in levels:
+            ref = restyle_references(model, clip.num_frames, level, num_samples=4)
+            ev = {
+                lab: restyle_evidence(
+                    model, restyle(model, clip, lab, level, seed=0, fix_contacts=False), clip, ref
+                )
+                for lab in (own, target)
+            }
+            d = ev[own].residual_to_labels[target] / ev[target].residual_to_labels[target]
+            out.append((np.log(d), float(ev[target].nearest_label == target)))
+    return np.asarray(out)

@@ -18,6 +18,7 @@ import torch
 
 from mrlib.features import ROOT_SLICE, ROT_SLICE, root_velocity_to_trans
 from mrlib.rotations import sixd_to_matrix
+from mrlib.threads import with_policy
 
 __all__ = ["optimise_noise", "decode", "frozen"]
 
@@ -47,6 +48,7 @@ def decode(model, x: torch.Tensor) -> dict[str, torch.Tensor]:
     return {"rotations": R, "trans": trans, "contacts": f[..., ROOT_SLICE.stop :]}
 
 
+@with_policy
 def optimise_noise(
     model,
     noises: list[torch.Tensor],

@@ -38,6 +38,7 @@ from mrlib.speech.align import SpeechNormalizer, level_lengths, speech_condition
 from mrlib.speech.audio import check_waveform, load_audio
 from mrlib.speech.data import SPEECH_LABEL
 from mrlib.speech.features import SpeechFeatureConfig, SpeechFeatureExtractor
+from mrlib.threads import with_policy
 
 __all__ = [
     "SpeechModel",
@@ -170,6 +171,7 @@ def audio_conditions(
     return conds, lengths, wav, rate
 
 
+@with_policy
 def generate_from_audio(
     model: SpeechModel | str | Path,
     audio,

@@ -1,0 +1,172 @@
+"""How many threads PyTorch uses for mrlib's CPU work.
+
+mrlib's networks are small: a training iteration or a sample is thousands of short
+kernels (convolutions of a few hundred channels over a few hundred frames). Each kernel
+that runs on several threads ends on a barrier, and when another process holds one of
+the cores the kernel waits for a time slice of the thread that lost its core. PyTorch's
+default, one thread per physical core, leaves no core for anything else. Measured on a
+2-core x86-64 VM with no GPU (``python bench/busy_machine.py``,
+``docs/notes/2026-12-04-threads.md``): beside one CPU-bound process, two threads trained
+the ``demo`` preset 4.5-12x slower than on the idle machine, one thread 0.97-1.6x (the
+latter with other jobs on the cores too), and foot-contact cleaned samples took 960 ms
+instead of 89 on two threads, 101 instead of 100 on one. On the idle machine two threads
+were 18-35 % faster per block than one; one thread ran at 0.87x the speed two threads
+had before the fused Adam step (``mrlib.train.make_adam``) and the masked gradients of
+``mrlib.models.SkeletonConv1d``, which made it about 13 % faster.
+
+The policy (:func:`apply_policy`), in order:
+
+1. a count passed explicitly (``mrlib ... --threads N``, ``apply_policy(N)``);
+2. the user's own choice: ``OMP_NUM_THREADS`` or ``MKL_NUM_THREADS`` set, or
+   ``torch.set_num_threads`` called after mrlib was imported (a count other than the
+   one torch started with, or other than the one mrlib last set) -- kept as it is;
+3. otherwise :func:`default_threads`: half the CPUs this process may use (at least one,
+   at most torch's own starting count), so that as many other busy threads as mrlib
+   runs fit beside it. On 2 cores that is one thread; counts above 2 CPUs follow the
+   same rule but were not measured here.
+
+The command line applies the policy around each command; ``mrlib.train.Trainer.fit``,
+``mrlib.sample.generate``, ``mrlib.evaluate.evaluate_model``,
+``mrlib.footik.cleanup_foot_contacts``, ``mrlib.constraints.optimise.optimise_noise`` and
+``mrlib.speech.generate_from_audio`` run under :func:`policy`, which applies it for the
+call and restores the previous count after, so a script that trains with mrlib gets the
+same count as ``mrlib train`` and its own torch work keeps its setting. What cannot be
+told from torch's default: a count set with ``torch.set_num_threads`` before mrlib was
+imported (taken for torch's own, so capped at the default) and one set afterwards that
+equals torch's starting count; pass such a count to :func:`apply_policy` (or
+``--threads``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+from collections.abc import Callable, Iterator
+from typing import TypeVar
+
+import torch
+
+from mrlib.errors import MrlibError
+
+__all__ = [
+    "ENV_VARS",
+    "apply_policy",
+    "default_threads",
+    "policy",
+    "usable_cpus",
+    "user_threads",
+    "with_policy",
+]
+
+# environment variables through which a user sets the thread count of torch's CPU kernels
+ENV_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+_START = torch.get_num_threads()  # torch's count when mrlib was first imported
+
+
+class _State:
+    last_set: int | None = None  # the count mrlib last set
+    explicit: bool = False  # whether that count was asked for explicitly
+
+
+_state = _State()
+
+F = TypeVar("F", bound=Callable)
+
+
+def _env_threads() -> int | None:
+    for name in ENV_VARS:
+        text = os.environ.get(name, "").strip()
+        if text.isdigit() and int(text) > 0:
+            return int(text)
+    return None
+
+
+def usable_cpus() -> int:
+    """CPUs this process may run on: its affinity mask, lowered by a cgroup CPU quota
+    (``/sys/fs/cgroup/cpu.max``, a container's ``--cpus``) where there is one."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        n = os.cpu_count() or 1
+    try:
+        quota, period = open("/sys/fs/cgroup/cpu.max").read().split()[:2]
+        if quota != "max":
+            n = min(n, max(1, int(int(quota) // int(period))))
+    except (OSError, ValueError):
+        pass
+    return max(1, n)
+
+
+def default_threads() -> int:
+    """mrlib's default: half the usable CPUs, at least 1, at most torch's own count."""
+    return max(1, min(_START, usable_cpus() // 2))
+
+
+def _check(threads) -> int:
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise MrlibError(f"threads must be a positive integer, got {threads!r}")
+    return threads
+
+
+def _set(n: int) -> None:
+    if torch.get_num_threads() != n:
+        torch.set_num_threads(n)
+
+
+def user_threads() -> int | None:
+    """The count the user chose (environment or ``torch.set_num_threads``), else None."""
+    current = torch.get_num_threads()
+    if _env_threads() is not None:
+        return current
+    reference = _START if _state.last_set is None else _state.last_set
+    if current != reference or _state.explicit:
+        return current
+    return None
+
+
+def apply_policy(threads: int | None = None) -> int:
+    """Set torch's intra-op thread count for mrlib's CPU work and return it.
+
+    ``threads``: an explicit count (wins over everything). Otherwise the user's own
+    choice is kept (``OMP_NUM_THREADS`` / ``MKL_NUM_THREADS``, or a count set with
+    ``torch.set_num_threads`` after importing mrlib), and else :func:`default_threads`
+    is set. Notebooks call ``mrlib.threads.apply_policy()`` once at the top."""
+    if threads is not None:
+        n = _check(threads)
+        _set(n)
+        _state.last_set, _state.explicit = n, True
+        return n
+    chosen = user_threads()
+    if chosen is not None:
+        return chosen
+    n = default_threads()
+    _set(n)
+    _state.last_set, _state.explicit = n, False
+    return n
+
+
+@contextlib.contextmanager
+def policy(threads: int | None = None) -> Iterator[int]:
+    """Apply the policy for the ``with`` block, then restore torch's previous count."""
+    before = torch.get_num_threads()
+    saved = (_state.last_set, _state.explicit)
+    n = apply_policy(threads)
+    try:
+        yield n
+    finally:
+        _set(before)
+        _state.last_set, _state.explicit = saved
+
+
+def with_policy(fn: F) -> F:
+    """Decorator: run ``fn`` under :func:`policy` (the default count unless the user
+    chose one)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with policy():
+            return fn(*args, **kwargs)
+
+    return wrapper  # type: ignore[return-value]

@@ -1,0 +1,154 @@
+"""The thread policy (``mrlib.threads``) and ``--threads`` on the command line.
+
+Nothing here measures time: the speed the policy buys is measured by
+``bench/busy_machine.py``; these tests check which count it picks and that every
+command takes and applies ``--threads``."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from mrlib import threads
+from mrlib.cli import build_parser, main
+from mrlib.errors import MrlibError
+
+
+@pytest.fixture(autouse=True)
+def fresh_policy(monkeypatch):
+    """No environment choice, mrlib has set nothing yet, torch started with the count it
+    has now; the policy's state and torch's count are restored afterwards."""
+    for name in threads.ENV_VARS:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setattr(threads, "_state", threads._State())
+    monkeypatch.setattr(threads, "_START", torch.get_num_threads())
+    before = torch.get_num_threads()
+    yield
+    torch.set_num_threads(before)
+
+
+def _started_with(monkeypatch, n: int, cpus: int) -> None:
+    """As if torch had started with ``n`` threads on a machine of ``cpus`` usable CPUs."""
+    torch.set_num_threads(n)
+    monkeypatch.setattr(threads, "_START", n)
+    monkeypatch.setattr(threads, "usable_cpus", lambda: cpus)
+
+
+@pytest.mark.parametrize("cpus, start, expected", [(2, 2, 1), (1, 1, 1), (8, 4, 4), (8, 8, 4)])
+def test_the_default_is_half_the_usable_cpus_at_most_torchs_own(monkeypatch, cpus, start, expected):
+    _started_with(monkeypatch, start, cpus)
+    assert threads.default_threads() == expected
+    assert threads.apply_policy() == expected
+    assert torch.get_num_threads() == expected
+
+
+def test_an_explicit_count_wins_over_everything(monkeypatch):
+    _started_with(monkeypatch, 2, 2)
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    assert threads.apply_policy(3) == 3
+    assert torch.get_num_threads() == 3
+    assert threads.apply_policy() == 3  # and stays the count for later calls
+
+
+@pytest.mark.parametrize("name", threads.ENV_VARS)
+def test_a_count_from_the_environment_is_kept(monkeypatch, name):
+    _started_with(monkeypatch, 2, 2)
+    monkeypatch.setenv(name, "2")
+    assert threads.apply_policy() == 2
+    assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize("value", ["", "0", "abc", "-1"])
+def test_an_empty_or_invalid_environment_value_is_not_a_choice(monkeypatch, value):
+    _started_with(monkeypatch, 2, 2)
+    monkeypatch.setenv("OMP_NUM_THREADS", value)
+    assert threads.apply_policy() == 1
+
+
+def test_a_count_the_user_set_after_import_is_kept(monkeypatch):
+    _started_with(monkeypatch, 2, 2)
+    torch.set_num_threads(3)  # the user's own call
+    assert threads.apply_policy() == 3
+    assert torch.get_num_threads() == 3
+
+
+def test_a_count_the_user_set_after_mrlibs_default_is_kept(monkeypatch):
+    _started_with(monkeypatch, 2, 2)
+    assert threads.apply_policy() == 1
+    assert threads.apply_policy() == 1  # mrlib's own default, applied again
+    torch.set_num_threads(2)  # the user changes it afterwards
+    assert threads.apply_policy() == 2
+
+
+def test_the_policy_block_restores_the_previous_count(monkeypatch):
+    _started_with(monkeypatch, 2, 2)
+    with threads.policy() as n:
+        assert n == torch.get_num_threads() == 1
+        with threads.policy() as inner:  # nested library calls agree
+            assert inner == 1
+        assert torch.get_num_threads() == 1
+    assert torch.get_num_threads() == 2
+    with threads.policy(3):
+        assert torch.get_num_threads() == 3
+    assert torch.get_num_threads() == 2
+    assert threads.apply_policy() == 1  # the explicit count of the block did not stick
+
+
+def test_library_entry_points_run_under_the_policy(monkeypatch):
+    from mrlib.evaluate import evaluate_model
+    from mrlib.footik import cleanup_foot_contacts
+    from mrlib.sample import generate
+    from mrlib.train import Trainer
+
+    for fn in (generate, evaluate_model, cleanup_foot_contacts, Trainer.fit):
+        assert getattr(fn, "__wrapped__", None) is not None, fn.__qualname__
+    _started_with(monkeypatch, 2, 2)
+    seen = threads.with_policy(torch.get_num_threads)()
+    assert seen == 1 and torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, "2", True])
+def test_a_bad_explicit_count_is_an_error(bad):
+    with pytest.raises(MrlibError, match="positive integer"):
+        threads.apply_policy(bad)
+
+
+def test_usable_cpus_is_at_least_one():
+    assert threads.usable_cpus() >= 1
+
+
+# -- the command line -------------------------------------------------------------------------
+def _commands():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    return sub.choices
+
+
+def test_every_command_takes_threads():
+    for name, command in _commands().items():
+        option = [a for a in command._actions if "--threads" in a.option_strings]
+        assert len(option) == 1, name
+        assert option[0].default is None and option[0].type("3") == 3, name
+
+
+def test_the_command_runs_with_the_threads_given(monkeypatch, tmp_path):
+    import mrlib.cli
+
+    _started_with(monkeypatch, 2, 2)
+    seen = []
+    monkeypatch.setattr(mrlib.cli, "_cmd_info", lambda args: seen.append(torch.get_num_threads()))
+    assert main(["info", str(tmp_path / "x.npz"), "--threads", "3"]) == 0
+    assert main(["info", str(tmp_path / "x.npz")]) == 0
+    assert seen == [3, 1]
+    assert torch.get_num_threads() == 2  # the caller's count is back afterwards
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "two", "1.5", ""])
+def test_a_bad_threads_value_is_a_one_line_usage_error(capsys, value):
+    with pytest.raises(SystemExit) as e:
+        main(["info", "clip.npz", "--threads", value])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    errors = [line for line in err.splitlines() if "error:" in line]
+    assert len(errors) == 1 and "--threads" in errors[0], err
