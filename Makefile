@@ -47,9 +47,9 @@ format: $(READY)
 notebooks: $(READY)
 	$(BIN)/python tools/run_notebooks.py
 
-## JupyterLab on the notebooks.
+## JupyterLab on the notebooks, with live (trame) 3D views.
 lab: $(READY)
-	$(BIN)/jupyter lab notebooks/
+	PYVISTA_JUPYTER_BACKEND=client $(BIN)/jupyter lab notebooks/
 
 ## Speed and memory benchmarks (print tables, write JSON to bench/results/).
 bench: $(READY)

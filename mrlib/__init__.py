@@ -9,6 +9,7 @@ The public API, in the order data flows through it::
     result = mrlib.train.train(mrlib.TrainingSet.from_motions(clips), mrlib.tutorial(), "runs/x")
     model = mrlib.load_model(result.checkpoint)
     new = mrlib.generate(model, "walk_happy", length=600, seed=0)
+    sad = mrlib.restyle(model, "my_walk.bvh", "walk_sad", level=4, seed=0)  # a clip restyled
 
 Conventions (metres, Y up, 6D = first two matrix columns) are stated in ``mrlib.skeleton``;
 ``docs/architecture.md`` maps the modules onto the paper. Rendering helpers import
@@ -32,7 +33,8 @@ E     FiLM embedding size
 ====  =====================================================================
 """
 
-from mrlib import datasets
+# restyle: a module that is called as its function, mrlib.restyle(model, clip, label)
+from mrlib import datasets, restyle, threads
 from mrlib.body import BodyModel, BodyOutput, load_body_model
 from mrlib.config import ModelConfig, TrainConfig, get_preset, paper, tutorial
 from mrlib.contacts import DEFAULT_CONTACT_THRESHOLD, foot_contacts, foot_vertex_velocity
@@ -80,6 +82,7 @@ __all__ = [
     "save_motion",
     "load_label",
     "datasets",
+    "threads",
     # body and contacts
     "BodyModel",
     "BodyOutput",
@@ -103,6 +106,7 @@ __all__ = [
     "load_model",
     "generate",
     "reconstruct",
+    "restyle",
     "cleanup_foot_contacts",
     # evaluation
     "evaluate_model",

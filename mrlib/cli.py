@@ -1,4 +1,4 @@
-"""Command-line interface: ``mrlib {demo,train,train-speech,sample,evaluate,export,info}``.
+"""Command-line interface: ``mrlib {demo,train,train-speech,sample,restyle,evaluate,export,info,data}``.
 
 Run ``mrlib COMMAND --help`` for the options of each command. Each command is a pair of
 functions, ``_add_<command>`` (its options, with help texts) and ``_cmd_<command>`` (a
@@ -9,8 +9,10 @@ in ``mrlib``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
+import warnings
 from pathlib import Path
 
 from mrlib.errors import MrlibError
@@ -81,6 +83,17 @@ def _cmd_info(args) -> int:
     pairs, errors = m.meta["joint_map_pairs"], m.meta.get("retarget_joint_error_cm", {})
     if "joint_map_report" in m.meta:
         print("  " + m.meta["joint_map_report"].replace("\n", "\n  "))
+    if m.meta.get("retarget_mode") == "rotations":
+        print(
+            "  body fit: motion transferred by rotations onto SMPL's mean shape (the source's "
+            f"proportions are beyond its shape space), the root scaled by {m.meta['scale']:.3g}"
+        )
+    elif "retarget_mode" in m.meta:
+        pinned = m.meta.get("retarget_betas_at_bound") or []
+        print(
+            "  body fit: motion transferred by positions; "
+            + (f"betas {pinned} at the shape bound" if pinned else "no beta at the shape bound")
+        )
     print(f"  {'SMPL joint':<15} {'source joint':<28} error cm")
     from mrlib.skeleton import JOINT_NAMES
 
@@ -107,16 +120,84 @@ def _add_export(sub):
     p.add_argument("dst", type=Path, help="output: .npz, .bvh or .glb")
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate")
     _joint_map_option(p)
+    p.add_argument("--overwrite", action="store_true", help="replace DST if it exists")
     p.set_defaults(func=_cmd_export)
 
 
 def _cmd_export(args) -> int:
     from mrlib.io import load_motion, save_motion
+    from mrlib.io.outputs import check_writable
 
+    check_writable(args.dst, overwrite=args.overwrite)  # before reading anything
     m = load_motion(args.src, fps=args.fps, joint_map=args.joint_map)
-    save_motion(m, args.dst)
+    save_motion(m, args.dst, overwrite=args.overwrite)
     print(f"wrote {args.dst} ({m.num_frames} frames @ {m.fps:g} fps)")
     return 0
+
+
+MAX_SAMPLES = 1000  # --num: each sample is generated, cleaned up and written (2-4 files)
+MAX_SEED = 2**32 - 1  # numpy's and torch's seeds are 32/64-bit unsigned
+
+
+def _seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
+    if not 0 <= v <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be in [0, {MAX_SEED}], got {v}")
+    return v
+
+
+def _level_count(text: str) -> int:
+    from mrlib.config import MAX_LEVELS
+
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer, got {text!r}") from None
+    if not 1 <= v <= MAX_LEVELS:
+        raise argparse.ArgumentTypeError(
+            f"must be in [1, {MAX_LEVELS}], got {v} (the paper uses 8; a level needs about "
+            "4/3 times the frames of the one below)"
+        )
+    return v
+
+
+MAX_SAMPLE_SECONDS = 600.0  # one sample: a 10-minute walk stays within mrlib.motion's 1000 m
+MAX_SAMPLE_FRAMES = 200_000  # all samples of one command (~0.5 GB while generating)
+
+
+def _check_sample_frames(frames: int, fps: float, args) -> None:
+    """Refuse, before generating, samples longer than ``MAX_SAMPLE_SECONDS`` or more
+    frames in all than ``MAX_SAMPLE_FRAMES``."""
+    what = "--continue: the clip plus --seconds" if args.prefix is not None else "--seconds"
+    if frames > MAX_SAMPLE_SECONDS * fps + 1:
+        raise MrlibError(
+            f"{what}: {frames / fps:.0f} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s mrlib "
+            "generates in one sample (a longer walk leaves the 1000 m a motion may span); "
+            "generate shorter pieces and join them with --continue"
+        )
+    if frames * args.num > MAX_SAMPLE_FRAMES:
+        raise MrlibError(
+            f"--num: {args.num} samples of {frames} frames are {frames * args.num} frames, more "
+            f"than the {MAX_SAMPLE_FRAMES} one command generates; use fewer --num or a "
+            "shorter --seconds, and run again with another --seed"
+        )
+
+
+def _sample_count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    if v > MAX_SAMPLES:
+        raise argparse.ArgumentTypeError(
+            f"must be at most {MAX_SAMPLES}, got {v} (for more, run again with another --seed)"
+        )
+    return v
 
 
 def _seconds(text: str) -> float:
@@ -171,6 +252,29 @@ def _positive_float(text: str) -> float:
     return v
 
 
+@contextlib.contextmanager
+def _retarget_check(accept: bool):
+    """Loads inside refuse BVH clips retargeted with an error above the threshold (their
+    RetargetWarning), unless ``accept``; other warnings pass through."""
+    from mrlib.io.retarget import RetargetWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    bad = []
+    for w in caught:
+        if issubclass(w.category, RetargetWarning):
+            bad.append(str(w.message))
+        if not issubclass(w.category, RetargetWarning) or accept:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    if bad and not accept:
+        raise MrlibError(
+            f"{len(bad)} clip(s) retargeted with a joint error above the threshold (or joint "
+            "angles no person holds); fix their joint map, or pass --accept-retarget-error "
+            "to train on them anyway:\n  " + "\n  ".join(bad)
+        )
+
+
 def _refuse_on_resume(args, options: dict[str, str]) -> None:
     """A resumed run continues exactly as it was configured (its checkpoint holds the
     config and the data), so an option that would change it is an error, not silently
@@ -193,7 +297,9 @@ def _add_train(sub):
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  mrlib train data_samples/*.npz --out runs/samples\n"
         "  mrlib train a.bvh b.bvh --labels calm angry --preset paper --device cuda --out runs/ab\n"
-        "  mrlib train --resume runs/ab/checkpoint.pt --out runs/ab",
+        "  mrlib train --resume runs/ab/checkpoint.pt --out runs/ab\n"
+        "  mrlib train data_samples/*.npz --preset demo --out runs/demo\n\n"
+        "presets (--preset, mrlib.config.PRESETS):\n" + _preset_help("labels"),
     )
     p.add_argument(
         "clips", nargs="*", type=Path, help="motion files (.bvh, .npz, EasyMocap folders)"
@@ -204,9 +310,9 @@ def _add_train(sub):
     p.add_argument(
         "--preset",
         default=None,
-        choices=["tutorial", "paper"],
-        help="training schedule: 'tutorial' (CPU minutes) or 'paper' (the paper's 15k/25k "
-        "iterations per block; use a GPU) [default: tutorial]",
+        choices=_preset_choices("labels"),
+        help="training schedule, one of the presets listed below; 'demo' also resamples "
+        "the clips to its frame rate unless --fps is given [default: tutorial]",
     )
     p.add_argument(
         "--iterations",
@@ -216,7 +322,10 @@ def _add_train(sub):
         help="iterations per block, overriding the preset (one value for all blocks, or one per block)",
     )
     p.add_argument(
-        "--levels", type=int, default=None, help="number of pyramid levels (overrides the preset)"
+        "--levels",
+        type=_level_count,
+        default=None,
+        help="number of pyramid levels (overrides the preset)",
     )
     p.add_argument(
         "--lr",
@@ -236,7 +345,7 @@ def _add_train(sub):
         help="write the checkpoint every N iterations (default: the preset's; 0: at the end "
         "of each block only)",
     )
-    p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
+    p.add_argument("--seed", type=_seed, default=None, help="random seed (default: the preset's)")
     p.add_argument(
         "--device",
         type=_device,
@@ -248,10 +357,24 @@ def _add_train(sub):
     )
     p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
     p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace a run already in --out (refused otherwise; --resume in the "
+        "checkpoint's own folder needs no flag)",
+    )
+    p.add_argument(
         "--per-clip",
         action="store_true",
         help="GANimator-mode baseline: train one model per clip (in OUT/<clip name>/), "
         "so no model sees another condition and no crossover is learned",
+    )
+    p.add_argument(
+        "--accept-retarget-error",
+        action="store_true",
+        help="train on BVH clips retargeted with an error above "
+        "mrlib.io.retarget.RETARGET_WARN_CM or with joint angles no person holds (refused "
+        "otherwise, with a RetargetWarning each: check their joint map with "
+        "`mrlib info CLIP --write-map`)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_cmd_train)
@@ -272,10 +395,12 @@ def _single_clip(data, k: int):
 def _cmd_train(args) -> int:
     from mrlib.config import ganimator_mode, training_config
     from mrlib.data import TrainingSet
-    from mrlib.train import train
+    from mrlib.train import check_run_folder, train
 
     if args.resume is None and not args.clips:
         raise MrlibError("give clips to train on, or --resume a checkpoint")
+    if not args.per_clip:  # before loading anything (checked again under the run's lock)
+        check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
     if args.resume is not None:
         _refuse_on_resume(
             args,
@@ -291,6 +416,7 @@ def _cmd_train(args) -> int:
                 "checkpoint_every": "--checkpoint-every",
                 "seed": "--seed",
                 "per_clip": "--per-clip",
+                "accept_retarget_error": "--accept-retarget-error",
             },
         )
         res = train(
@@ -300,11 +426,14 @@ def _cmd_train(args) -> int:
             resume=args.resume,
             device=args.device,
             progress=not args.no_progress,
+            overwrite=args.overwrite,
         )
         return _report_training(res)
-    data = TrainingSet.from_files(
-        args.clips, labels=args.labels, fps=args.fps, joint_map=args.joint_map
-    )
+    fps = args.fps if args.fps is not None else _preset_fps(args.preset or "tutorial")
+    with _retarget_check(args.accept_retarget_error):
+        data = TrainingSet.from_files(
+            args.clips, labels=args.labels, fps=fps, joint_map=args.joint_map
+        )
     print(
         f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
         f"lengths {data.lengths}"
@@ -331,11 +460,17 @@ def _cmd_train(args) -> int:
             one = _single_clip(data, k)
             out = inside(args.out, args.out / folders[k])
             print(f"[{k + 1}/{data.num_clips}] {data.names[k]} -> {out}")
-            res = train(one, ganimator_mode(cfg), out, progress=not args.no_progress)
+            res = train(
+                one,
+                ganimator_mode(cfg),
+                out,
+                progress=not args.no_progress,
+                overwrite=args.overwrite,
+            )
             if res.interrupted:
                 return 130
         return 0
-    res = train(data, cfg, args.out, progress=not args.no_progress)
+    res = train(data, cfg, args.out, progress=not args.no_progress, overwrite=args.overwrite)
     return _report_training(res)
 
 
@@ -358,7 +493,8 @@ def _add_train_speech(sub):
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  mrlib train-speech talks/paired --unpaired talks/audio --out runs/speech\n"
         "  mrlib train-speech talks/paired --unpaired talks/audio --features wavlm --wavlm ~/wavlm-base-plus\n"
-        "  mrlib train-speech --resume runs/speech/checkpoint.pt --out runs/speech",
+        "  mrlib train-speech --resume runs/speech/checkpoint.pt --out runs/speech\n\n"
+        "presets (--preset, mrlib.config.PRESETS):\n" + _preset_help("speech"),
     )
     p.add_argument("paired", nargs="?", type=Path, help="folder of paired .wav + motion files")
     p.add_argument("--unpaired", type=Path, default=None, help="folder of unpaired audio files")
@@ -375,9 +511,9 @@ def _add_train_speech(sub):
     p.add_argument(
         "--preset",
         default=None,
-        choices=["tutorial", "paper"],
-        help="'tutorial' (CPU, 20-30 min for a dozen 10 s clips) or 'paper' (the paper's "
-        "schedule; use a GPU) [default: tutorial]",
+        choices=_preset_choices("speech") + [_short(n) for n in _preset_choices("speech")],
+        help="training schedule, one of the speech presets listed below ('tutorial' and "
+        "'paper' are short for speech_tutorial and speech_paper) [default: speech_tutorial]",
     )
     p.add_argument(
         "--iterations",
@@ -394,7 +530,7 @@ def _add_train_speech(sub):
         "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
     )
     p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
-    p.add_argument("--seed", type=int, default=None, help="random seed (default: the preset's)")
+    p.add_argument("--seed", type=_seed, default=None, help="random seed (default: the preset's)")
     p.add_argument(
         "--device",
         type=_device,
@@ -403,12 +539,13 @@ def _add_train_speech(sub):
     )
     p.add_argument("--out", type=Path, default=Path("runs/speech"), help="output folder")
     p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
+    p.add_argument("--overwrite", action="store_true", help="replace a run already in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_cmd_train_speech)
 
 
 def _cmd_train_speech(args) -> int:
-    from mrlib.config import block_iterations_for, speech_paper, speech_tutorial
+    from mrlib.config import block_iterations_for, get_preset
     from mrlib.speech import SpeechFeatureExtractor, SpeechTrainingSet, speech_train
 
     if args.resume is not None:
@@ -426,11 +563,15 @@ def _cmd_train_speech(args) -> int:
                 "seed": "--seed",
             },
         )
+    from mrlib.train import check_run_folder
+
+    check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)  # before loading
     data = cfg = None
     if args.resume is None:
         if args.paired is None:
             raise MrlibError("give a folder of paired clips, or --resume a checkpoint")
-        cfg = speech_paper() if args.preset == "paper" else speech_tutorial()
+        name = args.preset or "speech_tutorial"
+        cfg = get_preset(name if name.startswith("speech_") else f"speech_{name}")
         if args.iterations is not None:
             cfg = cfg.replace(
                 block_iterations=block_iterations_for(args.iterations, cfg.num_blocks)
@@ -451,6 +592,7 @@ def _cmd_train_speech(args) -> int:
         random_audio=args.random_audio,
         device=args.device if args.resume is not None else None,
         progress=not args.no_progress,
+        overwrite=args.overwrite,
     )
     return _report_training(res)
 
@@ -571,8 +713,13 @@ def _add_sample(sub):
         help="Adam steps of the noise fit for --keyframes and --continue (0: none; "
         "default: the library's, 300 for keyframes and 100 for continuation)",
     )
-    p.add_argument("--num", type=int, default=1, help="number of samples [default: 1]")
-    p.add_argument("--seed", type=int, default=0, help="random seed [default: 0]")
+    p.add_argument(
+        "--num",
+        type=_sample_count,
+        default=1,
+        help=f"number of samples, 1 to {MAX_SAMPLES} [default: 1]",
+    )
+    p.add_argument("--seed", type=_seed, default=0, help="random seed [default: 0]")
     p.add_argument(
         "--raw",
         action="store_true",
@@ -591,6 +738,11 @@ def _add_sample(sub):
     )
     p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
     p.add_argument("--out", type=Path, default=Path("outputs/samples"))
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace sample files already in --out (refused otherwise)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=_cmd_sample)
 
@@ -632,6 +784,8 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
                 raise MrlibError("--continue needs --seconds (how much to add)")
             prefix = load_motion(args.prefix)
             frames = max(1, round(args.seconds * model.fps))
+            # the prefix is resampled to the model's rate: its duration counts, not its frames
+            _check_sample_frames(round(prefix.duration * model.fps) + frames, model.fps, args)
             m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **fit, **kw)
         out.append(m)
     return out
@@ -686,6 +840,8 @@ def _cmd_sample(args) -> int:
     from mrlib.sample import generate, load_model
 
     constrained = args.path or args.keyframes or args.loop or args.prefix
+    if args.seed + args.num - 1 > MAX_SEED:
+        raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
     if args.sharpen != 0 and not args.parts:
@@ -706,6 +862,8 @@ def _cmd_sample(args) -> int:
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
     length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
+    if length is not None:
+        _check_sample_frames(length, model.fps, args)
     if args.parts:
         if constrained:
             raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
@@ -770,31 +928,150 @@ def _audio_samples(args):
     return motions, args.audio.stem
 
 
+def _sample_files(tag: str, args, count: int) -> list[dict[str, Path]]:
+    """Per sample, the files to write: ``<tag>_seed<seed>_<i>`` and one suffix per format,
+    joined as text (a tag such as ``walk-run-0.5`` or ``talk.v1`` keeps its dots: the name is
+    never cut at its last dot), each checked to stay in ``--out``."""
+    from mrlib.io.paths import inside, safe_component
+
+    tag = safe_component(tag, fallback="sample")  # labels come from files
+    kinds = [".npz", ".bvh"]
+    if getattr(args, "glb", False):
+        kinds.append(".glb")
+    if args.render:
+        kinds.append(".png")
+    return [
+        {k: inside(args.out, args.out / f"{tag}_seed{args.seed}_{i}{k}") for k in kinds}
+        for i in range(count)
+    ]
+
+
 def _write_samples(motions, tag: str, args) -> int:
     from mrlib.io import save_motion
-    from mrlib.io.paths import inside, safe_component
+    from mrlib.io.outputs import check_writable, write_bytes
 
     motions = motions if isinstance(motions, list) else [motions]
     args.out.mkdir(parents=True, exist_ok=True)
-    tag = safe_component(tag, fallback="sample")  # labels come from files
-    for i, m in enumerate(motions):
-        stem = inside(args.out, args.out / f"{tag}_seed{args.seed}_{i}")
-        save_motion(m, stem.with_suffix(".npz"))
-        save_motion(m, stem.with_suffix(".bvh"))
-        kinds = ".npz/.bvh"
-        if getattr(args, "glb", False):
-            save_motion(m, stem.with_suffix(".glb"))
-            kinds += "/.glb"
-        if args.render:
-            import imageio.v3 as iio
+    files = _sample_files(tag, args, len(motions))
+    for paths in files:  # refuse before writing any, not after half of them
+        for path in paths.values():
+            check_writable(path, overwrite=args.overwrite)
+    for m, paths in zip(motions, files, strict=True):
+        for kind, path in paths.items():
+            if kind == ".png":
+                import imageio.v3 as iio
 
-            from mrlib.render import evenly_spaced_frames, render_meshes
+                from mrlib.render import evenly_spaced_frames, render_meshes
 
-            iio.imwrite(
-                stem.with_suffix(".png"), render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
-            )
+                image = render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
+                write_bytes(path, iio.imwrite("<bytes>", image, extension=".png"),
+                            overwrite=args.overwrite)  # fmt: skip
+            else:
+                save_motion(m, path, overwrite=args.overwrite)
+        stem = str(paths[".npz"])[: -len(".npz")]
+        kinds = "/".join(k for k in paths if k != ".png")
         print(f"wrote {stem}{kinds}: {m}")
     return 0
+
+
+# -- restyle -------------------------------------------------------------------------------
+def _add_restyle(sub):
+    from mrlib.restyle import INVERT_STEPS, KEEP
+
+    p = sub.add_parser(
+        "restyle",
+        help="restyle a clip: its coarse motion kept, a label's detail added (or the reverse)",
+        description="Restyle a motion file of your own with a trained label model: the clip is "
+        "resampled to the model's frame rate and taken down its pyramid to level K; levels "
+        "K+1..L then add the detail of --label (--keep coarse), or levels 1..K come from --label "
+        "and the clip's own detail goes on top (--keep detail). The root travels and faces as "
+        "the clip does. Writes one .npz and one .bvh (and a .glb with --glb) like 'sample'.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib restyle ckpt.pt clip.bvh --label walk_sad --out outputs/restyled\n"
+        "  mrlib restyle ckpt.pt clip.bvh --label walk_happy --level 2 --glb\n"
+        "  mrlib restyle ckpt.pt clip.bvh --label walk_angry --keep detail\n"
+        "  mrlib restyle ckpt.pt far.bvh --label walk_sad --invert",
+    )
+    p.add_argument("checkpoint", type=Path)
+    p.add_argument("clip", type=Path, help="the motion to restyle (.bvh, .npz, EasyMocap folder)")
+    p.add_argument("--label", required=True, help="the label to restyle towards")
+    p.add_argument(
+        "--level",
+        type=int,
+        default=None,
+        metavar="K",
+        help="levels 1..K keep the clip (--keep coarse) or come from the label (--keep "
+        "detail); 1..L-1, higher keeps more of the clip's coarse motion [default: L - 2]",
+    )
+    p.add_argument(
+        "--keep",
+        choices=KEEP,
+        default="coarse",
+        help="what of the clip survives: its coarse motion (the label adds the detail) or "
+        "its detail (the label gives the coarse motion) [default: coarse]",
+    )
+    p.add_argument(
+        "--invert",
+        type=_parse_steps,
+        nargs="?",
+        const=INVERT_STEPS,
+        default=0,
+        metavar="N",
+        help=f"fit the coarse levels' noise to the clip for N Adam steps (default when given "
+        f"without N: {INVERT_STEPS}) and restyle the model's own version of it; seconds "
+        "instead of milliseconds, and on the Bandai clips measured it kept less of the clip "
+        "(docs/notes/2026-12-04-restyle.md)",
+    )
+    p.add_argument(
+        "--no-align",
+        action="store_true",
+        help="do not turn the clip to the training clips' facing while restyling",
+    )
+    _joint_map_option(p)
+    p.add_argument("--seed", type=_seed, default=0, help="noise seed of the label's levels [0]")
+    p.add_argument(
+        "--raw", action="store_true", help="skip the foot-contact clean-up (on by default)"
+    )
+    _add_sampler_options(p)
+    p.add_argument("--render", action="store_true", help="also write a mesh render (PNG)")
+    p.add_argument("--glb", action="store_true", help="also write a .glb (skinned body mesh)")
+    p.add_argument("--device", type=_device, default="cpu", help="cpu or cuda [default: cpu]")
+    p.add_argument("--out", type=Path, default=Path("outputs/restyled"))
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace files already in --out (refused otherwise)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=_cmd_restyle)
+
+
+def _cmd_restyle(args) -> int:
+    from mrlib.io import load_motion
+    from mrlib.restyle import restyle, restyle_level
+    from mrlib.sample import load_model
+
+    model = _with_sampler(load_model(args.checkpoint, device=args.device), args)
+    if model.generator.cond_dim != len(model.labels):
+        raise MrlibError(
+            f"{args.checkpoint} is a speech-conditioned model; restyle takes a label model"
+        )
+    level = restyle_level(model, args.level)
+    if args.invert and args.keep != "coarse":
+        raise MrlibError("--invert fits the coarse levels to the clip: it needs --keep coarse")
+    clip = load_motion(args.clip, joint_map=args.joint_map)
+    if clip.duration > MAX_SAMPLE_SECONDS:
+        raise MrlibError(
+            f"{args.clip}: {clip.duration:.0f} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s "
+            "mrlib restyles in one pass; cut it into pieces"
+        )
+    m = restyle(model, clip, args.label, level, keep=args.keep, seed=args.seed,
+                invert=bool(args.invert), invert_steps=args.invert or 1,
+                align=not args.no_align, fix_contacts=not args.raw,
+                progress=not args.no_progress)  # fmt: skip
+    label = model.labels[model.label_index(args.label)]
+    tag = f"{args.clip.stem}_to_{label}_{args.keep}{level}" + ("_inverted" * bool(args.invert))
+    return _write_samples([m], tag, args)
 
 
 # -- evaluate ------------------------------------------------------------------------------
@@ -814,7 +1091,7 @@ def _add_evaluate(sub):
     p.add_argument("checkpoint", type=Path)
     p.add_argument("--samples", type=int, default=200, help="samples per sequence [default: 200]")
     p.add_argument("--eps", type=float, default=2.0, help="coverage threshold [default: 2.0]")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.add_argument(
         "--baseline",
         type=Path,
@@ -881,14 +1158,15 @@ def _add_demo(sub):
         "MRLIB_DATA_DIR points at the dataset, train (the 'demo' preset: a few minutes on two CPU "
         "cores), sample every label and a coarse/fine crossover, evaluate, and write renders, "
         "animated previews, exports and summary.md to --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="presets (--preset, mrlib.config.PRESETS):\n" + _preset_help("labels"),
     )
     p.add_argument("--out", type=Path, default=Path("outputs"))
     p.add_argument(
         "--preset",
         default="demo",
-        choices=["demo", "tutorial", "paper"],
-        help="training schedule: 'demo' (minutes, clips at 15 fps), 'tutorial' (the tutorial "
-        "budget, ~20 min on 2 cores) or 'paper' [default: demo]",
+        choices=_preset_choices("labels"),
+        help="training schedule, one of the presets listed below [default: demo]",
     )
     p.add_argument(
         "--quick", action="store_true", help="smoke-test budget (seconds; results not meaningful)"
@@ -899,7 +1177,7 @@ def _add_demo(sub):
     p.add_argument(
         "--samples", type=int, default=10, help="evaluation samples per label [default: 10]"
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0)
     p.set_defaults(func=_cmd_demo)
 
 
@@ -917,6 +1195,93 @@ def _cmd_demo(args) -> int:
     return 0
 
 
+# -- data ----------------------------------------------------------------------------------
+def _add_data(sub):
+    p = sub.add_parser(
+        "data",
+        help="fetch or locate the public motion data the notebooks use",
+        description="The Bandai Namco Research Motion Dataset 1 (CC BY-NC 4.0) is read from "
+        "$MRLIB_DATA_DIR or ../shared when such a folder exists, else fetched on first use "
+        "into mrlib's cache ($MRLIB_CACHE_DIR, default ~/.cache/mrlib) and checked against "
+        "SHA-256 hashes. 'fetch' downloads ahead of time; 'where' says which folder is used.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib data fetch bandai          # the clips the notebooks use\n"
+        "  mrlib data fetch bandai --all    # all 174 clips (40 MB)\n  mrlib data where bandai",
+    )
+    p.add_argument("action", choices=["fetch", "where", "list"])
+    p.add_argument("dataset", choices=["bandai"])
+    p.add_argument("--all", action="store_true", help="fetch: every clip, not only the notebooks'")
+    p.add_argument(
+        "--clips", nargs="+", default=None, metavar="CLIP", help="fetch: these clips only"
+    )
+    p.set_defaults(func=_cmd_data)
+
+
+def _cmd_data(args) -> int:
+    from mrlib import datasets
+
+    if args.action == "list":
+        for name in datasets.bandai_registry():
+            if name.endswith(".bvh"):
+                print(name[len("data/dataset-1_") : -len(".bvh")])
+        return 0
+    if args.action == "where":
+        local = datasets.bandai_local_dir()
+        print(local if local is not None else f"{datasets.bandai_cache_dir()} (cache)")
+        return 0
+    local = datasets.bandai_local_dir()
+    if local is not None:
+        print(f"note: a local copy at {local} is read first; fetching into the cache anyway")
+    root = datasets.fetch_bandai(args.clips or datasets.NOTEBOOK_CLIPS, everything=args.all)
+    n = len(list((root / "data").glob("*.bvh")))
+    print(f"{n} clips in {root}")
+    return 0
+
+
+# -- presets and threads, shared by the commands ---------------------------------------------
+def _preset_choices(kind: str) -> list[str]:
+    from mrlib.config import preset_names
+
+    return preset_names(kind)
+
+
+def _short(name: str) -> str:
+    return name.removeprefix("speech_")
+
+
+def _preset_help(kind: str) -> str:
+    from mrlib.config import describe_presets
+
+    return describe_presets(kind)
+
+
+def _preset_fps(name: str) -> float | None:
+    from mrlib.config import PRESET_FPS
+
+    return PRESET_FPS.get(name)
+
+
+def _threads(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants a positive integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return n
+
+
+def _add_threads_option(p) -> None:
+    p.add_argument(
+        "--threads",
+        type=_threads,
+        default=None,
+        metavar="N",
+        help="torch threads for the CPU work [default: OMP_NUM_THREADS if set, else half the "
+        "usable CPUs, 1 on 2 cores; see mrlib.threads]",
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mrlib",
@@ -930,9 +1295,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_train(sub)
     _add_train_speech(sub)
     _add_sample(sub)
+    _add_restyle(sub)
     _add_evaluate(sub)
     _add_export(sub)
     _add_info(sub)
+    _add_data(sub)
+    for command in sub.choices.values():
+        _add_threads_option(command)
     return parser
 
 
@@ -943,7 +1312,7 @@ def _describe(e: BaseException) -> str:
         return f"{where}{e.strerror or e}"
     if isinstance(e, MemoryError):
         return "out of memory (try a shorter clip, fewer samples or a lower --fps)"
-    return f"{type(e).__name__}: {e}"
+    return str(e) or type(e).__name__  # mrlib's errors name the file or flag themselves
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -955,7 +1324,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        return int(args.func(args) or 0)
+        from mrlib.threads import policy
+
+        with policy(args.threads):
+            return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
