@@ -256,13 +256,21 @@ def test_notebook_03_keeps_its_kernelspec(lab, browser):
     ``language_info`` JupyterLab writes names the kernel's exact Python version, which
     differs between machines; a notebook that does not carry it opens modified.)"""
     root = lab[2].parent / "root"
-    before = json.loads((root / "03.ipynb").read_text())
+    path = root / "03.ipynb"
+    before, stamp = json.loads(path.read_text()), path.stat().st_mtime_ns
     _open(browser, lab, "03.ipynb")
     time.sleep(2)  # the kernel's info has arrived and been applied
     _menu(browser, "File", "docmanager:save")
-    WebDriverWait(browser, 30).until(lambda d: not d.find_elements(
-        By.CSS_SELECTOR, ".lm-TabBar-tab.jp-mod-current.jp-mod-dirty"))  # fmt: skip
-    after = json.loads((root / "03.ipynb").read_text())
+
+    def saved(_):  # written anew and complete (the server writes the file in place)
+        if path.stat().st_mtime_ns == stamp:
+            return None
+        try:
+            return json.loads(path.read_text())
+        except ValueError:
+            return None
+
+    after = WebDriverWait(browser, 60, poll_frequency=0.5).until(saved)
     assert after["metadata"]["kernelspec"] == before["metadata"]["kernelspec"]
     assert [c["source"] for c in after["cells"]] == [c["source"] for c in before["cells"]]
     changed = {k for k, v in after["metadata"].items() if before["metadata"].get(k) != v}
