@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-MAX_BYTES = 2_000_000  # the largest notebook we commit, outputs included
+MAX_BYTES = 1_000_000  # the largest notebook we commit, outputs included
 
 
 def code_hash(nb: dict) -> str:
@@ -36,6 +36,33 @@ def code_hash(nb: dict) -> str:
             text = cell["source"] if isinstance(cell["source"], str) else "".join(cell["source"])
             h.update(text.strip().encode() + b"\0")
     return h.hexdigest()
+
+
+def shrink_images(nb: dict, colors: int = 128) -> int:
+    """Re-encode every PNG output as a ``colors``-colour palette PNG where that is
+    smaller (plots and renders of a few flat colours lose nothing visible), so a notebook
+    with its figures stays small in git. Returns how many were replaced."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    n = 0
+    for cell in nb["cells"]:
+        for out in cell.get("outputs", []):
+            data = out.get("data", {})
+            if "image/png" not in data:
+                continue
+            raw = base64.b64decode(data["image/png"])
+            img = Image.open(io.BytesIO(raw)).convert("RGB")
+            buf = io.BytesIO()
+            img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
+                buf, "PNG", optimize=True
+            )
+            if buf.tell() < len(raw):
+                data["image/png"] = base64.b64encode(buf.getvalue()).decode()
+                n += 1
+    return n
 
 
 def run(path: Path, timeout: int) -> float:
@@ -66,6 +93,7 @@ def run(path: Path, timeout: int) -> float:
     for cell in nb.cells:  # execution counts from 1 in order; no widget state blobs
         cell.get("metadata", {}).pop("execution", None)
     nb.metadata.pop("widgets", None)
+    shrink_images(nb)
     nbformat.write(nb, path)
     size = path.stat().st_size
     print(f"{path.name}: {wall:.0f} s, {size / 1e6:.2f} MB", flush=True)
