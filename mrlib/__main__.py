@@ -1,5 +1,5 @@
 import sys
 
-from mrlib.cli import main
+from mrlib.app.cli import main
 
 sys.exit(main())

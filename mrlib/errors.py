@@ -7,9 +7,12 @@ than a traceback from deep inside numpy.
 
 from __future__ import annotations
 
+from numbers import Integral
 from pathlib import Path
+from typing import Any
 
 __all__ = [
+    "check_count",
     "MrlibError",
     "MotionFileError",
     "BVHFormatError",
@@ -57,3 +60,10 @@ class ClipTooShortError(MrlibError, ValueError):
 
 class BodyModelError(MrlibError, ValueError):
     """A body model file is missing or does not look like SMPL."""
+
+
+def check_count(name: str, value: Any) -> int:
+    """``value`` as an int if it is a positive integer, else a ``MotionValueError``."""
+    if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
+        raise MotionValueError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)

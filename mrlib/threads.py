@@ -11,8 +11,8 @@ the ``demo`` preset 4.5-12x slower than on the idle machine, one thread 0.97-1.6
 latter with other jobs on the cores too), and foot-contact cleaned samples took 960 ms
 instead of 89 on two threads, 101 instead of 100 on one. On the idle machine two threads
 were 18-35 % faster per block than one; one thread ran at 0.87x the speed two threads
-had before the fused Adam step (``mrlib.train.make_adam``) and the masked gradients of
-``mrlib.models.SkeletonConv1d``, which made it about 13 % faster.
+had before the fused Adam step (``mrlib.training.trainer.make_adam``) and the masked gradients of
+``mrlib.model.networks.SkeletonConv1d``, which made it about 13 % faster.
 
 The policy (:func:`apply_policy`), in order:
 
@@ -25,9 +25,9 @@ The policy (:func:`apply_policy`), in order:
    runs fit beside it. On 2 cores that is one thread; counts above 2 CPUs follow the
    same rule but were not measured here.
 
-The command line applies the policy around each command; ``mrlib.train.Trainer.fit``,
-``mrlib.sample.generate``, ``mrlib.evaluate.evaluate_model``,
-``mrlib.footik.cleanup_foot_contacts``, ``mrlib.constraints.optimise.optimise_noise`` and
+The command line applies the policy around each command; ``mrlib.training.trainer.Trainer.fit``,
+``mrlib.sampling.generation.generate``, ``mrlib.evaluation.evaluate.evaluate_model``,
+``mrlib.sampling.cleanup.cleanup_foot_contacts``, ``mrlib.sampling.constraints.optimise.optimise_noise`` and
 ``mrlib.speech.generate_from_audio`` run under :func:`policy`, which applies it for the
 call and restores the previous count after, so a script that trains with mrlib gets the
 same count as ``mrlib train`` and its own torch work keeps its setting. What cannot be

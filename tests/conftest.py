@@ -8,7 +8,7 @@ model, not of what a model learns.
 ``pinned_torch`` (autouse) pins what a test of a trained model depends on: one torch
 thread, PyTorch's deterministic algorithms, and the global seeds, so a test sees the
 same numbers on every run on one machine. A trained-model claim must also hold on
-other machines, whose float kernels differ; ``bench/trained_test_matrix.py`` checks
+other machines, whose float kernels differ; ``tests/trained_test_matrix.py`` checks
 each such claim over training seeds x thread counts before it is asserted.
 """
 
@@ -36,7 +36,7 @@ def pinned_torch():
 @pytest.fixture(scope="session")
 def default_body():
     """The default body model, loaded once per test session."""
-    from mrlib.body import load_body_model
+    from mrlib.representation.body import load_body_model
 
     return load_body_model()
 
@@ -51,10 +51,10 @@ def body(default_body):
 def plumbing_model(tmp_path_factory, default_body):
     """``make(clips, name) -> GenerativeModel``: 4 levels of 24-channel networks, two
     iterations per block, one critic step; trained once per name and session."""
-    from mrlib.config import ModelConfig, TrainConfig
-    from mrlib.data import TrainingSet
-    from mrlib.sample import load_model
-    from mrlib.train import train
+    from mrlib.model.config import ModelConfig, TrainConfig
+    from mrlib.model.trained import load_model
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train
 
     cfg = TrainConfig(
         model=ModelConfig(num_levels=4, gen_hidden=(24, 24), disc_hidden=(24, 24)),
@@ -81,7 +81,7 @@ def plumbing_model(tmp_path_factory, default_body):
 @pytest.fixture(scope="session")
 def sad_wave_clips(default_body):
     """Two synthetic clips at 10 fps: a sad walk (4 s) and a wave (3.6 s)."""
-    from mrlib.synthetic import synthetic_walk, synthetic_wave
+    from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
 
     return [
         synthetic_walk("walk_sad", seconds=4.0, fps=10.0, body=default_body),

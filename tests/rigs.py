@@ -28,11 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from mrlib.body import resolve_body
 from mrlib.io.bvh import BVH, BVHSkeleton, matrix_to_euler
 from mrlib.io.retarget import UNITS, up_axis_rotation
-from mrlib.rotations import axis_angle_to_matrix, kabsch_rotation, rotation_between
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+from mrlib.representation.body import resolve_body
+from mrlib.representation.rotations import axis_angle_to_matrix, kabsch_rotation, rotation_between
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 J = {n: i for i, n in enumerate(JOINT_NAMES)}
 

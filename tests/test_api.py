@@ -2,11 +2,7 @@
 that moved (they still resolve, with a DeprecationWarning)."""
 
 import ast
-import importlib
-import sys
 from pathlib import Path
-
-import pytest
 
 import mrlib
 
@@ -47,7 +43,7 @@ def test_no_private_name_is_imported_across_modules():
 
 
 def test_matplotlib_only_in_the_drawing_modules():
-    allowed = {"mrlib.plots", "mrlib.render", "mrlib.widgets"}
+    allowed = {"mrlib.viz.plots", "mrlib.viz.render", "mrlib.viz.widgets"}
     for name, tree in _modules().items():
         uses = [m for m, _ in _imports(tree, name) if m.split(".")[0] == "matplotlib"]
         assert not uses or name in allowed, f"{name} imports matplotlib"
@@ -85,40 +81,6 @@ def test_top_level_imports_form_no_cycle():
     for n in graph:
         if n not in state:
             visit(n, [])
-
-
-@pytest.mark.parametrize(
-    "module, name",
-    [
-        ("mrlib.speech_train", "generate_from_audio"),
-        ("mrlib.speech_data", "synthetic_corpus"),
-    ],
-)
-def test_old_speech_modules_warn_and_still_work(module, name):
-    sys.modules.pop(module, None)
-    with pytest.warns(DeprecationWarning, match="import from mrlib.speech"):
-        mod = importlib.import_module(module)
-    import mrlib.speech
-
-    assert getattr(mod, name) is getattr(mrlib.speech, name)
-
-
-@pytest.mark.parametrize(
-    "name, home",
-    [
-        ("interactive_crossover", "mrlib.widgets"),
-        ("crop_to_bodies", "mrlib.render"),
-        ("train_or_reuse", "mrlib.train"),
-    ],
-)
-def test_names_that_left_control_warn_and_still_work(name, home):
-    from mrlib import control
-
-    with pytest.warns(DeprecationWarning, match=home):
-        obj = getattr(control, name)
-    assert obj is getattr(importlib.import_module(home), name)
-    with pytest.raises(AttributeError):
-        control.no_such_name  # noqa: B018
 
 
 def test_long_modules_say_why():

@@ -14,15 +14,15 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.cli import main
-from mrlib.config import ModelConfig, TrainConfig
-from mrlib.data import TrainingSet
+from mrlib.app.cli import main
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MrlibError
 from mrlib.io import load_motion, save_motion
-from mrlib.sample import load_model
-from mrlib.synthetic import synthetic_walk
-from mrlib.train import Trainer, train
+from mrlib.model.checkpoint import CheckpointError, load_checkpoint
+from mrlib.model.config import ModelConfig, TrainConfig
+from mrlib.model.trained import load_model
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import Trainer, train
 
 GOOD_BVH_HEAD = """HIERARCHY
 ROOT Hips
@@ -287,7 +287,7 @@ def test_cli_sweep(checkpoint, tmp_path, capsys):
 
 def test_cli_fine_noise_reaches_the_sampler(checkpoint, tmp_path):
     from mrlib.io import load_motion
-    from mrlib.sample import FINE_NOISE
+    from mrlib.model.trained import FINE_NOISE
 
     default_value = f"{FINE_NOISE:g}"
     poses = {}
@@ -314,16 +314,16 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
 
 
 def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
-    import mrlib.sample
+    import mrlib.sampling.generation
 
-    seen, plain = [], mrlib.sample.guided_weights
+    seen, plain = [], mrlib.sampling.generation.guided_weights
 
     def spy(model, W):
         seen.append(model.guidance)
         return plain(model, W)
 
-    monkeypatch.setattr(mrlib.sample, "guided_weights", spy)
+    monkeypatch.setattr(mrlib.sampling.generation, "guided_weights", spy)
     assert main(["sample", str(checkpoint), "--raw", "--out", str(tmp_path / "a")]) == 0
     argv = ["sample", str(checkpoint), "--raw", "--guidance", "0.5", "--out", str(tmp_path / "b")]
     assert main(argv) == 0
-    assert seen == [mrlib.sample.GUIDANCE, 0.5]
+    assert seen == [mrlib.model.trained.GUIDANCE, 0.5]

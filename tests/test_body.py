@@ -1,4 +1,4 @@
-"""Tests for mrlib.body: the default body, the fast forward, chumpy-free SMPL loading."""
+"""Tests for mrlib.representation.body: the default body, the fast forward, chumpy-free SMPL loading."""
 
 from __future__ import annotations
 
@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.body import BodyModel, default_body_path, load_body_model, read_smpl_arrays
 from mrlib.errors import BodyModelError
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix
-from mrlib.skeleton import JOINT_NAMES, PARENTS, SMPL_FOOT_VERTEX_IDS
+from mrlib.representation.body import BodyModel, default_body_path, load_body_model
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix
+from mrlib.representation.skeleton import JOINT_NAMES, PARENTS, SMPL_FOOT_VERTEX_IDS
+from mrlib.representation.smpl_files import read_smpl_arrays
 
 KEYS = ("v_template", "f", "shapedirs", "posedirs", "J_regressor", "kintree_table", "weights")
 

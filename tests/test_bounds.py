@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.config import ModelConfig, TrainConfig
-from mrlib.data import TrainingSet
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.io import save_motion
-from mrlib.synthetic import synthetic_walk
-from mrlib.train import train
+from mrlib.model.config import ModelConfig, TrainConfig
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import train
 
 CAP_BYTES = 3 * 2**30  # the child's data segment (torch alone takes ~0.4 GB)
 PEAK_MB = 1024
@@ -81,13 +81,13 @@ def _forged_header(path: Path, clip: Path) -> Path:
 
 
 def _run_capped(cases: list[list[str]]) -> list[dict]:
-    """Run ``mrlib.cli.main`` on every argv in a child under ``CAP_BYTES``; per case its
+    """Run ``mrlib.app.cli.main`` on every argv in a child under ``CAP_BYTES``; per case its
     exit code, stderr and seconds, and the child's peak resident memory (MB) so far."""
     script = textwrap.dedent(
         f"""
         import contextlib, io, json, resource, sys, time
         resource.setrlimit(resource.RLIMIT_DATA, ({CAP_BYTES}, {CAP_BYTES}))
-        from mrlib.cli import main
+        from mrlib.app.cli import main
         for argv in json.loads(sys.argv[1]):
             err, t = io.StringIO(), time.perf_counter()
             with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -175,7 +175,7 @@ def test_bounded_before_it_starts(checkpoint, tmp_path):
 
 def test_pyramid_of_many_levels_fails_at_once():
     from mrlib.errors import ClipTooShortError
-    from mrlib.pyramid import pyramid_lengths
+    from mrlib.model.pyramid import pyramid_lengths
 
     for levels in (50, 1000):
         t = time.perf_counter()
@@ -194,7 +194,7 @@ def test_pyramid_of_many_levels_fails_at_once():
     ],
 )
 def test_model_configs_are_bounded(change, message):
-    from mrlib.config import ConfigError
+    from mrlib.model.config import ConfigError
 
     with pytest.raises(ConfigError, match=message):
         ModelConfig(**change)

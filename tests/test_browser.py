@@ -55,14 +55,13 @@ HERE = ".jp-NotebookPanel:not(.lm-mod-hidden)"  # the notebook shown, not one be
 # notebook 03 as it stands there.
 SETUP = """\
 import torch
-
-from mrlib import widgets
-from mrlib.body import load_body_model
-from mrlib.config import ModelConfig, TrainConfig
-from mrlib.data import TrainingSet
-from mrlib.sample import load_model
-from mrlib.synthetic import synthetic_walk, synthetic_wave
-from mrlib.train import train
+from mrlib.viz import widgets
+from mrlib.representation.body import load_body_model
+from mrlib.model.config import ModelConfig, TrainConfig
+from mrlib.training.data import TrainingSet
+from mrlib.sampling.generation import load_model
+from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
+from mrlib.training.trainer import train
 
 torch.set_num_threads(1)
 body = load_body_model()
@@ -82,9 +81,9 @@ view = update()
 # A walk in the live 3D player (trame), forced live: the server's kernel has the static
 # backend, as the notebooks under test have.
 PLAYER = """\
-from mrlib.body import load_body_model
-from mrlib.render import play_motion
-from mrlib.synthetic import synthetic_walk
+from mrlib.representation.body import load_body_model
+from mrlib.viz.render import play_motion
+from mrlib.datasets.synthetic import synthetic_walk
 
 body = load_body_model()
 walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)

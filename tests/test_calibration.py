@@ -1,4 +1,4 @@
-"""Tests for mrlib.calibration: the clip played twice, the frozen frame, Bandai names and
+"""Tests for mrlib.evaluation.calibration: the clip played twice, the frozen frame, Bandai names and
 their real counterparts, and the calibration rows."""
 
 from __future__ import annotations
@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib import calibration as cal
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.evaluation import calibration as cal
 from mrlib.io.paths import default_data_dir
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix
 
 DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(

@@ -1,4 +1,4 @@
-"""Constraints (mrlib.constraints): paths, keyframes, continuation, loops, body parts.
+"""Constraints (mrlib.sampling.constraints): paths, keyframes, continuation, loops, body parts.
 
 Each constraint has a test that fails when the constraint is ignored. The models here
 are plumbing models (two iterations per block): the tests check what the constraints
@@ -13,11 +13,11 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib import constraints as C
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MotionFileError, MotionValueError
-from mrlib.footik import contact_skating
-from mrlib.sample import generate, label_inputs, label_weights, sample_features
-from mrlib.synthetic import synthetic_walk
+from mrlib.sampling import constraints as C
+from mrlib.sampling.cleanup import contact_skating
+from mrlib.sampling.generation import generate, label_inputs, label_weights, sample_features
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +33,7 @@ def model(sad_wave_model):
 @pytest.fixture(scope="module")
 def walk(body):
     """A straight synthetic walk along +Z, 20 s, with its contact labels."""
-    from mrlib.contacts import foot_contacts
+    from mrlib.representation.contacts import foot_contacts
 
     w = synthetic_walk("walk_happy", seconds=20.0, fps=30.0, body=body)
     return w.replace(contacts=foot_contacts(w, body))
@@ -41,7 +41,7 @@ def walk(body):
 
 def _turn_steps(aa: np.ndarray) -> np.ndarray:
     """Degrees turned from frame to frame by each joint of ``aa (T, J, 3)``."""
-    from mrlib.rotations import axis_angle_to_matrix, geodesic_distance
+    from mrlib.representation.rotations import axis_angle_to_matrix, geodesic_distance
 
     R = axis_angle_to_matrix(torch.from_numpy(np.asarray(aa, np.float64)))
     return np.degrees(geodesic_distance(R[1:], R[:-1]).numpy())
@@ -260,7 +260,7 @@ def test_circular_generation_is_periodic(model):
 
 
 def test_periodic_upsampling_wraps_around():
-    from mrlib.pyramid import resample_linear, resample_periodic
+    from mrlib.model.pyramid import resample_linear, resample_periodic
 
     t = torch.arange(12, dtype=torch.float64)
     x = torch.sin(2 * np.pi * t / 12)[None, None]
@@ -337,14 +337,14 @@ def test_spliced_parts_take_each_group_from_its_own_label(model):
 
 def _normalised(model, motion) -> torch.Tensor:
     """``(1, C, T)`` a motion as the generator's normalised output."""
-    from mrlib.features import motion_to_features
+    from mrlib.representation.features import motion_to_features
 
     f = motion_to_features(motion).float()
     return model.normalizer.normalize(f).T[None]
 
 
 def test_the_label_margin_is_zero_on_a_label_clip_and_not_under_another_label(model):
-    from mrlib.features import features_to_motion
+    from mrlib.representation.features import features_to_motion
 
     k = model.clip_labels.index(model.label_index("walk_sad"))
     clip = features_to_motion(model.features[k], model.fps, betas=model.betas)
@@ -362,9 +362,8 @@ def test_the_label_margin_is_zero_on_a_label_clip_and_not_under_another_label(mo
 
 def _own_distance(model, motion, part: str, label: str) -> float:
     """Mean squared distance of a part's windows to their nearest window of the label's clip."""
-    from mrlib.constraints.sharpen import part_columns
-    from mrlib.fidelity import model_references
-    from mrlib.metrics import metric_features, nearest_windows
+    from mrlib.metrics.paper import metric_features, model_references, nearest_windows
+    from mrlib.sampling.constraints.sharpen import part_columns
 
     _, labels, feats = model_references(model)
     cols = part_columns(part)
@@ -375,8 +374,8 @@ def _own_distance(model, motion, part: str, label: str) -> float:
 def test_the_noise_prior_centred_on_the_draw_leaves_unneeded_noise_alone(model):
     # a loss that asks nothing of the output: Adam still moves every noise value towards
     # 0 under the prior at 0, and none under the prior centred on the starting draw
-    from mrlib.constraints.optimise import optimise_noise
-    from mrlib.sample import check_conditions, draw_noise
+    from mrlib.sampling.constraints.optimise import optimise_noise
+    from mrlib.sampling.generation import check_conditions, draw_noise
 
     W = label_weights(model, "walk_sad")
     lengths, amp, conds = label_inputs(model, W, 40)
@@ -458,12 +457,12 @@ def test_phase_align_puts_the_arms_in_step_with_the_legs(body):
 
 def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, body, monkeypatch):
     pytest.importorskip("ipywidgets")
-    import mrlib.widgets
+    import mrlib.viz.widgets
 
     monkeypatch.setattr(
-        mrlib.widgets, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
+        mrlib.viz.widgets, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
     )  # the real one takes seconds
-    box, update = mrlib.widgets.interactive_parts(model, body=body, length=40)
+    box, update = mrlib.viz.widgets.interactive_parts(model, body=body, length=40)
     controls = {c.description: c for row in box.children[:-1] for c in row.children}
     assert controls["guidance"].value == 0.0
     for method in ("splice", "film"):
@@ -485,7 +484,7 @@ def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, 
 
 # -- command line -------------------------------------------------------------------------
 def test_sample_cli_constraints(tmp_path, clips):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
     from mrlib.io import save_motion
 
     files = [str(save_motion(c, tmp_path / f"{c.label}.npz")) for c in clips]
@@ -519,7 +518,7 @@ def test_sample_cli_constraints(tmp_path, clips):
     assert main([*base, "--keyframes", str(kf)]) == 1  # needs --seconds
     # --fit-steps reaches the noise fit: 0 steps is the library's unfitted in-between,
     # which the default (fitted) one is not
-    from mrlib.sample import load_model
+    from mrlib.model.trained import load_model
 
     bare = tmp_path / "bare"
     argv = [*base[:-1], str(bare), "--keyframes", str(kf), "--seconds", "2", "--fit-steps", "0"]

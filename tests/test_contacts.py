@@ -1,4 +1,4 @@
-"""Tests for mrlib.contacts: finite differences, foot-vertex velocity, contact labels."""
+"""Tests for mrlib.representation.contacts: finite differences, foot-vertex velocity, contact labels."""
 
 from __future__ import annotations
 
@@ -10,19 +10,19 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.body import load_body_model
-from mrlib.contacts import (
+from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.io.paths import default_data_dir
+from mrlib.representation.body import load_body_model
+from mrlib.representation.contacts import (
     DEFAULT_CONTACT_THRESHOLD,
     finite_difference_velocity,
     foot_contacts,
     foot_vertex_positions,
     foot_vertex_velocity,
-    plot_contacts,
 )
-from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.io.paths import default_data_dir
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix
+from mrlib.viz.plots import plot_contacts
 
 LEFT_HIP, LEFT_KNEE = 1, 4
 

@@ -8,33 +8,37 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.control import (
+from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
+from mrlib.errors import MotionValueError
+from mrlib.evaluation.crossover import (
     _nn_distance,
     band_distances,
-    condition_fidelity_of_model,
-    coverage_per_sequence,
     crossover_blend,
     crossover_conditions,
     crossover_cutoff,
     crossover_evidence,
     evidence_table,
-    lowpass,
-    nearest_sequence_strip,
-    rms_profile,
-    split_bands,
 )
-from mrlib.data import TrainingSet
-from mrlib.errors import MotionValueError
-from mrlib.fidelity import model_references
+from mrlib.evaluation.fidelity import (
+    condition_fidelity_of_model,
+    coverage_per_sequence,
+    nearest_sequence_strip,
+)
 from mrlib.io import default_data_dir
-from mrlib.metrics import condition_fidelity, local_diversity, metric_features
-from mrlib.plots import plot_nearest_sequence
-from mrlib.pyramid import level_fps, pyramid_lengths
-from mrlib.render import crop_to_bodies
-from mrlib.sample import generate, label_weights
-from mrlib.synthetic import synthetic_walk, synthetic_wave
-from mrlib.train import train_or_reuse
-from mrlib.widgets import CrossoverView, interactive_crossover
+from mrlib.metrics.bands import lowpass, rms_profile, split_bands
+from mrlib.metrics.paper import (
+    condition_fidelity,
+    local_diversity,
+    metric_features,
+    model_references,
+)
+from mrlib.model.pyramid import level_fps, pyramid_lengths
+from mrlib.sampling.generation import generate, label_weights
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import train_or_reuse
+from mrlib.viz.plots import plot_condition_fidelity, plot_crossover_evidence, plot_nearest_sequence
+from mrlib.viz.render import crop_to_bodies
+from mrlib.viz.widgets import CrossoverView, interactive_crossover
 
 
 @pytest.fixture(scope="module")
@@ -171,7 +175,7 @@ def test_crossover_evidence_returns_finite_reproducible_distances(model):
     assert "walk_sad" in e.to_markdown() and "residual" in e.to_markdown()
     table = evidence_table([e, e]).splitlines()
     assert len(table) == 4 and table[2].startswith("| walk_sad | wave | 2 |")
-    axes = e.plot()
+    axes = plot_crossover_evidence(e)
     assert len(axes) == 2
     clips_ref = crossover_evidence(
         model, 1, 0, 1, num_samples=1, seed=0, reference="clips", cutoff=2.0, window=3
@@ -228,7 +232,7 @@ def test_condition_fidelity_of_model_matches_the_metric(model):
     f = condition_fidelity_of_model(model, num_samples=2, length=36, seed=1, window=10)
     assert set(f.per_label) == {"walk_sad", "wave"} and 0 <= f.overall <= 1
     assert f.overall == pytest.approx(np.mean(list(f.per_label.values())))
-    # the same number straight from mrlib.metrics
+    # the same number straight from mrlib.metrics.paper
     refs = model_references(model)
     references = dict(zip(refs[1], refs[2], strict=True))
     samples = generate(model, "wave", length=36, seed=1, num_samples=2)
@@ -238,7 +242,7 @@ def test_condition_fidelity_of_model_matches_the_metric(model):
     assert f.labels == ("walk_sad", "wave") and f.confusion.shape == (2, 2)
     assert np.allclose(f.confusion.sum(1), 1.0)
     assert np.allclose(np.diag(f.confusion), [f.per_label[k] for k in f.labels])
-    assert f.plot() is not None
+    assert plot_condition_fidelity(f) is not None
     with pytest.raises(MotionValueError, match="num_samples"):
         condition_fidelity_of_model(model, num_samples=0)
 
@@ -279,7 +283,7 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
 
 def test_interactive_crossover_mesh_view(model, monkeypatch):
     pytest.importorskip("ipywidgets")
-    import mrlib.widgets
+    import mrlib.viz.widgets
 
     calls = []
 
@@ -287,7 +291,7 @@ def test_interactive_crossover_mesh_view(model, monkeypatch):
         calls.append(list(frames))
         return np.zeros((40, 120, 3), np.uint8)
 
-    monkeypatch.setattr(mrlib.widgets, "render_meshes", fake_render)
+    monkeypatch.setattr(mrlib.viz.widgets, "render_meshes", fake_render)
     _, update = interactive_crossover(
         model, body=object(), frames=3, window=10, coarse="wave", fine="walk_sad", level=1
     )
@@ -300,7 +304,7 @@ def test_interactive_crossover_mesh_view(model, monkeypatch):
 
 # -- coverage and training helpers ------------------------------------------------------------
 def test_coverage_per_sequence_matches_the_metric(model):
-    from mrlib.metrics import coverage
+    from mrlib.metrics.paper import coverage
 
     cov = coverage_per_sequence(model, num_samples=2, length_factor=1.5, seed=4, window=10)
     assert list(cov) == model.clip_names and all(0 <= v <= 1 for v in cov.values())
@@ -358,7 +362,7 @@ def test_crop_to_bodies_keeps_the_coloured_pixels():
 
 # -- the crossover claim on a trained model ---------------------------------------------------
 # Each claim is asserted on the mean log distance ratio over its crossover cases, with the
-# bound that bench/trained_test_matrix.py checks over training seeds 0-4 x torch threads
+# bound that tests/trained_test_matrix.py checks over training seeds 0-4 x torch threads
 # 1 and 2 (docs/results.md has the matrix), and a paired negative: the same recipe
 # untrained (or with the loss term the claim rests on ablated) must fail the bound.
 import trained_models as tm  # noqa: E402

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.config import LossWeights, ModelConfig, TrainConfig
-from mrlib.data import TrainingSet
-from mrlib.sample import generate, load_model
+from mrlib.datasets.synthetic import synthetic_walk
+from mrlib.model.config import LossWeights, ModelConfig, TrainConfig
+from mrlib.model.trained import load_model
+from mrlib.sampling.generation import generate
 from mrlib.speech import (
     SpeechClip,
     SpeechMotionPair,
@@ -22,8 +23,8 @@ from mrlib.speech import (
     load_speech_model,
     speech_train,
 )
-from mrlib.synthetic import synthetic_walk
-from mrlib.train import train
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import train
 
 DEVICE = os.environ.get("MRLIB_TEST_DEVICE", "cuda")
 pytestmark = pytest.mark.skipif(
@@ -35,7 +36,7 @@ TINY = ModelConfig(num_levels=3, gen_hidden=(24, 24), disc_hidden=(24, 24))
 
 @pytest.fixture(scope="module")
 def body():
-    from mrlib.body import load_body_model
+    from mrlib.representation.body import load_body_model
 
     return load_body_model()
 
@@ -152,14 +153,14 @@ def test_speech_training_on_cuda(tmp_path, body, walks):
 
 
 def test_the_noise_fits_run_on_the_device_as_on_the_cpu(tmp_path, full_precision):
-    # the constraints' test-time fits (mrlib.constraints.optimise) build their targets on
+    # the constraints' test-time fits (mrlib.sampling.constraints.optimise) build their targets on
     # the model's device, and the foot clean-up runs on a body model there: a part's label
     # sharpened, an in-between fitted to keyframes, a continued prefix, a path by noise
     # optimisation and both clean-ups give the CPU's motion (the label windows of 30
     # frames need 4 s clips at 10 fps)
-    from mrlib import constraints as C
-    from mrlib.body import load_body_model
-    from mrlib.footik import cleanup_foot_contacts
+    from mrlib.representation.body import load_body_model
+    from mrlib.sampling import constraints as C
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
 
     cpu_body, device_body = load_body_model(), load_body_model().to(DEVICE)
     walks = [

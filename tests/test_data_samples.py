@@ -5,8 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mrlib.datasets.synthetic import STYLES, synthetic_dataset
 from mrlib.io import load_motion
-from mrlib.synthetic import STYLES, synthetic_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,4 +1,4 @@
-"""Fetching the Bandai Namco clips on first use (``mrlib.datasets``), for real: a local HTTP
+"""Fetching the Bandai Namco clips on first use (``mrlib.datasets.bandai``), for real: a local HTTP
 server on 127.0.0.1 serves the dataset's files under the upstream layout, the fetcher's
 base URL (``$MRLIB_DATA_URL``) points at it, and the cache is a temporary folder.
 
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from mrlib import datasets
-from mrlib.datasets import DataFetchError
+from mrlib.datasets import bandai as datasets
+from mrlib.datasets.bandai import DataFetchError
 
 ROOT = Path(__file__).resolve().parents[1]
 PREFIX = "/" + datasets.BANDAI_SUBDIR + "/"

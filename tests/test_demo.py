@@ -9,7 +9,7 @@ pytest.importorskip("pyvista")
 
 @pytest.mark.slow
 def test_quick_demo_writes_every_stage_and_the_quality_table(tmp_path, capsys):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
 
     assert main(["demo", "--quick", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
@@ -25,8 +25,8 @@ def test_quick_demo_writes_every_stage_and_the_quality_table(tmp_path, capsys):
 
 
 def test_demo_rejects_an_unknown_preset(tmp_path):
-    from mrlib.config import ConfigError
-    from mrlib.demo import run_demo
+    from mrlib.app.demo import run_demo
+    from mrlib.model.config import ConfigError
 
     with pytest.raises(ConfigError, match="unknown preset"):
         run_demo(tmp_path, preset="fast")

@@ -1,4 +1,4 @@
-"""Tests for mrlib.evaluate: scoring, the protocol with its calibration rows, and its
+"""Tests for mrlib.evaluation.evaluate: scoring, the protocol with its calibration rows, and its
 outputs. Real-data tests use the Bandai Namco clips in MRLIB_DATA_DIR."""
 
 from __future__ import annotations
@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 from test_calibration import turning_walk
 
-from mrlib import evaluate as ev
-from mrlib.body import load_body_model
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.evaluation import calibration as cal
+from mrlib.evaluation import evaluate as ev
 from mrlib.io.paths import default_data_dir
-from mrlib.motion import Motion
+from mrlib.representation.body import load_body_model
+from mrlib.representation.motion import Motion
+from mrlib.viz.plots import plot_evaluation
 
 DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
@@ -36,7 +38,7 @@ def noisy_crops(refs: dict[str, Motion], sigma: float = 0.01, log: list | None =
             log.append((label, length, seed))
         ref = refs[label]
         rng = np.random.default_rng(seed)
-        loop = ev.play_twice(ev.play_twice(ref))  # 4 T frames
+        loop = cal.play_twice(cal.play_twice(ref))  # 4 T frames
         start = int(rng.integers(0, ref.num_frames))
         m = loop.slice(start, start + length)
         noise = rng.normal(scale=sigma, size=m.poses.shape).astype(np.float32)
@@ -132,7 +134,7 @@ def bandai(body):
 @needs_data
 def test_frozen_real_frame_has_zero_coverage_and_zero_jitter(bandai, body):
     ref = bandai["walk_happy_001"]
-    row = ev.score_motions([ev.freeze_first_frame(ref)], ref, body=body)
+    row = ev.score_motions([cal.freeze_first_frame(ref)], ref, body=body)
     assert row["coverage_pct"] == 0.0
     assert row["jerk"] == 0.0 and row["jerk_ratio"] == 0.0
     assert row["global_div"] > 1.5 and row["local_div"] > 1.5
@@ -191,7 +193,7 @@ def test_evaluate_dummy_model_on_two_real_labels_writes_table_and_files(bandai, 
     assert summary["dummy"]["coverage_pct_std"] == pytest.approx(np.std(cov))
 
     paths = res.save(tmp_path / "out")
-    assert set(paths) == {"csv", "summary_csv", "markdown", "png", "settings"}
+    assert set(paths) == {"csv", "summary_csv", "markdown", "settings"}
     with paths["csv"].open() as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == len(res.rows) and list(rows[0])[:4] == [
@@ -204,5 +206,7 @@ def test_evaluate_dummy_model_on_two_real_labels_writes_table_and_files(bandai, 
     assert "| dummy | walk_happy |" in md and "calib: played twice" in md
     assert "eps = 2" in md and "T_c = 30" in md and "T_min = 30" in md and "T_d = 15" in md
     assert "Cond. fid. %" in md
-    assert paths["png"].stat().st_size > 20_000
-    assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    png = tmp_path / "out" / "evaluation.png"
+    plot_evaluation(res, png)
+    assert png.stat().st_size > 20_000
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

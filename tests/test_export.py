@@ -15,10 +15,10 @@ import pytest
 import roma
 import torch
 
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.io import load_motion, save_motion
 from mrlib.io.gltf import read_glb, save_glb
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS
-from mrlib.synthetic import synthetic_walk
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def test_glb_reads_back_with_the_skeleton_frames_and_rate(motion, default_body, 
 
 
 def test_glb_is_reachable_from_save_motion_and_the_cli(motion, default_body, tmp_path):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
 
     save_motion(motion, tmp_path / "a.npz")
     assert main(["export", str(tmp_path / "a.npz"), str(tmp_path / "a.glb")]) == 0
@@ -170,7 +170,7 @@ def test_blender_imports_the_glb_with_its_mesh_and_animation(motion, default_bod
 
 
 def test_sample_writes_a_glb_per_sample_on_request(motion, tmp_path):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
 
     clip = save_motion(motion.replace(label="sad"), tmp_path / "sad.npz")
     run = tmp_path / "run"

@@ -3,7 +3,7 @@ import pytest
 import torch
 
 from mrlib.errors import MotionValueError
-from mrlib.features import (
+from mrlib.representation.features import (
     CONTACT_SLICE,
     NUM_FEATURES,
     ROOT_SLICE,
@@ -14,8 +14,8 @@ from mrlib.features import (
     motion_to_features,
     root_velocity_to_trans,
 )
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix, geodesic_distance
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix, geodesic_distance
 
 rng = np.random.default_rng(1)
 

@@ -21,10 +21,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MrlibError
 from mrlib.io import default_data_dir, load_motion, save_motion
-from mrlib.motion import Motion
-from mrlib.synthetic import synthetic_walk
+from mrlib.representation.motion import Motion
 
 # damaged numbers overflow in numpy on their way to being refused: expected here
 pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")

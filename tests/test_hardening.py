@@ -6,10 +6,10 @@ import os
 
 import pytest
 
-from mrlib.cli import main
+from mrlib.app.cli import main
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.io import save_motion
 from mrlib.io.paths import UnsafePathError, inside, safe_component, unique_components
-from mrlib.synthetic import synthetic_walk
 
 HOSTILE = [
     "/tmp/absolute/evil",
@@ -105,7 +105,7 @@ def test_sample_with_a_hostile_label_writes_under_out(tmp_path, label):
     ],
 )
 def test_cli_errors_are_one_line_without_a_traceback(argv, message, tmp_path, capsys):
-    from mrlib.demo import DATA_SAMPLES
+    from mrlib.app.demo import DATA_SAMPLES
 
     argv = [a.format(wave=DATA_SAMPLES / "wave.npz", tmp=tmp_path) for a in argv]
     assert main(argv) == 1
@@ -163,12 +163,12 @@ def test_kill_9_during_training_then_resume_gives_the_uninterrupted_result(tmp_p
 
     import torch
 
-    from mrlib.checkpoint import load_checkpoint
+    from mrlib.model.checkpoint import load_checkpoint
 
     clip = _clip(tmp_path / "c.npz", "c", "walk")
 
     def cmd(out, resume=False):
-        base = [sys.executable, "-m", "mrlib.cli", "train", "--no-progress", "--out", str(out)]
+        base = [sys.executable, "-m", "mrlib.app.cli", "train", "--no-progress", "--out", str(out)]
         if resume:
             return base + ["--resume", str(out / "checkpoint.pt")]
         return base + [str(clip), "--levels", "2", "--iterations", "20", "--seed", "1",
@@ -207,7 +207,7 @@ def test_a_file_size_limit_during_a_checkpoint_write_keeps_the_previous_one(tmp_
     script = textwrap.dedent(
         f"""
         import resource, signal, torch
-        from mrlib.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+        from mrlib.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
         path = save_checkpoint({str(tmp_path / "c.pt")!r}, {{"w": torch.zeros(1000)}})
         before = path.read_bytes()
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # fail the write instead of the process

@@ -4,9 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.body import load_body_model
-from mrlib.features import FeatureNormalizer, motion_to_features
-from mrlib.losses import (
+from mrlib.model.losses import (
     backward_velocity,
     body_kinematics,
     contact_consistency_loss,
@@ -20,8 +18,10 @@ from mrlib.losses import (
     smoothness_loss,
     weighted_mean,
 )
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix
+from mrlib.representation.body import load_body_model
+from mrlib.representation.features import FeatureNormalizer, motion_to_features
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix
 
 g = torch.Generator().manual_seed(0)
 

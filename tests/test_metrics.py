@@ -1,4 +1,4 @@
-"""Tests for mrlib.metrics: the fast metrics against their naive oracles, invariants,
+"""Tests for mrlib.metrics.paper: the fast metrics against their naive oracles, invariants,
 and error handling. Inputs are small and seeded."""
 
 from __future__ import annotations
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib import metrics as mt
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.motion import Motion
+from mrlib.metrics import paper as mt
+from mrlib.representation.motion import Motion
 
 
 def smooth_motion(T: int, seed: int, contacts: bool = True) -> Motion:

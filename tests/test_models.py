@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib.config import ConfigError, ModelConfig
-from mrlib.features import NUM_FEATURES, channel_joint
-from mrlib.models import (
+from mrlib.model.config import ConfigError, ModelConfig
+from mrlib.model.networks import (
     FiLM,
     LevelGenerator,
     PatchCritic,
@@ -16,8 +15,9 @@ from mrlib.models import (
     hidden_channel_joint,
     skeleton_mask,
 )
-from mrlib.pyramid import PackedLevels
-from mrlib.skeleton import UPPER_BODY_JOINTS, graph_distances
+from mrlib.model.pyramid import PackedLevels
+from mrlib.representation.features import NUM_FEATURES, channel_joint
+from mrlib.representation.skeleton import UPPER_BODY_JOINTS, graph_distances
 
 TINY = ModelConfig(num_levels=3, gen_hidden=(24, 48, 48), disc_hidden=(24, 48, 48))
 DIST = graph_distances()

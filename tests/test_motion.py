@@ -3,8 +3,8 @@ import pytest
 import torch
 
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix, geodesic_distance
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix, geodesic_distance
 
 rng = np.random.default_rng(0)
 

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mrlib.checkpoint import load_checkpoint, save_checkpoint
-from mrlib.cli import main
+from mrlib.app.cli import main
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.io import load_motion, save_motion
 from mrlib.io.outputs import (
     LOCK_NAME,
@@ -33,8 +33,8 @@ from mrlib.io.outputs import (
     atomic_write,
     write_bytes,
 )
-from mrlib.synthetic import synthetic_walk
-from mrlib.train import RunExistsError, check_run_folder
+from mrlib.model.checkpoint import load_checkpoint, save_checkpoint
+from mrlib.training.trainer import RunExistsError, check_run_folder
 
 TRAIN = ["--iterations", "1", "--levels", "2", "--no-progress"]
 
@@ -194,7 +194,7 @@ def test_dotted_labels_get_their_own_files(run, tmp_path):
 def test_sample_names_are_built_from_parts_not_cut_at_a_dot(tags, expected, tmp_path):
     from argparse import Namespace
 
-    from mrlib.cli import _sample_files
+    from mrlib.app.cli import _sample_files
 
     args = Namespace(out=tmp_path, seed=0, render=False, glb=True)
     names = sorted(_sample_files(t, args, 1)[0][".npz"].name for t in tags)
@@ -347,7 +347,7 @@ def test_a_lock_left_by_a_dead_process_is_taken_over(clips, tmp_path):
 
 def test_two_concurrent_trainings_into_one_folder_one_succeeds_one_refuses(clips, tmp_path):
     out = tmp_path / "same"
-    cmd = [sys.executable, "-m", "mrlib.cli", "train", *map(str, clips), "--levels", "2",
+    cmd = [sys.executable, "-m", "mrlib.app.cli", "train", *map(str, clips), "--levels", "2",
            "--iterations", "40", "--no-progress", "--out", str(out)]  # fmt: skip
     procs = [subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for _ in range(2)]  # fmt: skip
@@ -387,7 +387,7 @@ def test_a_filled_disk_leaves_every_previous_file_byte_identical(run, clips, tmp
     script = textwrap.dedent(
         f"""
         import contextlib, io, resource
-        from mrlib.cli import main
+        from mrlib.app.cli import main
         resource.setrlimit(resource.RLIMIT_FSIZE, (2048, resource.RLIM_INFINITY))
         for argv in {runs!r}:
             err = io.StringIO()

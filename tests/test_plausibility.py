@@ -1,4 +1,4 @@
-"""Tests for mrlib.plausibility: exact values on constructed trajectories, invariants, and
+"""Tests for mrlib.metrics.plausibility: exact values on constructed trajectories, invariants, and
 the behaviour on real Bandai Namco clips (clean, noisy, frozen)."""
 
 from __future__ import annotations
@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 import torch
 
-from mrlib import plausibility as pl
-from mrlib.body import load_body_model
-from mrlib.contacts import foot_contacts
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.io.paths import default_data_dir
-from mrlib.motion import Motion
+from mrlib.metrics import plausibility as pl
+from mrlib.representation.body import load_body_model
+from mrlib.representation.contacts import foot_contacts
+from mrlib.representation.motion import Motion
 
 DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(

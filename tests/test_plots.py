@@ -1,4 +1,4 @@
-"""Tests for mrlib.plots: segmentation frame maps, PNN segmentation, coverage strips,
+"""Tests for mrlib.viz.plots: segmentation frame maps, PNN segmentation, coverage strips,
 quality curves."""
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
-from mrlib import metrics as mt
 from mrlib.errors import MotionValueError
-from mrlib.plots import (
+from mrlib.metrics import paper as mt
+from mrlib.viz.plots import (
     plot_coverage_strip,
     plot_quality_curve,
     plot_segmentation,

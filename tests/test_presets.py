@@ -1,4 +1,4 @@
-"""One registry of presets (``mrlib.config.PRESETS``) behind every ``--preset``."""
+"""One registry of presets (``mrlib.model.config.PRESETS``) behind every ``--preset``."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from mrlib.cli import build_parser, main
-from mrlib.config import (
+from mrlib.app.cli import build_parser, main
+from mrlib.model.config import (
     PRESET_FPS,
     PRESET_SUMMARIES,
     PRESETS,
@@ -85,7 +85,7 @@ def test_a_preset_of_the_other_kind_is_a_usage_error(capsys, argv):
 def test_mrlib_train_preset_demo(tmp_path):
     """``mrlib train --preset demo`` trains the demo preset on clips at its frame rate
     (a budget of 2 iterations per block here, so it takes seconds)."""
-    from mrlib.sample import load_model
+    from mrlib.model.trained import load_model
 
     out = tmp_path / "run"
     clips = [str(SAMPLES / "walk_happy.npz"), str(SAMPLES / "walk_sad.npz")]
@@ -100,7 +100,7 @@ def test_mrlib_train_preset_demo(tmp_path):
 
 
 def test_an_explicit_fps_overrides_the_presets(tmp_path):
-    from mrlib.sample import load_model
+    from mrlib.model.trained import load_model
 
     out = tmp_path / "run"
     argv = [

@@ -3,7 +3,7 @@ import torch
 import torch.nn.functional as F
 
 from mrlib.errors import ClipTooShortError
-from mrlib.pyramid import (
+from mrlib.model.pyramid import (
     PackedLevels,
     build_pyramid,
     level_fps,

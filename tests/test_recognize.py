@@ -11,13 +11,13 @@ import pytest
 import rigs
 
 import mrlib
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import JointMapError
 from mrlib.io import default_data_dir, load_motion
 from mrlib.io.bvh import write_bvh
 from mrlib.io.recognize import is_helper, name_parts
 from mrlib.io.retarget import UNITS, retarget_bvh
-from mrlib.skeleton import JOINT_NAMES
-from mrlib.synthetic import synthetic_walk
+from mrlib.representation.skeleton import JOINT_NAMES
 
 BANDAI = default_data_dir() / "data"
 needs_data = pytest.mark.skipif(not BANDAI.is_dir(), reason="Bandai Namco data not found")
@@ -293,7 +293,7 @@ def test_recognition_is_reported(walk, default_body, tmp_path):
 
 
 def test_info_prints_the_map_and_writes_it_for_editing(walk, default_body, tmp_path, capsys):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
 
     path = write_bvh(tmp_path / "daz.bvh", rigs.write_rig(walk, rigs.RIGS["cmu_daz"], default_body))
     out_map = tmp_path / "map.json"

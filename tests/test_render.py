@@ -1,4 +1,4 @@
-"""Tests for mrlib.render: off-screen meshes (pyvista) and stick figures (matplotlib)."""
+"""Tests for mrlib.viz.render: off-screen meshes (pyvista) and stick figures (matplotlib)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import importlib.util
 import numpy as np
 import pytest
 
-from mrlib.body import load_body_model
 from mrlib.errors import MotionValueError
-from mrlib.motion import Motion
-from mrlib.render import (
+from mrlib.representation.body import load_body_model
+from mrlib.representation.motion import Motion
+from mrlib.viz.render import (
     animate_skeleton,
     evenly_spaced_frames,
     plot_skeleton_strip,
@@ -110,8 +110,8 @@ def test_mesh_animation_moves_and_shows_contacts(body, tmp_path):
     follows the GIF rate; red contact dots appear."""
     import imageio.v2 as imageio
 
-    from mrlib.render import render_mesh_animation
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.viz.render import render_mesh_animation
 
     walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
     out = render_mesh_animation(
@@ -158,7 +158,7 @@ def stub_show(monkeypatch):
 
 @pytest.fixture(scope="module")
 def walk(body):
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     return synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
 
@@ -167,7 +167,7 @@ def test_live_3d_needs_a_kernel_a_live_backend_and_no_ci(monkeypatch):
     import IPython
     import pyvista as pv
 
-    from mrlib.render import live_3d
+    from mrlib.viz.render import live_3d
 
     monkeypatch.delenv("CI", raising=False)
     monkeypatch.setattr(IPython, "get_ipython", lambda: None)
@@ -188,7 +188,7 @@ def test_play_motion_without_a_live_frontend_shows_a_still_picture(walk, body):
     import imageio.v3 as iio
     from IPython.display import Image
 
-    from mrlib.render import play_motion
+    from mrlib.viz.render import play_motion
 
     still = play_motion(walk, body, live=False, frames=3)
     assert isinstance(still, Image) and still.format == "png"
@@ -203,7 +203,7 @@ def test_play_motion_without_a_live_frontend_shows_a_still_picture(walk, body):
 
 
 def test_motion_player_poses_each_frame_and_swaps_motions(walk, body, stub_show):
-    from mrlib.render import MotionPlayer
+    from mrlib.viz.render import MotionPlayer
 
     player = MotionPlayer(walk, body, rate=10.0, window_size=(240, 160))
     assert player.widget.children[0] is stub_show
@@ -239,7 +239,7 @@ def test_motion_player_draws_frames_asked_from_other_threads_on_its_own(walk, bo
     import asyncio
     import threading
 
-    from mrlib.render import MotionPlayer
+    from mrlib.viz.render import MotionPlayer
 
     async def main():
         player = MotionPlayer(walk, body, window_size=(240, 160))
@@ -263,7 +263,7 @@ def test_motion_player_draws_frames_asked_from_other_threads_on_its_own(walk, bo
 def test_vertex_normals_point_out_of_a_closed_mesh():
     import pyvista as pv
 
-    from mrlib.render import vertex_normals
+    from mrlib.viz.render import vertex_normals
 
     sphere = pv.Sphere(radius=1.0, theta_resolution=16, phi_resolution=16).triangulate()
     v = np.asarray(sphere.points)

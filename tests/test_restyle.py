@@ -1,4 +1,4 @@
-"""Restyling a clip that is not the model's own (mrlib.restyle).
+"""Restyling a clip that is not the model's own (mrlib.sampling.restyling).
 
 The models here are plumbing models (two iterations per block): the tests check what
 restyling guarantees by construction (which levels the clip reaches, the root's path and
@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 import torch
 
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.features import features_to_motion, motion_to_features
-from mrlib.models import LevelGenerator
-from mrlib.pyramid import pyramid_lengths, resample_linear
-from mrlib.restyle import (
+from mrlib.model.networks import LevelGenerator
+from mrlib.model.pyramid import pyramid_lengths, resample_linear
+from mrlib.representation.features import features_to_motion, motion_to_features
+from mrlib.sampling.restyling import (
     coarse_gap,
     restyle,
     restyle_evidence,
@@ -26,7 +27,6 @@ from mrlib.restyle import (
     restyle_references,
     restyle_shares,
 )
-from mrlib.synthetic import synthetic_walk
 
 
 @pytest.fixture(scope="module")
@@ -42,8 +42,8 @@ def clip(body):
 
 def _yaw(motion, theta: float):
     """``motion`` turned about the vertical by ``theta`` (about the origin)."""
-    from mrlib.constraints.path import yaw_matrix
-    from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+    from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+    from mrlib.sampling.constraints.path import yaw_matrix
 
     R = yaw_matrix(theta)
     poses = motion.poses.astype(np.float64).copy()
@@ -53,7 +53,7 @@ def _yaw(motion, theta: float):
 
 
 def _heading(motion) -> np.ndarray:
-    from mrlib.rotations import axis_angle_to_matrix
+    from mrlib.representation.rotations import axis_angle_to_matrix
 
     R = axis_angle_to_matrix(torch.from_numpy(motion.poses[:, 0].astype(np.float64))).numpy()
     return np.unwrap(np.arctan2(R[:, 0, 2], R[:, 2, 2]))
@@ -226,7 +226,7 @@ def test_restyle_evidence_and_shares(model, clip, body):
 def test_restyle_cli(tmp_path):
     from pathlib import Path
 
-    from mrlib.cli import main
+    from mrlib.app.cli import main
     from mrlib.io import load_motion
 
     samples = Path(__file__).resolve().parents[1] / "data_samples"
@@ -262,10 +262,11 @@ def test_restyle_cli(tmp_path):
 
 # -- the style claim on a trained model --------------------------------------------------------
 # Asserted on the mean log distance ratio over its twelve cases (six unseen takes, levels 3
-# and 4), with the bound that ``python bench/restyle.py --matrix 0-2`` checks over training
-# seeds 0-2 x torch threads 1 and 2 (means 1.18-1.38, every case >= 0.50; untrained
-# -0.005 to -0.001: docs/notes/2026-12-04-restyle.md), and its paired negative: the same
-# recipe untrained fails the bound.
+# and 4), with the bound that ``python tests/trained_test_matrix.py --recipe restyle --seeds
+# 0-2 --threads 1,2 [--variant untrained]`` checks over training seeds 0-2 x torch threads
+# 1 and 2 (means 1.18-1.38, every case >= 0.50; untrained -0.005 to -0.001:
+# docs/notes/2026-12-04-restyle.md), and its paired negative: the same recipe untrained
+# fails the bound.
 import trained_models as tm  # noqa: E402
 
 from mrlib.io import default_data_dir  # noqa: E402
@@ -310,8 +311,8 @@ def test_the_restyle_claim_fails_on_an_untrained_model(tmp_path, body):
 # -- the widget ---------------------------------------------------------------------------------
 def test_interactive_restyle_builds_and_redraws(model, clip, body, monkeypatch):
     ipywidgets = pytest.importorskip("ipywidgets")
-    import mrlib.widgets
-    from mrlib.widgets import RestyleView, interactive_restyle
+    import mrlib.viz.widgets
+    from mrlib.viz.widgets import RestyleView, interactive_restyle
 
     box, update = interactive_restyle(model, clip, body, render=False, label="wave", level=1)
     assert isinstance(box, ipywidgets.VBox)
@@ -331,6 +332,6 @@ def test_interactive_restyle_builds_and_redraws(model, clip, body, monkeypatch):
     def fake_render(motion, body, frames=None, **kw):  # the real one takes seconds
         return np.zeros((40, 120, 3), np.uint8)
 
-    monkeypatch.setattr(mrlib.widgets, "render_meshes", fake_render)
+    monkeypatch.setattr(mrlib.viz.widgets, "render_meshes", fake_render)
     _, update = interactive_restyle(model, clip, body, frames=3)
     assert update().image.shape == (40, 120, 3)

@@ -11,6 +11,7 @@ import torch
 
 from mrlib.errors import JointMapError, MotionFileError, UnsupportedFormatError
 from mrlib.io import load_bvh, load_label, load_motion, save_motion
+from mrlib.io.bodyfit import default_body
 from mrlib.io.bvh import (
     BVH,
     BVHSkeleton,
@@ -20,6 +21,7 @@ from mrlib.io.bvh import (
     read_bvh,
     write_bvh,
 )
+from mrlib.io.jointmap import detect_joint_map, load_joint_map, shipped_joint_maps
 from mrlib.io.paths import default_data_dir
 from mrlib.io.retarget import (
     RETARGET_WARN_CM,
@@ -28,22 +30,18 @@ from mrlib.io.retarget import (
     _solve_offset,
     calibrate_retarget,
     change_up_axis,
-    default_body,
-    detect_joint_map,
     detect_up_axis,
-    load_joint_map,
     retarget_bvh,
-    shipped_joint_maps,
     up_axis_rotation,
 )
-from mrlib.motion import Motion
-from mrlib.rotations import (
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import (
     axis_angle_to_matrix,
     geodesic_distance,
     kabsch_rotation,
     matrix_to_axis_angle_numpy,
 )
-from mrlib.skeleton import JOINT_NAMES, PARENTS
+from mrlib.representation.skeleton import JOINT_NAMES, PARENTS
 
 DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
@@ -158,7 +156,7 @@ def test_error_joints_are_the_body_forward_joints(body):
 
 
 def test_numpy_axis_angle_matches_rotations():
-    from mrlib.rotations import matrix_to_axis_angle
+    from mrlib.representation.rotations import matrix_to_axis_angle
 
     rng = np.random.default_rng(7)
     R = _rand_rot(rng, 2000)
@@ -550,7 +548,7 @@ def _check_transfer(name, source, body, tmp_path):
 
 @pytest.mark.parametrize("name", ["stylised", "character_creator"])
 def test_stylised_and_character_creator_rigs_keep_joint_angles_and_contacts(name, body, tmp_path):
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     walk = synthetic_walk("walk_happy", seconds=4.0, fps=30.0, body=body)
     _check_transfer(name, walk, body, tmp_path)
@@ -571,7 +569,7 @@ def test_stylised_and_character_creator_rigs_from_real_motion(name, clip, body, 
 def test_a_character_larger_than_any_smpl_body_is_transferred_by_rotations(body, tmp_path):
     """Human proportions at 1.8 times the size: SMPL's shape space cannot reach its legs,
     so the root is scaled by leg length instead of the betas pinned at their bound."""
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     walk = synthetic_walk("walk_normal", seconds=4.0, fps=30.0, body=body)
     giant = rigs.Rig(
@@ -595,7 +593,7 @@ def test_motion_capture_skeletons_of_their_own_at_120_fps(name, body, tmp_path):
     """CMU's and Xia et al.'s 31-joint skeletons with their subjects' bone lengths, at
     120 fps: the shipped 'cmu' map, SMPL's shape fitted, no warning (their errors:
     docs/notes/2026-12-04-rigs.md)."""
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
     m, angles, _, _ = _transfer(walk, rigs.MOCAP[name], body, tmp_path / f"{name}.bvh")
@@ -625,7 +623,7 @@ def _wrong_maps(path, body) -> tuple[dict, dict]:
 @pytest.fixture
 def wrong_map_clip(body, tmp_path):
     """A Mixamo clip and two wrong maps for it (``_wrong_maps``)."""
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
     path = write_bvh(tmp_path / "clip.bvh", rigs.write_rig(walk, rigs.RIGS["mixamo"], body))
@@ -664,8 +662,8 @@ def test_a_map_that_fits_the_positions_but_not_a_body_is_reported(wrong_map_clip
 def test_train_refuses_such_a_clip_unless_told(wrong_map_clip, tmp_path, monkeypatch, capsys):
     import json
 
-    import mrlib.train
-    from mrlib.cli import main
+    import mrlib.training.trainer
+    from mrlib.app.cli import main
 
     path, shifted, _ = wrong_map_clip
     map_json = tmp_path / "map.json"
@@ -682,14 +680,14 @@ def test_train_refuses_such_a_clip_unless_told(wrong_map_clip, tmp_path, monkeyp
     def stop(*a, **k):
         raise Reached
 
-    monkeypatch.setattr(mrlib.train, "train", stop)
+    monkeypatch.setattr(mrlib.training.trainer, "train", stop)
     with pytest.raises(Reached), pytest.warns(RetargetWarning):
         main(args + ["--accept-retarget-error"])
 
 
 def test_info_shows_the_mode_and_the_shape_bounds_hit(body, tmp_path, capsys):
-    from mrlib.cli import main
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.app.cli import main
+    from mrlib.datasets.synthetic import synthetic_walk
 
     walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
     path = write_bvh(tmp_path / "xia.bvh", rigs.write_rig(walk, rigs.MOCAP["xia_mocap"], body))
@@ -704,7 +702,7 @@ def test_info_shows_the_mode_and_the_shape_bounds_hit(body, tmp_path, capsys):
 def test_hinge_twist_moves_rotations_not_positions(body):
     """The hinge axes set the limbs' twist (step 3): the same joint positions as the
     closed form, the elbows bending about SMPL's elbow axis."""
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
     bvh = rigs.write_rig(walk, rigs.RIGS["lafan1"], body)

@@ -2,7 +2,7 @@ import pytest
 import roma
 import torch
 
-from mrlib.rotations import (
+from mrlib.representation.rotations import (
     axis_angle_to_6d,
     axis_angle_to_matrix,
     geodesic_distance,
@@ -56,7 +56,7 @@ def test_matrix_to_axis_angle_closed_form_agrees_with_roma_everywhere(dtype, tol
     """The closed form (angles up to 3 rad) and roma's route (near a half turn) meet."""
     import roma
 
-    from mrlib.rotations import matrix_to_axis_angle
+    from mrlib.representation.rotations import matrix_to_axis_angle
 
     g = torch.Generator().manual_seed(0)
     axis = torch.nn.functional.normalize(torch.randn(6000, 3, generator=g, dtype=dtype), dim=-1)

@@ -2,14 +2,13 @@ import numpy as np
 import pytest
 import torch
 
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MotionValueError
-from mrlib.features import features_to_motion
-from mrlib.motion import Motion
-from mrlib.sample import (
-    FINE_NOISE,
-    GUIDANCE,
-    cleanup_foot_contacts,
-    contact_skating,
+from mrlib.model.trained import FINE_NOISE, GUIDANCE
+from mrlib.representation.features import features_to_motion
+from mrlib.representation.motion import Motion
+from mrlib.sampling.cleanup import cleanup_foot_contacts, contact_skating
+from mrlib.sampling.generation import (
     generate,
     label_inputs,
     label_weights,
@@ -18,7 +17,6 @@ from mrlib.sample import (
     reconstruction_error,
     sample_features,
 )
-from mrlib.synthetic import synthetic_walk
 
 
 @pytest.fixture(scope="module")
@@ -194,7 +192,7 @@ def _skating_walk():
     [("ik", {}), ("ik", {"move_root": False}), ("optimise", {"iterations": 60})],
 )
 def test_foot_contact_cleanup_reduces_skating(body, method, kw):
-    from mrlib.contacts import foot_contacts
+    from mrlib.representation.contacts import foot_contacts
 
     m = synthetic_walk("walk_normal", seconds=2.0, fps=30.0)
     contacts = foot_contacts(m, body)
@@ -206,8 +204,8 @@ def test_foot_contact_cleanup_reduces_skating(body, method, kw):
     if method == "ik" and kw.get("move_root", True):
         # the root takes the planted feet's common correction: never more than the
         # farthest a contact vertex strays from its run's mean (+ the lift to the floor)
-        from mrlib.footik import contact_runs
-        from mrlib.plausibility import motion_kinematics
+        from mrlib.metrics.plausibility import motion_kinematics
+        from mrlib.sampling.cleanup import contact_runs
 
         feet = motion_kinematics(bad, body)[1]
         stray = max(
@@ -229,8 +227,8 @@ def test_foot_contact_cleanup_reduces_skating(body, method, kw):
 def test_ik_cleanup_pins_a_lone_contact_vertex_and_keeps_bone_lengths(body):
     """One toe in contact over a run: after the clean-up it stands still on the ground
     plane where it was on average, and the leg's bones keep their lengths."""
-    from mrlib.contacts import foot_contacts
-    from mrlib.footik import BLEND_S, ROOT_SMOOTH_S, contact_runs
+    from mrlib.representation.contacts import foot_contacts
+    from mrlib.sampling.cleanup import BLEND_S, ROOT_SMOOTH_S, contact_runs
 
     bad = _skating_walk()
     real = foot_contacts(synthetic_walk("walk_normal", seconds=2.0, fps=30.0), body)
@@ -269,7 +267,7 @@ def test_ik_cleanup_of_a_one_minute_clip_is_vectorised(body):
     import time
 
     m = synthetic_walk("walk_normal", seconds=60.0, fps=30.0)
-    from mrlib.contacts import foot_contacts
+    from mrlib.representation.contacts import foot_contacts
 
     m = m.replace(contacts=foot_contacts(m, body))
     t = time.perf_counter()

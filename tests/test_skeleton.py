@@ -1,6 +1,6 @@
 import numpy as np
 
-from mrlib.skeleton import (
+from mrlib.representation.skeleton import (
     CONTACT_JOINTS,
     JOINT_NAMES,
     NUM_CONTACTS,

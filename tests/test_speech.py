@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.motion import Motion
-from mrlib.pyramid import pyramid_lengths
+from mrlib.model.pyramid import pyramid_lengths
+from mrlib.representation.motion import Motion
 from mrlib.speech import (
     FEATURE_FPS,
     FRAME_OFFSET_S,

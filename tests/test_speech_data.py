@@ -5,11 +5,11 @@ import pytest
 import soundfile
 
 import mrlib.speech.synthetic as sd
-from mrlib.body import load_body_model
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.io import load_motion, save_motion
 from mrlib.io.paths import default_data_dir
-from mrlib.skeleton import JOINT_NAMES
+from mrlib.representation.body import load_body_model
+from mrlib.representation.skeleton import JOINT_NAMES
 from mrlib.speech import (
     AudioFileError,
     SpeechFeatureExtractor,

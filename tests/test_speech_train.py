@@ -13,13 +13,13 @@ import pytest
 import soundfile
 import torch
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import ConfigError, LossWeights, ModelConfig, TrainConfig
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.features import channel_joint
-from mrlib.models import LevelGenerator
-from mrlib.pyramid import PackedLevels, pyramid_lengths
-from mrlib.skeleton import UPPER_BODY_JOINTS, graph_distances
+from mrlib.model.checkpoint import CheckpointError, load_checkpoint
+from mrlib.model.config import ConfigError, LossWeights, ModelConfig, TrainConfig
+from mrlib.model.networks import LevelGenerator
+from mrlib.model.pyramid import PackedLevels, pyramid_lengths
+from mrlib.representation.features import channel_joint
+from mrlib.representation.skeleton import UPPER_BODY_JOINTS, graph_distances
 from mrlib.speech import (
     SpeechClip,
     SpeechFeatureExtractor,
@@ -121,7 +121,7 @@ def clip(seconds: float, seed: int) -> SpeechClip:
 
 @pytest.fixture(scope="module")
 def body():
-    from mrlib.body import load_body_model
+    from mrlib.representation.body import load_body_model
 
     return load_body_model()
 
@@ -233,7 +233,7 @@ def test_random_audio_default_follows_the_critics(data, body, tmp_path):
 
 
 def test_speech_mismatch_is_each_clips_own_speech_out_of_step(data, body, tmp_path):
-    from mrlib.config import LossWeights
+    from mrlib.model.config import LossWeights
 
     mc = dataclasses.replace(TINY, critic_condition=True, critic_band="detail")
     cfg = tiny(model=mc, loss=LossWeights(mismatch=1.0))
@@ -364,7 +364,7 @@ def test_training_writes_a_safe_checkpoint_with_the_speech_normaliser(trained, d
     assert torch.equal(model.normalizer.std, data.normalizer.std)
     assert model.feature_config == LOGMEL.config
     with pytest.raises(CheckpointError, match="no 'speech' key"):
-        from mrlib.checkpoint import save_checkpoint
+        from mrlib.model.checkpoint import save_checkpoint
 
         plain = {k: v for k, v in load_checkpoint(trained.checkpoint).items() if k != "speech"}
         save_checkpoint(trained.checkpoint.parent / "plain.pt", plain)
@@ -465,7 +465,7 @@ def test_film_modulates_only_the_upper_body():
         diff = (level.film(u, c1) - level.film(u, c2)).abs().amax((0, 2)).numpy()
     assert (diff[~upper] == 0).all() and (diff[upper] > 0).all()
 
-    from mrlib.models import MultiResGenerator
+    from mrlib.model.networks import MultiResGenerator
 
     gen = MultiResGenerator(cfg, cond_dim=13)
     with torch.no_grad():
@@ -536,7 +536,7 @@ def test_wavlm_features_plumbing(tmp_path, body):
 
 
 def test_cli_sample_audio(trained, tmp_path, capsys):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
     from mrlib.io import load_motion
 
     wav = tmp_path / "talk.wav"
@@ -553,7 +553,7 @@ def test_cli_sample_audio(trained, tmp_path, capsys):
 
 
 def test_cli_train_speech_from_folders(tmp_path, capsys):
-    from mrlib.cli import main
+    from mrlib.app.cli import main
     from mrlib.io import save_motion
 
     paired, unpaired = tmp_path / "paired", tmp_path / "unpaired"

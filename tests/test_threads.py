@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from mrlib import threads
-from mrlib.cli import build_parser, main
+from mrlib.app.cli import build_parser, main
 from mrlib.errors import MrlibError
 
 
@@ -95,10 +95,10 @@ def test_the_policy_block_restores_the_previous_count(monkeypatch):
 
 
 def test_library_entry_points_run_under_the_policy(monkeypatch):
-    from mrlib.evaluate import evaluate_model
-    from mrlib.footik import cleanup_foot_contacts
-    from mrlib.sample import generate
-    from mrlib.train import Trainer
+    from mrlib.evaluation.evaluate import evaluate_model
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.generation import generate
+    from mrlib.training.trainer import Trainer
 
     for fn in (generate, evaluate_model, cleanup_foot_contacts, Trainer.fit):
         assert getattr(fn, "__wrapped__", None) is not None, fn.__qualname__
@@ -132,11 +132,13 @@ def test_every_command_takes_threads():
 
 
 def test_the_command_runs_with_the_threads_given(monkeypatch, tmp_path):
-    import mrlib.cli
+    import mrlib.app.cli
 
     _started_with(monkeypatch, 2, 2)
     seen = []
-    monkeypatch.setattr(mrlib.cli, "_cmd_info", lambda args: seen.append(torch.get_num_threads()))
+    monkeypatch.setattr(
+        mrlib.app.cli, "_cmd_info", lambda args: seen.append(torch.get_num_threads())
+    )
     assert main(["info", str(tmp_path / "x.npz"), "--threads", "3"]) == 0
     assert main(["info", str(tmp_path / "x.npz")]) == 0
     assert seen == [3, 1]

@@ -6,8 +6,9 @@ import signal
 import pytest
 import torch
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
-from mrlib.config import (
+from mrlib.datasets.synthetic import synthetic_walk
+from mrlib.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from mrlib.model.config import (
     ConfigError,
     LossWeights,
     ModelConfig,
@@ -18,10 +19,14 @@ from mrlib.config import (
     paper,
     tutorial,
 )
-from mrlib.data import TrainingSet
-from mrlib.losses import critic_loss, detail_statistics_loss, gradient_penalty, wgan_gp_critic_loss
-from mrlib.synthetic import synthetic_walk
-from mrlib.train import Trainer, train
+from mrlib.model.losses import (
+    critic_loss,
+    detail_statistics_loss,
+    gradient_penalty,
+    wgan_gp_critic_loss,
+)
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import Trainer, train
 
 TINY_MODEL = ModelConfig(num_levels=3, gen_hidden=(24, 24), disc_hidden=(24, 24))
 
@@ -51,7 +56,7 @@ def data():
 
 @pytest.fixture(scope="module")
 def body():
-    from mrlib.body import load_body_model
+    from mrlib.representation.body import load_body_model
 
     return load_body_model()
 
@@ -61,9 +66,9 @@ def _gen_state(path):
 
 
 def test_cli_lr_overrides_the_presets_and_is_saved(tmp_path):
-    from mrlib.cli import _cmd_train, build_parser, main
-    from mrlib.config import training_config
+    from mrlib.app.cli import _cmd_train, build_parser, main
     from mrlib.errors import MrlibError
+    from mrlib.model.config import training_config
 
     assert training_config("tutorial").lr == tutorial().lr
     assert training_config("tutorial", lr=2e-3).lr == 2e-3 != tutorial().lr
@@ -110,8 +115,8 @@ def test_config_json_round_trip_and_validation():
 
 
 def test_batched_critic_loss_equals_reference():
-    from mrlib.models import PatchCritic
-    from mrlib.pyramid import PackedLevels
+    from mrlib.model.networks import PatchCritic
+    from mrlib.model.pyramid import PackedLevels
 
     torch.manual_seed(0)
     critic = PatchCritic(TINY_MODEL)
@@ -258,15 +263,16 @@ def test_seeded_runs_are_reproducible(data, body, tmp_path):
 def test_reconstruction_reaches_low_error_on_a_short_run(data, body, tmp_path, iterations, learns):
     """With the reconstruction term alone and a large learning rate, 40 iterations per
     block bring the finest level's L1 error (normalised features) from ~0.4 to ~0.06
-    (0.057-0.060 over training seeds 0-4 x 1 and 2 threads, bench/trained_test_matrix.py
+    (0.057-0.060 over training seeds 0-4 x 1 and 2 threads, tests/trained_test_matrix.py
     --recipe reconstruction); 2 iterations do not."""
     import trained_models as tm
 
-    from mrlib.sample import load_model, reconstruction_error
+    from mrlib.model.trained import load_model
+    from mrlib.sampling.generation import reconstruction_error
 
     cfg = tm.reconstruction_config(seed=3, iterations=iterations)
     trainer = Trainer(data, cfg, tmp_path, body=body)
-    from mrlib.sample import model_from_trainer
+    from mrlib.model.trained import model_from_trainer
 
     before = [reconstruction_error(model_from_trainer(trainer), k) for k in range(data.num_clips)]
     res = trainer.fit(progress=False)
@@ -420,7 +426,7 @@ def test_detail_term_pulls_each_level_to_its_labels_detail_statistics(data, body
 
 
 def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
-    from mrlib.config import ganimator_mode
+    from mrlib.model.config import ganimator_mode
 
     t = tutorial()
     g = ganimator_mode(t)
@@ -433,7 +439,7 @@ def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
 def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(
     data, body, tmp_path, monkeypatch
 ):
-    import mrlib.train as mt
+    import mrlib.training.trainer as mt
 
     cfg = tiny(
         model=dataclasses.replace(TINY_MODEL, critic_condition=True), mix_prob=1.0, n_critic=2
@@ -488,7 +494,7 @@ def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
 ):
     """The 4th iteration's loss is NaN and its weights are poisoned: training raises,
     names the term, and the checkpoint of iteration 2 stays as it was."""
-    from mrlib.train import TrainingDivergedError
+    from mrlib.training.trainer import TrainingDivergedError
 
     real_step = Trainer.step
     calls = {"n": 0}
@@ -511,7 +517,7 @@ def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
 
 
 def test_a_trainer_refuses_to_save_non_finite_weights(tmp_path, data, body):
-    from mrlib.train import TrainingDivergedError
+    from mrlib.training.trainer import TrainingDivergedError
 
     trainer = Trainer(data, tiny(), tmp_path, body=body)
     trainer.save()
@@ -524,8 +530,8 @@ def test_a_trainer_refuses_to_save_non_finite_weights(tmp_path, data, body):
 
 
 def test_cli_train_with_nan_fps_fails_with_a_clear_error(tmp_path, capsys):
-    from mrlib.cli import main
-    from mrlib.demo import DATA_SAMPLES
+    from mrlib.app.cli import main
+    from mrlib.app.demo import DATA_SAMPLES
 
     clip = str(DATA_SAMPLES / "walk_sad.npz")
     assert main(["train", clip, "--fps", "nan", "--iterations", "1", "--out", str(tmp_path)]) == 1

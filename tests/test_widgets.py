@@ -1,4 +1,4 @@
-"""Tests for mrlib.widgets, driven as a person drives them (control values set, the
+"""Tests for mrlib.viz.widgets, driven as a person drives them (control values set, the
 callbacks they trigger) on a plumbing model: the busy state of a redraw, the status line
 (its title kept current, invalid values reported there), labels in full, controls that do
 nothing disabled, and the 3D player following the sample."""
@@ -15,7 +15,7 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
-import mrlib.widgets as W
+import mrlib.viz.widgets as W
 from mrlib.errors import MotionValueError
 
 ipywidgets = pytest.importorskip("ipywidgets")
@@ -120,16 +120,16 @@ def test_invalid_values_are_reported_and_the_last_picture_stays(model, body):
 
 
 def test_parts_labels_in_full_and_arms_in_step_only_for_splice(model, body, monkeypatch):
-    import mrlib.constraints
+    import mrlib.sampling.constraints
 
     calls = []
-    generate_parts = mrlib.constraints.generate_parts
+    generate_parts = mrlib.sampling.constraints.generate_parts
 
     def recorded(*args, **kw):
         calls.append(kw)
         return generate_parts(*args, **kw)
 
-    monkeypatch.setattr(mrlib.constraints, "generate_parts", recorded)
+    monkeypatch.setattr(mrlib.sampling.constraints, "generate_parts", recorded)
     box, update = W.interactive_parts(model, body=body, length=40)
     controls = controls_of(box)
     in_step = controls["arms in step with the legs (splice)"]
@@ -150,17 +150,17 @@ def test_parts_labels_in_full_and_arms_in_step_only_for_splice(model, body, monk
 
 
 def test_path_status_and_busy_text(model, body, monkeypatch):
-    import mrlib.constraints
+    import mrlib.sampling.constraints
 
     seen = []
-    on_path = mrlib.constraints.generate_on_path
+    on_path = mrlib.sampling.constraints.generate_on_path
 
     def watched(*args, **kw):
         seen.append(status_of(box))
         kw["method"] = "bend"  # optimising takes seconds; the status is what is checked
         return on_path(*args, **kw)
 
-    monkeypatch.setattr(mrlib.constraints, "generate_on_path", watched)
+    monkeypatch.setattr(mrlib.sampling.constraints, "generate_on_path", watched)
     box, update = W.interactive_path(model, body, seconds=3.0)
     controls = controls_of(box)
     update()
@@ -173,16 +173,16 @@ def test_path_status_and_busy_text(model, body, monkeypatch):
 
 
 def test_inbetween_changing_clip_redraws_once(model, body, sad_wave_clips, monkeypatch):
-    import mrlib.constraints
+    import mrlib.sampling.constraints
 
     calls = []
-    with_keyframes = mrlib.constraints.generate_with_keyframes
+    with_keyframes = mrlib.sampling.constraints.generate_with_keyframes
 
     def counted(*args, **kw):
         calls.append(kw)
         return with_keyframes(*args, **kw)
 
-    monkeypatch.setattr(mrlib.constraints, "generate_with_keyframes", counted)
+    monkeypatch.setattr(mrlib.sampling.constraints, "generate_with_keyframes", counted)
     clips = {c.label: c for c in sad_wave_clips}
     box, update = W.interactive_inbetween(model, clips, body, seconds=2.0, steps=0)
     controls = controls_of(box)

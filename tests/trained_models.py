@@ -1,7 +1,7 @@
 """Recipes of the small trained models behind the tests of trained-model claims.
 
 The tests (``test_control.py``) train each recipe once per module with training seed 0
-and one torch thread; ``bench/trained_test_matrix.py`` trains the same recipes over
+and one torch thread; ``tests/trained_test_matrix.py`` trains the same recipes over
 training seeds x torch thread counts, and their untrained or ablated negatives, and
 prints the tested quantities, so an assertion is committed only where its margin holds
 over that matrix (``docs/results.md`` has it).
@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from mrlib.config import ModelConfig, TrainConfig, tutorial
-from mrlib.control import crossover_evidence
-from mrlib.data import TrainingSet
-from mrlib.sample import load_model
-from mrlib.synthetic import synthetic_walk, synthetic_wave
-from mrlib.train import train
+from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
+from mrlib.evaluation.crossover import crossover_evidence
+from mrlib.model.config import ModelConfig, TrainConfig, tutorial
+from mrlib.model.trained import load_model
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import train
 
 # -- recipe 1: synthetic clips, coarse levels decide the low band ------------------------
 SYNTHETIC_PAIRS = (
@@ -111,7 +111,7 @@ def band_log_ratios(model, cases=DETAIL_CASES) -> np.ndarray:
 # -- recipe 3: the reconstruction term alone ---------------------------------------------------
 def reconstruction_config(seed: int = 3, iterations: int = 40) -> TrainConfig:
     """3 levels, reconstruction only, lr 1e-2, 40 iterations per block (seconds)."""
-    from mrlib.config import LossWeights
+    from mrlib.model.config import LossWeights
 
     return TrainConfig(
         model=ModelConfig(num_levels=3, gen_hidden=(24, 24), disc_hidden=(24, 24)),
@@ -133,7 +133,7 @@ def reconstruction_clips():
 
 
 def reconstruction_errors(model) -> np.ndarray:
-    from mrlib.sample import reconstruction_error
+    from mrlib.sampling.generation import reconstruction_error
 
     return np.asarray([reconstruction_error(model, k) for k in range(len(model.clip_names))])
 
@@ -149,7 +149,7 @@ def train_recipe(clips, cfg: TrainConfig, out: str | os.PathLike, body, threads:
     return load_model(res.checkpoint)
 
 
-# -- recipe 4: restyling unseen Bandai walks (mrlib.restyle) with the recipe-2 model --------
+# -- recipe 4: restyling unseen Bandai walks (mrlib.sampling.restyling) with the recipe-2 model --------
 RESTYLE_FILES = tuple(
     f"dataset-1_{kind}_{style}_{take}.bvh"
     for style in ("angry", "sad")
@@ -173,7 +173,7 @@ def restyle_log_ratios(model, inputs: dict, levels=RESTYLE_LEVELS) -> np.ndarray
     towards the target brings the residual nearer the target than the paired negative,
     the input restyled with its own label, does), and 1 where the restyled residual's
     nearest label is the target."""
-    from mrlib.restyle import restyle, restyle_evidence, restyle_references
+    from mrlib.sampling.restyling import restyle, restyle_evidence, restyle_references
 
     out = []
     for name, clip in inputs.items():

@@ -2,7 +2,7 @@
 
     python tools/make_data_samples.py            # writes data_samples/*.npz
 
-The clips are procedural (mrlib.synthetic), made on the embedded default body; nothing
+The clips are procedural (mrlib.datasets.synthetic), made on the embedded default body; nothing
 is downloaded and nothing comes from captured data.
 """
 
@@ -11,9 +11,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.body import load_body_model
+from mrlib.datasets.synthetic import synthetic_dataset
 from mrlib.io import save_motion
-from mrlib.synthetic import synthetic_dataset
+from mrlib.representation.body import load_body_model
 
 
 def main() -> None:

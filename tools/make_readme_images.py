@@ -32,11 +32,11 @@ def crossover_figure(
     import torch
     from matplotlib.figure import Figure
 
-    from mrlib.config import tutorial
-    from mrlib.data import TrainingSet
-    from mrlib.render import crop_to_bodies, evenly_spaced_frames
-    from mrlib.sample import generate
-    from mrlib.train import train_or_reuse
+    from mrlib.model.config import tutorial
+    from mrlib.sampling.generation import generate
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train_or_reuse
+    from mrlib.viz.render import crop_to_bodies, evenly_spaced_frames
 
     torch.set_num_threads(1)
     clips = [mrlib.load_motion(p) for p in sorted((ROOT / "data_samples").glob("*.npz"))]
@@ -59,7 +59,7 @@ def crossover_figure(
     frames = evenly_spaced_frames(length, 6)
     imgs = [
         crop_to_bodies(
-            mrlib.render_meshes(
+            mrlib.viz.render.render_meshes(
                 m, body, frames=frames, highlight_contacts=False, window_size=(1400, 520)
             )
         )
@@ -89,9 +89,9 @@ def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     body = mrlib.load_body_model()
     walk = mrlib.load_motion(ROOT / "data_samples" / "walk_happy.npz")
-    contacts = mrlib.foot_contacts(walk, body)
+    contacts = mrlib.representation.foot_contacts(walk, body)
     frames = np.linspace(0, 44, 6).astype(int)
-    img = mrlib.render_meshes(
+    img = mrlib.viz.render.render_meshes(
         walk.replace(contacts=contacts), body, frames=frames, layout="path", window_size=(1100, 420)
     )
     iio.imwrite(OUT / "walk_contacts.png", img)

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mrlib.body import load_body_model
 from mrlib.io import load_motion
+from mrlib.representation.body import load_body_model
 from mrlib.speech import (
     GestureParams,
     beat_alignment_score,

@@ -6,7 +6,7 @@ their outputs (figures as PNG) and a reader on GitHub sees every figure without 
 
 Behind ``make notebooks``. Each notebook runs top to bottom in a fresh kernel from its
 own folder (in order, so that later notebooks reuse the models earlier ones trained:
-``mrlib.train.train_cached``). The wall time, the date and a SHA-256 of the code cells'
+``mrlib.training.trainer.train_cached``). The wall time, the date and a SHA-256 of the code cells'
 source are written to the notebook's ``metadata["mrlib"]``;
 ``tests/test_notebooks.py`` fails when a notebook's code no longer matches the outputs
 it carries. Outputs are kept only when the whole notebook ran without an error.

@@ -12,7 +12,7 @@ Entry points:
 * ``load_label(path)``: the ``"<content>_<style>"`` label of a Bandai Namco clip from its
   JSON metadata (``{"content": i, "style": j}``) and the dataset's ``cfg/*_label.txt``.
 
-Everything returned is in mrlib's conventions (``mrlib.skeleton``): metres, Y up.
+Everything returned is in mrlib's conventions (``mrlib.representation.skeleton``): metres, Y up.
 """
 
 from __future__ import annotations
@@ -25,19 +25,12 @@ from pathlib import Path
 from mrlib.errors import MotionFileError, MotionValueError, MrlibError, UnsupportedFormatError
 from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, parse_bvh, read_bvh, write_bvh
 from mrlib.io.export import smpl_to_bvh
+from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, shipped_joint_maps
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
 from mrlib.io.outputs import check_writable, write_text
 from mrlib.io.paths import default_data_dir
-from mrlib.io.retarget import (
-    JointMap,
-    RetargetResult,
-    calibrate_retarget,
-    detect_joint_map,
-    load_joint_map,
-    retarget_bvh,
-    shipped_joint_maps,
-)
-from mrlib.motion import Motion
+from mrlib.io.retarget import RetargetResult, calibrate_retarget, retarget_bvh
+from mrlib.representation.motion import Motion
 
 __all__ = [
     "default_data_dir",

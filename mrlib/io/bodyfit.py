@@ -16,8 +16,8 @@ import numpy as np
 import torch
 from scipy.optimize import lsq_linear
 
-from mrlib.body import fit_betas as betas_of_length
-from mrlib.skeleton import NUM_JOINTS, PARENTS
+from mrlib.representation.body import fit_betas as betas_of_length
+from mrlib.representation.skeleton import NUM_JOINTS, PARENTS
 
 __all__ = [
     "default_body",
@@ -33,7 +33,7 @@ __all__ = [
 def default_body():
     """The default body model, loaded once per process (``resolve_body(shared=True)``);
     read it, do not move or change it."""
-    from mrlib.body import resolve_body
+    from mrlib.representation.body import resolve_body
 
     return resolve_body(shared=True)
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from mrlib.errors import BVHFormatError
-from mrlib.motion import MAX_FPS
+from mrlib.representation.motion import MAX_FPS
 
 __all__ = [
     "BVHSkeleton",

@@ -10,11 +10,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from mrlib.body import resolve_body
 from mrlib.io.bodyfit import rest_joints_for
 from mrlib.io.bvh import BVH, BVHSkeleton, matrix_to_euler
-from mrlib.rotations import axis_angle_to_matrix
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+from mrlib.representation.body import resolve_body
+from mrlib.representation.rotations import axis_angle_to_matrix
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = ["smpl_to_bvh"]
 
@@ -24,7 +24,7 @@ _BVH_UNITS = {"cm": 100.0, "m": 1.0}
 def smpl_to_bvh(motion, *, body=None, unit: str = "cm", order: str = "ZXY") -> BVH:
     """A BVH of ``motion`` on SMPL's skeleton (the inverse of the ``"smpl"`` joint map).
 
-    * Joints are SMPL's 24, named as in ``mrlib.skeleton.JOINT_NAMES``; the rest pose is
+    * Joints are SMPL's 24, named as in ``mrlib.representation.skeleton.JOINT_NAMES``; the rest pose is
       the body's T-pose for ``motion.betas`` (``OFFSET = J_k - J_parent``), so every
       joint's local frame is world-aligned at rest and its rotation channels are exactly
       SMPL's local rotation.

@@ -2,7 +2,7 @@
 for browser viewers, Blender (File > Import > glTF 2.0) and game engines.
 
 The file holds one scene: SMPL's 24 joints as a node hierarchy named as in
-``mrlib.skeleton.JOINT_NAMES`` (rest translations ``J_k - J_parent`` for the motion's
+``mrlib.representation.skeleton.JOINT_NAMES`` (rest translations ``J_k - J_parent`` for the motion's
 ``betas``, rotations identity at rest, so each node's animated rotation is exactly SMPL's
 local rotation), the body's rest mesh for those betas skinned to them (SMPL's linear
 blend skinning weights, the four largest per vertex, renormalised), and one animation
@@ -19,12 +19,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import roma
 import torch
 
-from mrlib.body import fit_betas, resolve_body
 from mrlib.io.bodyfit import rest_joints_for
 from mrlib.io.outputs import write_bytes
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+from mrlib.representation.body import fit_betas, resolve_body
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = ["save_glb", "read_glb"]
 
@@ -67,7 +68,6 @@ def save_glb(motion, path: str | Path, *, body=None, overwrite: bool = True) -> 
         ``path``.
     """
     import pygltflib as g
-    import roma
 
     body = resolve_body(body, shared=True)
     J = rest_joints_for(body, motion.betas).astype(np.float64)  # (24, 3)

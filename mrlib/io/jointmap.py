@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from mrlib.errors import JointMapError
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = [
     "JointMap",

@@ -44,7 +44,7 @@ _ALLOWED = re.compile(r"[^A-Za-z0-9._+=-]+")
 def default_data_dir(data_dir: str | Path | None = None) -> Path:
     """The Bandai Namco dataset folder: ``data_dir`` when given, else ``$MRLIB_DATA_DIR``,
     else ``../shared/data/bandai-namco-motion-1`` beside the repository. The folder may
-    not exist; callers say so with their own error. ``mrlib.datasets`` fetches the
+    not exist; callers say so with their own error. ``mrlib.datasets.bandai`` fetches the
     clips into a cache when neither exists."""
     if data_dir is not None:
         return Path(data_dir).expanduser()
@@ -60,7 +60,7 @@ CACHE_ENV = "MRLIB_CACHE_DIR"
 def cache_root() -> Path:
     """mrlib's cache folder: ``$MRLIB_CACHE_DIR``, else the user's cache folder
     (``~/.cache/mrlib`` on Linux, as ``platformdirs`` says elsewhere). Fetched data
-    (``mrlib.datasets``) and shared trained models (``mrlib.train.train_cached``) live
+    (``mrlib.datasets.bandai``) and shared trained models (``mrlib.training.trainer.train_cached``) live
     here."""
     root = os.environ.get(CACHE_ENV)
     if root:

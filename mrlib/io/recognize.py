@@ -50,7 +50,7 @@ import numpy as np
 
 from mrlib.errors import JointMapError
 from mrlib.io.jointmap import JointMap
-from mrlib.skeleton import JOINT_NAMES
+from mrlib.representation.skeleton import JOINT_NAMES
 
 __all__ = [
     "MIN_CONFIDENCE",

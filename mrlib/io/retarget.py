@@ -89,9 +89,8 @@ from typing import Any
 
 import numpy as np
 
-from mrlib.body import fit_betas as betas_of_length  # retarget_bvh has a fit_betas flag
 from mrlib.errors import JointMapError, MotionFileError
-from mrlib.io.bodyfit import (  # noqa: F401  (part of this module's API before they moved)
+from mrlib.io.bodyfit import (
     default_body,
     fit_shape_scale,
     fit_smpl_offsets,
@@ -101,26 +100,28 @@ from mrlib.io.bodyfit import (  # noqa: F401  (part of this module's API before 
     smpl_forward_joints,
 )
 from mrlib.io.bvh import BVH, BVHSkeleton, bvh_forward_kinematics
-from mrlib.io.jointmap import (  # noqa: F401  (part of this module's API before they moved)
+from mrlib.io.jointmap import (
     JOINT_MAP_DIR,
     SMPL_JOINT_MAP,
     JointMap,
     detect_joint_map,
     load_joint_map,
-    mapped_ancestor,
     mapped_targets,
     shipped_joint_maps,
     validate_map,
 )
 from mrlib.io.recognize import SkeletonMatch, is_helper, recognise_bvh, refit_torso
-from mrlib.rotations import (
+from mrlib.representation.body import (
+    fit_betas as betas_of_length,  # retarget_bvh has a fit_betas flag
+)
+from mrlib.representation.rotations import (
     axis_rotation,
     kabsch_rotation,
     matrix_to_axis_angle_numpy,
     rotation_between,
     skew,
 )
-from mrlib.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = [
     "JointMap",
@@ -583,7 +584,7 @@ def retarget_bvh(
         bvh: a parsed BVH.
         joint_map: a ``JointMap``, shipped map name, JSON path or ``{smpl: bvh}`` dict;
             ``None`` detects it from the joint names.
-        body: a body model (``mrlib.body``); default: the one mrlib ships.
+        body: a body model (``mrlib.representation.body``); default: the one mrlib ships.
         up_axis: the source's up axis (``x y z -x -y -z``) or ``"auto"``.
         unit: metres per file unit, a name in ``UNITS``, or ``"auto"``.
         fit_betas: fit SMPL's shape to the source skeleton's proportions.

@@ -7,7 +7,7 @@ Pipeline::
     wav, sr = load_audio("talk.wav")                    # mono, 16 kHz
     extractor = SpeechFeatureExtractor()                # WavLM (or kind="logmel")
     data = SpeechTrainingSet.from_folders("talks/paired", "talks/unpaired", extractor)
-    result = speech_train(data, mrlib.config.speech_tutorial(), "runs/speech")
+    result = speech_train(data, mrlib.model.config.speech_tutorial(), "runs/speech")
     model = load_speech_model(result.checkpoint)
     motion = generate_from_audio(model, "new_talk.wav", seed=0)
     sync = evaluate_speech_sync(model, [(wav, sr), ...])
@@ -20,7 +20,7 @@ training set), ``train`` (the trainer), ``sample`` (generation from audio),
 ``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``).
 """
 
-from mrlib.config import SPEECH_NUM_LEVELS, speech_paper, speech_tutorial
+from mrlib.model.config import SPEECH_NUM_LEVELS, speech_paper, speech_tutorial
 from mrlib.speech.align import (
     SpeechNormalizer,
     align_to_levels,
@@ -59,6 +59,7 @@ from mrlib.speech.data import (
     load_paired_folder,
     load_unpaired_folder,
 )
+from mrlib.speech.espeak import SpeechSynthesisError
 from mrlib.speech.evaluate import (
     LaggedCorrelation,
     SyncResult,
@@ -92,7 +93,6 @@ from mrlib.speech.sample import (
 )
 from mrlib.speech.synthetic import (
     GestureParams,
-    SpeechSynthesisError,
     SyntheticCorpus,
     espeak_available,
     load_base_motions,

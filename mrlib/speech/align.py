@@ -10,7 +10,7 @@ finer levels are then turned into residuals,
 so that each level carries only what its coarser neighbour does not (the paper writes
 ``s~_{i-1} - s~_i``; the two sequences have different lengths, so the coarser one is
 first brought to ``T_i`` frames by ``up`` = linear interpolation,
-``mrlib.pyramid.resample_linear``, the same operator the generator upsamples its
+``mrlib.model.pyramid.resample_linear``, the same operator the generator upsamples its
 motion with). ``residuals_to_levels`` inverts this exactly: ``s~_i = up(s~_{i-1}) - s_i``.
 
 Shapes: one clip's features are ``(T, D)`` (frames first, as the GAN's conditions
@@ -25,9 +25,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from mrlib.config import SPEECH_NUM_LEVELS
 from mrlib.errors import MotionValueError
-from mrlib.pyramid import pyramid_lengths, resample_linear
+from mrlib.model.config import SPEECH_NUM_LEVELS
+from mrlib.model.pyramid import pyramid_lengths, resample_linear
 
 __all__ = [
     "SPEECH_NUM_LEVELS",
@@ -105,7 +105,7 @@ def downsample_levels(
     ``method``: ``"area"`` (default) averages the finest frames each coarse frame spans
     (``F.interpolate(mode="area")``, a box low-pass), so a coarse level summarises the
     speech in its interval instead of sampling it; ``"linear"`` is the motion pyramid's
-    operator (``mrlib.pyramid.build_pyramid``, point sampling at large ratios). The
+    operator (``mrlib.model.pyramid.build_pyramid``, point sampling at large ratios). The
     paper only says "downsample"; area is our choice for features that change much
     faster than the coarse levels' frame rates (level 1 of 10 is ~1.9 fps at 25 fps).
     """
@@ -149,7 +149,7 @@ def align_to_levels(
 
     Args:
         features: ``(T_a, D)``.
-        lengths: ``[T_1, ..., T_L]`` of the motion pyramid (``mrlib.pyramid.pyramid_lengths``).
+        lengths: ``[T_1, ..., T_L]`` of the motion pyramid (``mrlib.model.pyramid.pyramid_lengths``).
         offset_s: time of feature frame 0 (``SpeechFeatureExtractor.frame_offset_s``).
         method: downsampling, see ``downsample_levels``.
     Returns:
@@ -241,7 +241,7 @@ class SpeechNormalizer:
 # -- what the GAN consumes ----------------------------------------------------------------------
 def level_lengths(num_frames: int, model_config) -> list[int]:
     """Frames ``[T_1, ..., T_L]`` of every level for a clip of ``num_frames`` motion frames
-    under a ``mrlib.config.ModelConfig`` (its L, F and the shortest level its kernels
+    under a ``mrlib.model.config.ModelConfig`` (its L, F and the shortest level its kernels
     accept)."""
     mc = model_config
     return pyramid_lengths(

@@ -4,7 +4,7 @@ training set a speech-conditioned model learns from.
 Folder layouts: ``load_paired_folder`` reads ``<stem>.wav`` next to ``<stem>.npz`` /
 ``<stem>.bvh``; ``load_unpaired_folder`` reads ``.wav`` / ``.flac`` only. Their clips make a
 :class:`SpeechTrainingSet` (``from_clips``, or ``from_folders`` in one step): the paired
-clips' motion as an ordinary ``mrlib.data.TrainingSet`` (every clip labelled
+clips' motion as an ordinary ``mrlib.training.data.TrainingSet`` (every clip labelled
 ``SPEECH_LABEL``), the raw speech features of every clip, and the speech normaliser.
 
 Shapes: T_a speech frames at ``audio_fps`` (50), D speech feature size, T motion frames.
@@ -19,12 +19,12 @@ from pathlib import Path
 
 import torch
 
-from mrlib.data import TrainingSet
 from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError
-from mrlib.motion import Motion
+from mrlib.representation.motion import Motion
 from mrlib.speech.align import SpeechNormalizer, interpolate_to_fps
 from mrlib.speech.audio import FEATURE_FPS, FRAME_OFFSET_S, AudioFileError, load_audio
 from mrlib.speech.features import SpeechFeatureConfig, SpeechFeatureExtractor
+from mrlib.training.data import TrainingSet
 
 __all__ = [
     "SPEECH_LABEL",

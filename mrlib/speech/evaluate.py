@@ -34,9 +34,9 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
-from mrlib.body import resolve_body
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.motion import Motion
+from mrlib.representation.body import resolve_body
+from mrlib.representation.motion import Motion
 from mrlib.speech.audio import detect_onsets, energy_envelope, fit_audio_length, resample_audio
 
 if TYPE_CHECKING:
@@ -56,7 +56,7 @@ __all__ = [
     "evaluate_speech_sync",
 ]
 
-WRIST_JOINTS = (20, 21)  # left_wrist, right_wrist (mrlib.skeleton.JOINT_NAMES)
+WRIST_JOINTS = (20, 21)  # left_wrist, right_wrist (mrlib.representation.skeleton.JOINT_NAMES)
 
 
 def hand_speed(motion, body=None, *, joints=WRIST_JOINTS, reduce: str = "mean") -> np.ndarray:

@@ -4,7 +4,7 @@
 ``generate_from_audio`` turns an utterance into motion, one frame per ``1 / fps`` s of
 audio: features -> motion frames -> pyramid lengths -> per-level conditions
 (``mrlib.speech.speech_conditions``) -> the same sampler as labels
-(``mrlib.sample.sample_features``).
+(``mrlib.sampling.generation.sample_features``).
 
 Typical use::
 
@@ -22,18 +22,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint, reading
 from mrlib.errors import MotionValueError
-from mrlib.features import features_to_motion
-from mrlib.motion import Motion
-from mrlib.pyramid import level_fps
-from mrlib.sample import (
-    GenerativeModel,
-    cleanup_foot_contacts,
-    model_from_state,
-    noise_amplitude,
-    sample_features,
-)
+from mrlib.model.checkpoint import CheckpointError, load_checkpoint, reading
+from mrlib.model.pyramid import level_fps
+from mrlib.model.trained import GenerativeModel, model_from_state
+from mrlib.representation.features import features_to_motion
+from mrlib.representation.motion import Motion
+from mrlib.sampling.cleanup import cleanup_foot_contacts
+from mrlib.sampling.generation import noise_amplitude, sample_features
 from mrlib.speech.align import SpeechNormalizer, level_lengths, speech_conditions
 from mrlib.speech.audio import check_waveform, load_audio
 from mrlib.speech.data import SPEECH_LABEL
@@ -55,7 +51,7 @@ class SpeechModel:
     """A trained speech-conditioned generator and what turns audio into its conditions.
 
     Attributes:
-        model: the ``mrlib.sample.GenerativeModel`` (labels ``["speech"]``).
+        model: the ``mrlib.sampling.generation.GenerativeModel`` (labels ``["speech"]``).
         feature_config, normalizer, audio_fps, frame_offset_s, downsample: as trained.
     """
 
@@ -90,7 +86,7 @@ def _speech_model_from_state(state: dict, device, wavlm_path: str | None) -> Spe
     if "speech" not in state:
         raise CheckpointError(
             None,
-            "not a speech-conditioned checkpoint (no 'speech' key); use mrlib.sample.load_model",
+            "not a speech-conditioned checkpoint (no 'speech' key); use mrlib.sampling.generation.load_model",
         )
     sp = state["speech"]
     cfg = SpeechFeatureConfig.from_dict(json.loads(sp["feature_config"]))
@@ -189,13 +185,13 @@ def generate_from_audio(
         model: a :class:`SpeechModel` (or a checkpoint path, loaded on CPU).
         audio: a file path (any rate, mixed to mono, resampled to 16 kHz), or a waveform
             ``(N,)`` with ``sr``.
-        seed: noise seed (sample b uses stream ``(seed, b)``, as ``mrlib.sample``).
+        seed: noise seed (sample b uses stream ``(seed, b)``, as ``mrlib.sampling.generation``).
         num_samples: a list of Motions when > 1.
         return_levels: also return every level's output (at ``fps * T_i / T_L``).
-        fix_contacts: foot-contact clean-up (``mrlib.sample.cleanup_foot_contacts``).
+        fix_contacts: foot-contact clean-up (``mrlib.sampling.generation.cleanup_foot_contacts``).
     Returns:
         ``Motion`` of ``round(duration * fps)`` frames (label ``"speech"``), or a list;
-        with ``return_levels`` a ``(motion, levels)`` pair as ``mrlib.sample.generate``.
+        with ``return_levels`` a ``(motion, levels)`` pair as ``mrlib.sampling.generation.generate``.
     """
     if not isinstance(model, SpeechModel):
         model = load_speech_model(model)

@@ -52,12 +52,12 @@ import numpy as np
 import torch
 from scipy.ndimage import gaussian_filter1d
 
-from mrlib.body import resolve_body
 from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError
 from mrlib.io import default_data_dir, load_motion, save_motion
-from mrlib.motion import Motion
-from mrlib.rotations import axis_angle_to_matrix, matrix_to_axis_angle
-from mrlib.skeleton import JOINT_NAMES
+from mrlib.representation.body import resolve_body
+from mrlib.representation.motion import Motion
+from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+from mrlib.representation.skeleton import JOINT_NAMES
 from mrlib.speech.audio import (
     SAMPLE_RATE,
     detect_onsets,

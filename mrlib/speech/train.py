@@ -1,8 +1,8 @@
 """Co-speech gesture training (paper, Sec. 6).
 
 The speech-conditioned model is the label-conditioned one with another control signal:
-the same networks (``mrlib.models``), the same block-wise WGAN-GP training loop
-(``mrlib.train.Trainer``), the same sampler (``mrlib.sample.sample_features``). Only the
+the same networks (``mrlib.model.networks``), the same block-wise WGAN-GP training loop
+(``mrlib.training.trainer.Trainer``), the same sampler (``mrlib.sampling.generation.sample_features``). Only the
 condition changes: instead of a one-hot label, level i of the generator receives per-frame
 speech features ``s_i (T_i, D)`` (``mrlib.speech.speech_conditions``: features aligned to
 the motion's frame rate, downsampled to every pyramid level, residuals above level 1),
@@ -34,20 +34,20 @@ What differs from label training, all in :class:`SpeechTrainer`:
   audio by default;
 * the paper alternates reconstruction and random generation; here both run in every
   generator step (the Trainer sums ``L_rec`` of the reconstruction half of its batch and
-  the other terms of the random half, see ``mrlib.config``), so every iteration visits
+  the other terms of the random half, see ``mrlib.model.config``), so every iteration visits
   the paired and the unpaired data once;
 * style mixing becomes *speech mixing*: with probability ``TrainConfig.mix_prob`` a
   random generation takes a second audio window from a random crossover level on. The
   speech presets turn it off (the paper does not mix speech).
 
-Checkpoints are ordinary mrlib checkpoints (``mrlib.checkpoint``, loadable with
+Checkpoints are ordinary mrlib checkpoints (``mrlib.model.checkpoint``, loadable with
 ``weights_only=True``) with one more key, ``"speech"``: the feature configuration, the
 speech normaliser, the alignment settings and the raw features of every training clip
 (needed to resume; for WavLM features at paper scale that is ~100 MB per 10 minutes).
 Generation from audio is :mod:`mrlib.speech.sample`.
 
 Shapes: T_a speech frames at ``audio_fps`` (50), D speech feature size, T motion
-frames at the motion fps, L levels, B samples, S packed frames (``mrlib.pyramid``).
+frames at the motion fps, L levels, B samples, S packed frames (``mrlib.model.pyramid``).
 """
 
 from __future__ import annotations
@@ -59,14 +59,14 @@ from pathlib import Path
 
 import torch
 
-from mrlib.checkpoint import CheckpointError, load_checkpoint
-from mrlib.config import ConfigError, TrainConfig, config_from_json
 from mrlib.errors import MotionValueError
-from mrlib.models import build_critics, build_generator
-from mrlib.pyramid import PackedLevels
+from mrlib.model.checkpoint import CheckpointError, load_checkpoint
+from mrlib.model.config import ConfigError, TrainConfig, config_from_json
+from mrlib.model.networks import build_critics, build_generator
+from mrlib.model.pyramid import PackedLevels
 from mrlib.speech.align import downsample_levels, levels_to_residuals, speech_conditions
 from mrlib.speech.data import SpeechTrainingSet
-from mrlib.train import RandomDraw, Trainer, TrainResult, check_run_folder
+from mrlib.training.trainer import RandomDraw, Trainer, TrainResult, check_run_folder
 
 __all__ = [
     "RANDOM_AUDIO",
@@ -150,7 +150,7 @@ class SpeechDraw:
 
 
 class SpeechTrainer(Trainer):
-    """``mrlib.train.Trainer`` with speech as the control signal.
+    """``mrlib.training.trainer.Trainer`` with speech as the control signal.
 
     Overrides only the Trainer's two condition hooks (``rec_conditions``, ``draw_random``)
     and what the checkpoint holds (``state_dict``, ``from_checkpoint``); the networks,
@@ -158,7 +158,7 @@ class SpeechTrainer(Trainer):
 
     Args:
         data: a :class:`SpeechTrainingSet`.
-        config: a ``TrainConfig`` (``mrlib.config.speech_tutorial()``, ``speech_paper()``).
+        config: a ``TrainConfig`` (``mrlib.model.config.speech_tutorial()``, ``speech_paper()``).
         random_audio: where random generations take their speech: ``"unpaired"`` (paper),
             ``"all"`` (paired and unpaired) or ``"paired"``; None (default): ``"paired"``
             with conditional critics (they hear paired audio only, see
@@ -205,7 +205,7 @@ class SpeechTrainer(Trainer):
         if config.model.film_joints is None:
             warnings.warn(
                 "FiLM modulates every joint; the paper modulates the upper body only "
-                "(ModelConfig(film_joints=mrlib.skeleton.UPPER_BODY_JOINTS))",
+                "(ModelConfig(film_joints=mrlib.representation.skeleton.UPPER_BODY_JOINTS))",
                 stacklevel=2,
             )
         self.speech = data
@@ -410,7 +410,7 @@ def speech_train(
     callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
     overwrite: bool = False,
 ) -> TrainResult:
-    """Train a speech-conditioned model (or continue one); ``mrlib.train.train`` for
+    """Train a speech-conditioned model (or continue one); ``mrlib.training.trainer.train`` for
     speech. ``data``, ``config`` and ``random_audio`` are ignored when resuming (the
     checkpoint holds them); ``device`` then moves the run to another device.
     ``overwrite`` replaces a run already in ``out_dir`` (refused otherwise)."""

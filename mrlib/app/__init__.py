@@ -1,0 +1,2 @@
+"""The command line (``cli``: ``mrlib train``, ``sample``, ``restyle``, ...) and the
+end-to-end demo (``demo``)."""

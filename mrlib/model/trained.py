@@ -1,0 +1,134 @@
+"""A trained model as sampling sees it: the generator pyramid, its configuration, labels,
+normaliser, noise amplitudes and the training clips' reconstruction noise, loaded from a
+checkpoint (``mrlib.model.checkpoint``) or taken from a live trainer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from mrlib.errors import MotionValueError
+from mrlib.model.checkpoint import load_checkpoint, reading
+from mrlib.model.config import TrainConfig, config_from_json
+from mrlib.model.networks import MultiResGenerator, build_generator
+from mrlib.representation.features import FeatureNormalizer
+
+__all__ = [
+    "GenerativeModel",
+    "FINE_NOISE",
+    "GUIDANCE",
+    "model_from_state",
+    "load_model",
+    "model_from_trainer",
+]
+
+# Amplitude of the finest level's noise at sampling, as a share of its training sigma_L
+# (the paper's sampler: 1). That noise, modulated by the fine label's FiLM parameters,
+# carries the fine label's detail into a crossover; it also reaches the output as
+# frame-to-frame jitter. On the Bandai walks, 0 made samples as smooth as the capture
+# (jerk 1.51x -> 1.04x the clip's) at the same coverage and fidelity, but crossovers
+# took the fine label's detail in 20 of 24 cases instead of 24 (docs/results.md,
+# "Jitter and the finest level's noise").
+FINE_NOISE = 1.0
+
+# Label guidance at sampling: each level's condition vector pushed away from the mean of
+# all labels, W + g (W - 1/K), which moves the FiLM embedding (linear in W) by g times its
+# distance from the average label's. 0 is the paper's sampler. On the Bandai walks
+# (two training seeds) 0.25 raised condition fidelity by 3.4-3.8 points at the same
+# coverage and +0.01-0.02 global diversity; 1 by 6-7 points, but coverage at eps 1 fell
+# to 58-72 % and raw foot skating rose by 23-26 points: the samples exaggerate their
+# label and leave the training poses (docs/results.md, "Label guidance").
+GUIDANCE = 0.0
+
+
+@dataclass
+class GenerativeModel:
+    """A trained generator and what it needs to sample (see ``mrlib.model.checkpoint`` keys).
+
+    ``fine_noise`` scales the finest level's noise at sampling (``FINE_NOISE``, the
+    paper's sampler, by default; 0 for the smoothest single-label motion); ``guidance``
+    exaggerates the labels (``GUIDANCE``, off by default; :func:`guided_weights`).
+    Training and reconstructions use neither.
+    """
+
+    generator: MultiResGenerator
+    config: TrainConfig
+    labels: list[str]
+    clip_labels: list[int]
+    clip_names: list[str]
+    fps: float
+    betas: np.ndarray
+    normalizer: FeatureNormalizer
+    lengths: torch.Tensor  # (N, L) pyramid lengths of the training clips
+    sigma: torch.Tensor  # (K, L) noise amplitude per label and level
+    zstar: list[torch.Tensor]  # N x (1 or C, T_1,k)
+    features: list[torch.Tensor]  # N x (T_k, C) training clips, unnormalised
+    trained_levels: int  # levels whose training finished (all of them for a done run)
+    fine_noise: float = FINE_NOISE
+    guidance: float = GUIDANCE
+
+    @property
+    def num_levels(self) -> int:
+        return self.config.model.num_levels
+
+    @property
+    def device(self) -> torch.device:
+        return next(self.generator.parameters()).device
+
+    def label_index(self, label: str | int) -> int:
+        if isinstance(label, (int, np.integer)):
+            if not 0 <= int(label) < len(self.labels):
+                raise MotionValueError(f"label index {label} out of range [0, {len(self.labels)})")
+            return int(label)
+        if label not in self.labels:
+            raise MotionValueError(f"unknown label {label!r}; this model knows {self.labels}")
+        return self.labels.index(label)
+
+    def __repr__(self) -> str:
+        return (
+            f"GenerativeModel(labels={self.labels}, levels={self.num_levels}, fps={self.fps:g}, "
+            f"clips={self.clip_names})"
+        )
+
+
+def model_from_state(state: dict, device: str | torch.device = "cpu") -> GenerativeModel:
+    """A :class:`GenerativeModel` from a checkpoint's state dict (``mrlib.model.checkpoint``)."""
+    config = config_from_json(state["config"])
+    gen = build_generator(config.model, int(state["cond_dim"]))
+    gen.load_state_dict(state["generator"])
+    gen.to(device).eval().requires_grad_(False)
+    p = state["progress"]
+    done_levels = (
+        config.model.num_levels if p["done"] else sum(len(b) for b in config.blocks[: p["block"]])
+    )
+    return GenerativeModel(
+        generator=gen,
+        config=config,
+        labels=list(state["labels"]),
+        clip_labels=list(state["clip_labels"]),
+        clip_names=list(state["clip_names"]),
+        fps=float(state["fps"]),
+        betas=state["betas"].numpy(),
+        normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
+        lengths=state["lengths"],
+        sigma=state["sigma"],
+        zstar=list(state["zstar"]),
+        features=list(state["features"]),
+        trained_levels=int(done_levels),
+    )
+
+
+def load_model(path: str | Path, device: str | torch.device = "cpu") -> GenerativeModel:
+    """Load a checkpoint written by ``mrlib.training.trainer`` for sampling."""
+    state = load_checkpoint(path)
+    with reading(path):
+        return model_from_state(state, device)
+
+
+def model_from_trainer(trainer) -> GenerativeModel:
+    """A sampling view of a ``mrlib.training.trainer.Trainer`` (shares nothing mutable with it)."""
+    return model_from_state(trainer.state_dict(), trainer.device)

@@ -1,0 +1,124 @@
+"""Helpers the constraint modules share: joint ids from names, the named body parts,
+a label model's inputs and outputs, the body's rest pelvis."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from mrlib.errors import MotionValueError
+from mrlib.representation.motion import Motion
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, UPPER_BODY_JOINTS
+
+__all__ = [
+    "LOWER_BODY_JOINTS",
+    "PARTS",
+    "part_joints",
+    "parse_parts",
+    "joint_ids",
+    "label_setup",
+    "features_motion",
+    "fitted_motion",
+    "pelvis_rest",
+]
+
+
+def joint_ids(joints) -> tuple[int, ...]:
+    """Sorted unique SMPL joint ids of joint names and/or indices."""
+    out = []
+    for j in joints:
+        if isinstance(j, str):
+            if j not in JOINT_NAMES:
+                raise MotionValueError(f"unknown joint {j!r}; SMPL joints: {list(JOINT_NAMES)}")
+            out.append(JOINT_NAMES.index(j))
+        else:
+            if not 0 <= int(j) < NUM_JOINTS:
+                raise MotionValueError(f"joint index {j} is not in [0, {NUM_JOINTS})")
+            out.append(int(j))
+    return tuple(sorted(set(out)))
+
+
+LOWER_BODY_JOINTS: tuple[int, ...] = tuple(
+    j for j in range(NUM_JOINTS) if j not in UPPER_BODY_JOINTS
+)
+PARTS: dict[str, tuple[int, ...]] = {
+    "upper": UPPER_BODY_JOINTS,
+    "lower": LOWER_BODY_JOINTS,
+    "left_arm": tuple(JOINT_NAMES.index(n) for n in ("left_collar", "left_shoulder", "left_elbow", "left_wrist", "left_hand")),
+    "right_arm": tuple(JOINT_NAMES.index(n) for n in ("right_collar", "right_shoulder", "right_elbow", "right_wrist", "right_hand")),
+}  # fmt: skip
+
+
+def part_joints(part: str | Sequence) -> tuple[int, ...]:
+    """Joint ids of a named part (``PARTS``: upper, lower, left_arm, right_arm) or of a
+    list of joint names / ids."""
+    if isinstance(part, str):
+        if part in PARTS:
+            return PARTS[part]
+        if part in JOINT_NAMES:
+            return (JOINT_NAMES.index(part),)
+        raise MotionValueError(f"unknown body part {part!r}: use {sorted(PARTS)} or joint names")
+    return joint_ids(part)
+
+
+def parse_parts(spec: str) -> dict[str, str]:
+    """``"upper=walk_happy,lower=walk_sad"`` -> ``{"upper": "walk_happy", ...}``."""
+    out = {}
+    for item in str(spec).split(","):
+        part, eq, cond = item.partition("=")
+        if not eq or not part.strip() or not cond.strip():
+            raise MotionValueError(f"--parts expects part=label[,part=label...], got {spec!r}")
+        out[part.strip()] = cond.strip()
+    return out
+
+
+def label_setup(model, condition, conditions, blend, length: int, seed: int | None):
+    """Noise maps ``[(1, 1, T_i)]`` (the draw ``generate`` makes for ``seed``), checked
+    per-level conditions and the finest level's main label, for a label condition."""
+    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, label_weights
+
+    W = label_weights(model, condition, conditions, blend)
+    lengths, amp, conds = label_inputs(model, W, length)
+    noises = draw_noise(lengths, amp, seed, 1, model.device)
+    label = model.labels[int(W[-1].argmax())]
+    return noises, check_conditions(model, conds, lengths), label
+
+
+def features_motion(model, x: torch.Tensor, label: str | None, name: str) -> Motion:
+    """Generator output ``(1, C, T)`` (normalised) -> Motion at the model's rate."""
+    from mrlib.representation.features import features_to_motion
+
+    return features_to_motion(
+        x[0].T.detach().cpu(), model.fps, betas=model.betas, normalizer=model.normalizer,
+        label=label, name=name,
+    )  # fmt: skip
+
+
+def pelvis_rest(motion: Motion, body) -> np.ndarray:
+    """``(3,)`` rest position of the pelvis for the motion's betas on ``body``."""
+    from mrlib.io.bodyfit import rest_pelvis
+
+    return rest_pelvis(body, motion.betas)
+
+
+def fitted_motion(
+    model, noises, conds, label: str | None, name: str, loss_fn=None, *, steps: int = 0,
+    clean: bool = True, body=None, progress: bool = False,
+) -> Motion:  # fmt: skip
+    """The model's motion for ``noises`` after ``steps`` of noise optimisation against
+    ``loss_fn`` (``mrlib.sampling.constraints.optimise``; none when ``steps`` is 0), with the feet
+    planted when ``clean``."""
+    if steps > 0 and loss_fn is not None:
+        from mrlib.sampling.constraints.optimise import optimise_noise
+
+        noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=steps, progress=progress)
+    with torch.no_grad():
+        x = model.generator.run_batch(noises, conds)
+    m = features_motion(model, x, label, name)
+    if clean and m.contacts is not None:
+        from mrlib.sampling.cleanup import cleanup_foot_contacts
+
+        m = cleanup_foot_contacts(m, body)
+    return m

@@ -1,0 +1,336 @@
+"""Body-part composition: different conditions for different joint groups.
+
+``method="splice"`` (default): one motion per condition with the same noise, each
+group's joint rotations taken from its own (the root and the contact labels from the
+group holding the pelvis). It works across models too (:func:`splice_parts`: upper
+body from a speech model, legs from a label model).
+
+Each part of a splice keeps its own sample's timing, so arms and legs drawn at two
+cadences swing out of step; ``align_gait`` retimes the other parts to the gait of the
+part holding the pelvis (:func:`gait_phase`: the phase of the ankles' stride from the
+analytic signal, Hilbert transform; :func:`arm_leg_coordination` measures the result).
+
+``method="film"``: one generator pass, each group's channels modulated by its own
+condition's FiLM parameters at every level (``LevelGenerator.modulate``; the
+channel-to-joint map of the skeleton-aware convolutions says which channels are a
+group's: the root displacement belongs to the pelvis, each contact label to its foot).
+The networks see the whole body, so a part's label leaks into its neighbours through the
+convolutions: on the Bandai walks the parts kept their labels less often than spliced
+ones (``docs/results.md``, ``bench/constraints.py``), hence the default.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import torch
+
+from mrlib.errors import MotionValueError
+from mrlib.representation.motion import Motion
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS
+from mrlib.sampling.constraints.common import (
+    PARTS,
+    parse_parts,
+    part_joints,
+)
+
+__all__ = [
+    "PARTS",
+    "part_joints",
+    "parse_parts",
+    "generate_parts",
+    "splice_parts",
+    "gait_phase",
+    "phase_align",
+    "arm_leg_coordination",
+    "part_fidelity",
+]
+
+
+def _groups(parts: Mapping) -> list[tuple[tuple[int, ...], object]]:
+    """``[(joints, condition)]`` covering every joint once; joints no part names join
+    the part holding the pelvis, or else the first part."""
+    if not parts:
+        raise MotionValueError("give at least one part=condition")
+    groups = [(set(part_joints(p)), c) for p, c in parts.items()]
+    seen: set[int] = set()
+    for js, _ in groups:
+        if js & seen:
+            raise MotionValueError(f"body parts overlap at joints {sorted(js & seen)}")
+        seen |= js
+    rest = set(range(NUM_JOINTS)) - seen
+    if rest:
+        k = next((i for i, (js, _) in enumerate(groups) if 0 in js), 0)
+        groups[k][0].update(rest)
+    return [(tuple(sorted(js)), c) for js, c in groups]
+
+
+def _channel_masks(groups) -> list[torch.Tensor]:
+    from mrlib.representation.features import channel_joint
+
+    owner = channel_joint()
+    return [torch.from_numpy(np.isin(owner, js).astype(np.float32)) for js, _ in groups]
+
+
+def generate_parts(
+    model,
+    parts: Mapping[str, str],
+    length: int | None = None,
+    *,
+    seed: int | None = None,
+    num_samples: int = 1,
+    method: str = "splice",
+    fix_contacts: bool = True,
+    align_gait: bool = False,
+    sharpen: int = 0,
+    body=None,
+    progress: bool = False,
+):
+    """A label model's motion with each body part under its own label (method: module
+    docstring), e.g. ``parts={"upper": "walk_happy", "lower": "walk_sad"}``.
+    ``align_gait`` (splice): each other part is taken from a sample retimed to the gait
+    of the part holding the pelvis (:func:`phase_align`), so the arms swing in step with
+    the legs; it costs some of the part's own label where the labels' cadences differ
+    (``docs/results.md``, "Body parts"). ``sharpen``: Adam steps of the noise fit that
+    moves each part's windows nearer its own label's training clips than any other's
+    (``mrlib.sampling.constraints.sharpen``; ``SHARPEN_STEPS`` is the benchmarked length, 0 is
+    off); 50 steps take seconds per sample where a draw takes milliseconds
+    (``docs/results.md``, "Body parts").
+
+    Returns:
+        ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``) or a list.
+    """
+    from mrlib.representation.features import features_to_motions
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.constraints.sharpen import generate_sharpened, sharpened_features
+    from mrlib.sampling.generation import (
+        guided_weights,
+        label_inputs,
+        label_weights,
+        noise_amplitude,
+        sample_features,
+    )
+
+    if method not in ("film", "splice"):
+        raise MotionValueError(f"method must be 'film' or 'splice', got {method!r}")
+    if isinstance(sharpen, bool) or not isinstance(sharpen, (int, np.integer)) or sharpen < 0:
+        raise MotionValueError(f"sharpen must be an integer >= 0 (steps), got {sharpen!r}")
+    groups = _groups(parts)
+    tag = ",".join(f"{p}={c}" for p, c in parts.items())
+    if method == "splice":
+
+        def draw(c, n):
+            own = [js for js, cc in groups if cc == c]  # the parts this sample gives
+            return generate_sharpened(model, c, own, n, seed=seed, num_samples=num_samples,
+                                      steps=sharpen, progress=progress)  # fmt: skip
+
+        base_c = next(c for js, c in groups if 0 in js)
+        motions = {base_c: draw(base_c, length)}
+        T = motions[base_c][0].num_frames
+        for _, c in groups:
+            if c in motions:
+                continue
+            # retimed to the pelvis part's gait (align_gait), a sample of a label that
+            # walks slower needs more frames to cover as many strides
+            n = _frames_to_cover(model, base_c, c, T, body) if align_gait else length
+            motions[c] = draw(c, n)
+        out = []
+        for b in range(num_samples):
+            pick = {js: motions[c][b] for js, c in groups}
+            out.append(splice_parts(pick, name=f"{tag}_seed{seed}_{b}", align=align_gait,
+                                    body=body))  # fmt: skip
+    else:
+        Ws = [label_weights(model, c) for _, c in groups]
+        lengths, _, _ = label_inputs(model, Ws[0], length)
+        amp = torch.stack([noise_amplitude(model, W) for W in Ws]).mean(0)
+        masks = _channel_masks(groups)
+        Gs = [guided_weights(model, W) for W in Ws]
+        conds = [
+            [(m, G[i].expand(1, lengths[i], -1)) for m, G in zip(masks, Gs, strict=True)]
+            for i in range(model.num_levels)
+        ]
+        if sharpen:
+            x = sharpened_features(model, conds, lengths, amp, {js: c for js, c in groups},
+                                   seed=seed, num_samples=num_samples, steps=sharpen,
+                                   progress=progress)  # fmt: skip
+        else:
+            x = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num_samples)
+        names = [f"{tag}_seed{seed}_{b}" for b in range(num_samples)]
+        out = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
+                                  normalizer=model.normalizer, label=tag, names=names)  # fmt: skip
+    if fix_contacts:
+        out = [cleanup_foot_contacts(m, body) for m in out]
+    for m in out:
+        m.label = tag
+        m.meta["parts"] = {p: c for p, c in parts.items()}
+    return out[0] if num_samples == 1 else out
+
+
+# Gait phase (gait_phase): the legs' stride signal is the difference of the two ankles'
+# forward offsets from the pelvis, in the body's own frame, smoothed over GAIT_SMOOTH_S
+# seconds; a motion walks when that signal's standard deviation is at least GAIT_MIN_M.
+GAIT_SMOOTH_S = 0.1
+GAIT_MIN_M = 0.05
+
+
+def _stride_signal(motion: Motion, body=None) -> np.ndarray:
+    """``(T,)`` left minus right ankle forward offset from the pelvis (m), body frame."""
+    from scipy.ndimage import gaussian_filter1d
+
+    rel = _forward_offsets(motion, body)
+    f = rel[:, JOINT_NAMES.index("left_ankle")] - rel[:, JOINT_NAMES.index("right_ankle")]
+    return gaussian_filter1d(f - f.mean(), GAIT_SMOOTH_S * motion.fps, mode="nearest")
+
+
+def body_frame_joints(motion: Motion, body=None) -> np.ndarray:
+    """``(T, 24, 3)`` joint positions relative to the pelvis (m), in the body's own frame
+    (the root orientation undone: SMPL's body faces +z)."""
+    from mrlib.metrics.plausibility import motion_kinematics
+    from mrlib.representation.rotations import axis_angle_to_matrix
+
+    J = motion_kinematics(motion, body)[0]
+    R = axis_angle_to_matrix(torch.as_tensor(motion.poses[:, 0], dtype=torch.float64)).numpy()
+    return np.einsum("tji,tkj->tki", R, J - J[:, :1])  # R^T (J - pelvis)
+
+
+def _forward_offsets(motion: Motion, body=None) -> np.ndarray:
+    """``(T, 24)`` each joint's forward offset from the pelvis (m) in the body's frame."""
+    return body_frame_joints(motion, body)[..., 2]
+
+
+def arm_leg_coordination(motion: Motion, body=None) -> float:
+    """How much the arms swing in step with the legs: the correlation over time of each
+    wrist's forward offset from the pelvis with the opposite ankle's, averaged over the
+    two sides (1: in step, as in a walk; 0: unrelated; the Bandai walks' clips 0.44-0.95)."""
+    f = _forward_offsets(motion, body)
+    f = f - f.mean(0)
+    n = JOINT_NAMES.index
+
+    def corr(a: str, b: str) -> float:
+        x, y = f[:, n(a)], f[:, n(b)]
+        den = np.sqrt((x * x).sum() * (y * y).sum())
+        return float((x * y).sum() / den) if den > 0 else 0.0
+
+    return 0.5 * (corr("left_wrist", "right_ankle") + corr("right_wrist", "left_ankle"))
+
+
+def gait_phase(motion: Motion, body=None) -> np.ndarray | None:
+    """``(T,)`` the gait phase of ``motion`` in radians, unwrapped and non-decreasing:
+    the angle of the analytic signal (Hilbert transform) of its stride signal, the
+    ankles' forward offsets from the pelvis (module constants). None when the motion
+    does not walk (stride signal below ``GAIT_MIN_M``)."""
+    from scipy.signal import hilbert
+
+    f = _stride_signal(motion, body)
+    if f.size < 8 or f.std() < GAIT_MIN_M:
+        return None
+    phase = np.unwrap(np.angle(hilbert(f)))
+    return np.maximum.accumulate(phase)
+
+
+def _frames_to_cover(model, base, other, frames: int, body=None) -> int:
+    """Frames of a sample of label ``other`` that, retimed to the gait of ``frames``
+    frames of label ``base`` (:func:`phase_align`), do not run out of strides: by the
+    cadences of the model's training clips, the strides of ``base`` at half as many
+    again plus one cycle of ``other`` for the start; twice ``frames`` where a label's
+    clips do not walk."""
+    from mrlib.representation.features import features_to_motion
+
+    def rate(label) -> float | None:  # radians of gait phase per frame
+        k = model.label_index(label)
+        rates = []
+        for x, lab in zip(model.features, model.clip_labels, strict=True):
+            if lab == k:
+                m = features_to_motion(x, model.fps, betas=model.betas)
+                ph = gait_phase(m, body)
+                if ph is not None and ph[-1] > ph[0]:
+                    rates.append((ph[-1] - ph[0]) / m.num_frames)
+        return float(np.median(rates)) if rates else None
+
+    ra, rb = rate(base), rate(other)
+    if ra is None or rb is None:
+        return 2 * frames
+    return int(np.ceil(1.5 * frames * max(1.0, ra / rb) + 2 * np.pi / rb))
+
+
+def phase_align(source: Motion, target: Motion, body=None) -> Motion | None:
+    """``source`` retimed to ``target``'s gait: ``target.num_frames`` frames of it,
+    frame ``t`` at the source time whose gait phase is ``target``'s at ``t`` (within
+    the source's first cycle at the start), so that a part taken from ``source`` (the
+    arms) swings in step with ``target``'s legs. None when either does not walk, or
+    when ``source`` has too few cycles to follow ``target`` to its end."""
+    if source.fps != target.fps:
+        raise MotionValueError(
+            f"phase_align needs one frame rate, got {source.fps} and {target.fps}"
+        )
+    ps, pt = gait_phase(source, body), gait_phase(target, body)
+    if ps is None or pt is None:
+        return None
+    # the target's phase on the source's branch, offset by whole cycles so that the
+    # start falls in the source's first cycle
+    want = pt + 2 * np.pi * np.ceil((ps[0] - pt[0]) / (2 * np.pi))
+    if want[-1] > ps[-1]:
+        return None
+    frames = np.arange(source.num_frames, dtype=np.float64)
+    keep = np.concatenate([[True], np.diff(ps) > 0])  # strictly increasing for interp
+    return source.at_frames(np.interp(want, ps[keep], frames[keep]))
+
+
+def splice_parts(
+    parts: Mapping, name: str | None = None, *, align: bool = False, body=None
+) -> Motion:
+    """One motion from several: ``{part: Motion}`` (parts as :func:`part_joints` takes
+    them, or joint-id tuples), each part's joint rotations from its motion; the root
+    translation and contact labels from the motion of the part holding the pelvis. The
+    motions must share a frame rate. ``align``: each other part's motion is first
+    retimed to the gait of the pelvis part's (:func:`phase_align`; left as it is where
+    either does not walk or it has too few cycles), so its arms swing with those legs.
+    The motions are then cut to the shortest."""
+    groups = _groups(parts)
+    motions = [m for _, m in groups]
+    fps = {m.fps for m in motions}
+    if len(fps) != 1:
+        raise MotionValueError(f"motions to splice need one frame rate, got {sorted(fps)}")
+    base = next(m for js, m in groups if 0 in js)
+    if align:
+        aligned = []
+        for js, m in groups:
+            moved = None if 0 in js else phase_align(m, base, body)
+            aligned.append((js, m if moved is None else moved))
+        groups = aligned
+    T = min(m.num_frames for _, m in groups)
+    poses = base.poses[:T].copy()
+    for js, m in groups:
+        poses[:, list(js)] = m.poses[:T, list(js)]
+    return base.replace(
+        poses=poses,
+        trans=base.trans[:T].copy(),
+        contacts=None if base.contacts is None else base.contacts[:T].copy(),
+        name=name or base.name,
+        meta=dict(base.meta),
+    )
+
+
+def part_fidelity(
+    motions: Sequence[Motion], model, parts: Mapping[str, str], window: int = 30
+) -> dict[str, float]:
+    """Condition fidelity measured on each part alone: the share of a part's windows
+    whose nearest training window (on that part's joint rotations; the lower body also
+    on the contact labels) belongs to the part's own label."""
+    from mrlib.metrics.paper import condition_fidelity, metric_features, model_references
+    from mrlib.sampling.constraints.sharpen import part_columns
+
+    _, labels, feats = model_references(model)
+    out = {}
+    for part, cond in parts.items():
+        cols = part_columns(part)
+        refs = {
+            lab: np.concatenate(
+                [f[:, cols] for f, lb in zip(feats, labels, strict=True) if lb == lab]
+            )
+            for lab in dict.fromkeys(labels)
+        }
+        gen = [(metric_features(m)[:, cols], cond) for m in motions]
+        out[part] = condition_fidelity(gen, refs, window=window)
+    return out

@@ -1,0 +1,164 @@
+"""Seamless loops: motion whose end joins its start.
+
+``method="circular"`` (default): every level of the generator runs on a circle, with
+wrap-around padding in the convolutions and wrap-around upsampling between levels
+(``MultiResGenerator.run_batch(circular=True)``), so the features are periodic by
+construction: the frame after the last is the first. The root travels on (a walk loop
+moves forward each cycle, as root motion in a game engine): ``meta["loop_offset"]`` is
+the ground displacement of one cycle.
+
+A cycle has no first frame of its own, so ``start="calm"`` (default) begins it where
+the body moves least: the wrap from the last frame to the first is then the cycle's
+smallest joint step, the place where a cut into or out of the loop shows least (and the
+seam cannot stand out from the loop's other steps). ``start="sample"`` keeps the
+generator's frame 0 as the first.
+
+``method="crossfade"``: the usual fix, a sample ``blend_s`` seconds longer whose extra
+tail is faded into its head (the features, so the root velocity too). Measured against
+the circular loop in ``docs/results.md``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from mrlib.errors import MotionValueError
+from mrlib.representation.motion import Motion
+
+__all__ = ["generate_loop", "loop_seam", "tile_loop", "roll_loop"]
+
+
+def _loop_motion(model, x: torch.Tensor, label: str, name: str) -> Motion:
+    """Features ``(C, T)`` of one cycle -> Motion with the wrap-around step in meta."""
+    from mrlib.representation.features import ROOT_SLICE, features_to_motion
+
+    m = features_to_motion(
+        x.T, model.fps, betas=model.betas, normalizer=model.normalizer, label=label, name=name
+    )
+    root = model.normalizer.denormalize(x.T)[:, ROOT_SLICE].double().numpy()
+    # the step from the last frame into the next cycle's first is frame 0's velocity
+    wrap = np.array([root[0, 0], 0.0, root[0, 2]]) / model.fps
+    offset = m.trans[-1] - m.trans[0] + wrap
+    offset[1] = 0.0
+    m.meta["loop_offset"] = offset.round(6).tolist()
+    return m
+
+
+def tile_loop(motion: Motion, cycles: int) -> Motion:
+    """``cycles`` copies of a loop one after the other, each moved on by
+    ``meta["loop_offset"]``."""
+    if "loop_offset" not in motion.meta:
+        raise MotionValueError("not a loop (no meta['loop_offset']); make one with generate_loop")
+    off = np.asarray(motion.meta["loop_offset"], np.float64)
+    k = np.repeat(np.arange(cycles), motion.num_frames)[:, None]
+    return motion.replace(
+        poses=np.tile(motion.poses, (cycles, 1, 1)),
+        trans=np.tile(motion.trans, (cycles, 1)) + k * off,
+        contacts=None if motion.contacts is None else np.tile(motion.contacts, (cycles, 1)),
+        meta=dict(motion.meta),
+    )
+
+
+def roll_loop(motion: Motion, start: int) -> Motion:
+    """The same loop begun at its frame ``start`` (the frames before it move to the end,
+    one cycle on)."""
+    T = motion.num_frames
+    s = int(start) % T
+    if s == 0:
+        return motion
+    two = tile_loop(motion, 2)
+    out = two.slice(s, s + T)
+    return out.replace(trans=out.trans - out.trans[0] + motion.trans[0], meta=dict(motion.meta))
+
+
+def _joint_steps(motion: Motion, body, frames: int) -> np.ndarray:
+    """Mean joint displacement (metres) from frame k to k + 1 over the first ``frames``
+    frames of the loop played twice: ``(frames - 1,)``, step ``T - 1`` the wrap."""
+    from mrlib.representation.body import resolve_body
+
+    J = resolve_body(body, shared=True).motion_joints(tile_loop(motion, 2).slice(0, frames))
+    return np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)
+
+
+def _calm_start(motion: Motion, body) -> int:
+    """The frame after the cycle's smallest joint step (wrap-around included)."""
+    T = motion.num_frames
+    return (int(np.argmin(_joint_steps(motion, body, T + 1))) + 1) % T
+
+
+def _clean_loop(m: Motion, body) -> Motion:
+    """Foot clean-up of a loop: on three cycles, keeping the middle one, so the
+    clean-up sees across the seam."""
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+
+    T = m.num_frames
+    c = cleanup_foot_contacts(tile_loop(m, 3), body)
+    mid = c.slice(T, 2 * T)
+    off = np.asarray(m.meta["loop_offset"])
+    return mid.replace(trans=mid.trans - off, meta=dict(c.meta, loop_offset=m.meta["loop_offset"]))
+
+
+def generate_loop(
+    model,
+    condition=None,
+    length: int | None = None,
+    *,
+    conditions=None,
+    blend=None,
+    seed: int | None = None,
+    method: str = "circular",
+    start: str = "calm",
+    blend_s: float = 0.5,
+    fix_contacts: bool = True,
+    body=None,
+) -> Motion:
+    """A loop of ``length`` frames (default: the condition's training clip) under a
+    label condition (method and ``start``: module docstring)."""
+    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, label_weights
+
+    if method not in ("circular", "crossfade"):
+        raise MotionValueError(f"method must be 'circular' or 'crossfade', got {method!r}")
+    if start not in ("calm", "sample"):
+        raise MotionValueError(f"start must be 'calm' or 'sample', got {start!r}")
+    W = label_weights(model, condition, conditions, blend)
+    label = model.labels[int(W[-1].argmax())]
+    if method == "circular":
+        lengths, amp, conds = label_inputs(model, W, length)
+        noises = draw_noise(lengths, amp, seed, 1, model.device)
+        with torch.inference_mode():
+            x = model.generator.run_batch(
+                noises, check_conditions(model, conds, lengths), circular=True
+            )
+        x = x[0]
+    else:
+        T = label_inputs(model, W, length)[0][-1]
+        n = max(1, round(blend_s * model.fps))
+        lengths, amp, conds = label_inputs(model, W, T + n)
+        noises = draw_noise(lengths, amp, seed, 1, model.device)
+        with torch.inference_mode():
+            y = model.generator.run_batch(noises, check_conditions(model, conds, lengths))[0]
+        w = torch.linspace(0, 1, n + 2)[1:-1]  # weight of the head, 0 -> 1 over the fade
+        w = w * w * (3 - 2 * w)
+        x = y[:, :T].clone()
+        x[:, :n] = (1 - w) * y[:, T:] + w * y[:, :n]
+    m = _loop_motion(model, x.cpu(), label, f"{label}_loop_seed{seed}")
+    m.meta["loop_method"] = method
+    if fix_contacts and m.contacts is not None:
+        m = _clean_loop(m, body)
+    if start == "calm":
+        k = _calm_start(m, body)
+        m = roll_loop(m, k)
+        m.meta["loop_start"] = k
+    return m
+
+
+def loop_seam(motion: Motion, body=None) -> dict[str, float]:
+    """How well a loop closes, on joint positions (metres): ``seam`` is the mean joint
+    displacement from the last frame to the next cycle's first; ``p95`` and ``median``
+    those of the loop's own frame-to-frame steps."""
+    T = motion.num_frames
+    steps = _joint_steps(motion, body, 2 * T)  # (2T - 1,)
+    seam = float(steps[T - 1])
+    own = np.concatenate([steps[: T - 1], steps[T:]])
+    return {"seam": seam, "p95": float(np.percentile(own, 95)), "median": float(np.median(own))}

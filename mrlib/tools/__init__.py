@@ -1,0 +1,1 @@
+"""Checks of the package itself (``python -m mrlib.tools.layers``)."""
