@@ -10,8 +10,8 @@ Run from the repository root::
 What is timed: the ``demo`` preset (the ``tutorial`` networks, one critic step per
 generator step) on ``data_samples/walk_happy.npz`` and ``walk_sad.npz`` at the preset's
 15 fps, ``--iterations`` training iterations of each of its four blocks after one
-warm-up iteration per block (``mrlib.train.Trainer.step``), then ``--samples`` raw and
-foot-contact cleaned samples of a training clip's length (``mrlib.sample.generate``).
+warm-up iteration per block (``mrlib.training.trainer.Trainer.step``), then ``--samples`` raw and
+foot-contact cleaned samples of a training clip's length (``mrlib.sampling.generation.generate``).
 Every measurement runs in a fresh process:
 
 * ``policy``: mrlib as it is, ``mrlib.threads.apply_policy()`` with no thread variable
@@ -27,7 +27,7 @@ per second over all four blocks (each block's best of ``--repeats`` rounds, so t
 burst of other work spoils one round of one block, not the figure), the busy/idle
 slowdown measured in the same run, and the policy's idle speed as a share of the others'.
 ``--extras`` adds, idle and on the policy's thread count, Adam's three implementations
-(for-loop, foreach, fused; ``mrlib.train.make_adam`` picks fused where the torch build
+(for-loop, foreach, fused; ``mrlib.training.trainer.make_adam`` picks fused where the torch build
 has it) and the per-call weight masking against mrlib's (blocks 1 and 4), and
 ``torch.compile`` of the finest block's generator levels with its start-up time.
 
@@ -42,14 +42,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
 import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from common import ROOT, describe, write_json
+
 CLIPS = [ROOT / "data_samples" / "walk_happy.npz", ROOT / "data_samples" / "walk_sad.npz"]
 THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
 BUSY_LOOP = "import os\np = os.getppid()\nwhile os.getppid() == p:\n    pass"  # ends with us
@@ -61,7 +60,7 @@ def _mask_every_call() -> None:
     """The skeleton convolution as it was: the weight masked by a product at every call."""
     import torch.nn.functional as F
 
-    from mrlib.models import SkeletonConv1d
+    from mrlib.model.networks import SkeletonConv1d
 
     def forward(self, x, pad_index=None, circular=False):
         if pad_index is None:
@@ -76,10 +75,10 @@ def _mask_every_call() -> None:
 def measure(blocks, iterations, samples, adam: str, mask_copy: bool, compile_: bool) -> dict:
     import torch
 
-    from mrlib.config import PRESET_FPS, get_preset
-    from mrlib.data import TrainingSet
+    from mrlib.model.config import PRESET_FPS, get_preset
     from mrlib.threads import apply_policy
-    from mrlib.train import Trainer
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import Trainer
 
     threads = apply_policy()  # mrlib's policy; keeps OMP_NUM_THREADS where it is set
     if mask_copy:
@@ -116,7 +115,8 @@ def measure(blocks, iterations, samples, adam: str, mask_copy: bool, compile_: b
         total_n += iterations
     out["it_per_s"] = total_n / total_t
     if samples:
-        from mrlib.sample import generate, model_from_trainer
+        from mrlib.model.trained import model_from_trainer
+        from mrlib.sampling.generation import generate
 
         tr.done = True
         model = model_from_trainer(tr)
@@ -213,12 +213,9 @@ def main() -> None:
     import torch
 
     torch_default = torch.get_num_threads()  # this process never changes it
+    print(describe(), flush=True)
     started = time.time()
     meta = {
-        "machine": platform.platform(),
-        "processor": platform.processor(),
-        "cpus": os.cpu_count(),
-        "torch": torch.__version__,
         "torch_default_threads": torch_default,
         "iterations_per_block": a.iterations,
         "blocks": blocks,
@@ -300,12 +297,8 @@ def main() -> None:
     extras = _extras(a, summary["policy"]["threads"], summary) if a.extras else []
     meta["loadavg_at_end"] = os.getloadavg()
     meta["wall_s"] = time.time() - started
-    out_dir = ROOT / "bench" / "results"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / "busy_machine.json"
-    path.write_text(
-        json.dumps({"meta": meta, "summary": summary, "rows": rows, "extras": extras}, indent=2)
-    )
+    result = {"meta": meta, "summary": summary, "rows": rows, "extras": extras}
+    path = write_json("busy_machine", result)
     print(f"\nwrote {path} ({meta['wall_s']:.0f} s)")
 
 

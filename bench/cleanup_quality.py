@@ -5,7 +5,7 @@ For ``--samples`` seeds per label of a checkpoint (default: the `tutorial` model
 mean jerk, the share of contact vertex-frames sliding faster than the skating threshold
 and the mean contact-foot speed, for the raw samples, the clean-up as it was before the
 root's correction was low-passed (root correction frame by frame, blend 2/15 s), and the
-defaults (``mrlib.footik.BLEND_S``, ``ROOT_SMOOTH_S``); the training clips on the last row.
+defaults (``mrlib.sampling.cleanup.BLEND_S``, ``ROOT_SMOOTH_S``); the training clips on the last row.
 
     python bench/cleanup_quality.py [--checkpoint ckpt.pt] [--samples 2] [--frames 400]
 """
@@ -15,12 +15,12 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from tutorial_checkpoint import add_checkpoint_arg, load
+from common import add_checkpoint_arg, checkpoint_model
 
-from mrlib.features import features_to_motion
-from mrlib.footik import cleanup_foot_contacts
-from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics
-from mrlib.sample import generate
+from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
+from mrlib.representation.features import features_to_motion
+from mrlib.sampling.cleanup import cleanup_foot_contacts
+from mrlib.sampling.generation import generate
 
 
 def main() -> int:
@@ -29,7 +29,7 @@ def main() -> int:
     ap.add_argument("--samples", type=int, default=2, help="seeds per label [2]")
     ap.add_argument("--frames", type=int, default=400, help="frames at 30 fps per sample [400]")
     a = ap.parse_args()
-    model, body = load(ap, a.checkpoint)
+    model, body = checkpoint_model(ap, a.checkpoint)
     fps = model.fps
     train = [features_to_motion(x, fps, betas=model.betas) for x in model.features]
     jerk0 = np.mean([mean_jerk(motion_kinematics(m, body)[0], fps) for m in train])

@@ -8,7 +8,7 @@ Run from the repository root (``$MRLIB_DATA_DIR`` points at the Bandai Namco dat
 
 Training set: ``dataset-1_walk_{normal,happy,sad,angry}_001`` at 30 fps, one label per
 clip read from the dataset's JSON files. The run goes to ``--out`` and a finished run of
-the same configuration and clips there is reused (``mrlib.train.train_or_reuse``).
+the same configuration and clips there is reused (``mrlib.training.trainer.train_or_reuse``).
 
 Printed, for the trained model:
 
@@ -33,22 +33,24 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from pathlib import Path
 
-from tutorial_checkpoint import add_iterations_arg, with_iterations
+from common import (
+    TUTORIAL_CLIPS,
+    add_iterations_arg,
+    bandai_clips,
+    set_threads,
+    trained_model,
+    tutorial_run,
+    with_iterations,
+    write_json,
+)
 
-import mrlib
-import mrlib.threads
-from mrlib import control, fidelity
-from mrlib.config import get_preset
-from mrlib.data import TrainingSet
-from mrlib.io import default_data_dir
-from mrlib.train import train_or_reuse
+from mrlib.evaluation import crossover as control
+from mrlib.evaluation import fidelity
+from mrlib.model.config import get_preset
 
-ROOT = Path(__file__).resolve().parents[1]
-CLIPS = ("walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001")
 LEVELS = (2, 4)
 
 
@@ -81,12 +83,8 @@ def main(argv=None) -> int:
         "--out", type=Path, default=None, help="run folder [outputs/condition_control/...]"
     )
     a = p.parse_args(argv)
-    mrlib.threads.apply_policy(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
-
-    paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
-    missing = [str(q) for q in paths if not q.is_file()]
-    if missing:
-        p.error(f"Bandai Namco clips not found (set MRLIB_DATA_DIR): {missing[0]}")
+    set_threads(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    bandai_clips(TUTORIAL_CLIPS)  # exits before anything else when the data is missing
 
     cfg = get_preset(a.preset).replace(seed=a.seed, device=a.device)
     loss = cfg.loss
@@ -102,20 +100,18 @@ def main(argv=None) -> int:
     if a.mix_prob is not None:
         cfg = cfg.replace(mix_prob=a.mix_prob)
     cfg, it_suffix = with_iterations(cfg, a.iterations)
-    name = f"{a.preset}_seed{a.seed}_detail{loss.detail:g}_mismatch{loss.mismatch:g}"
+    suffix = ""
     if a.con is not None:
-        name += f"_con{a.con:g}"
+        suffix += f"_con{a.con:g}"
     if a.lr is not None:
-        name += f"_lr{a.lr:g}"
+        suffix += f"_lr{a.lr:g}"
     if a.mix_prob is not None:
-        name += f"_mix{a.mix_prob:g}"
-    name += it_suffix
-    out = a.out or ROOT / "outputs" / "condition_control" / name
+        suffix += f"_mix{a.mix_prob:g}"
+    run = tutorial_run(cfg, a.preset, suffix + it_suffix)
+    name, out = run.name, a.out or run
 
-    body = mrlib.load_body_model()
-    data = TrainingSet.from_motions([mrlib.load_motion(q) for q in paths], body=body)
-    print(f"{data}\npreset {a.preset}, seed {a.seed}, {loss}\nrun folder {out}", flush=True)
-    model, record = train_or_reuse(data, cfg, out, body=body)
+    note = f"preset {a.preset}, seed {a.seed}, {loss}\nrun folder {out}"
+    model, record, _ = trained_model(cfg, TUTORIAL_CLIPS, out, note=note)
     how = "reused a finished run" if record.reused else "trained"
     if a.fine_noise is not None:
         model.fine_noise = a.fine_noise
@@ -184,9 +180,7 @@ def main(argv=None) -> int:
     }
     tag = "" if a.fine_noise is None else f"_fine{a.fine_noise:g}"
     tag += "" if a.guidance is None else f"_guidance{a.guidance:g}"
-    (Path(out) / f"condition_control{tag}.json").write_text(
-        json.dumps(result, indent=1, default=float)
-    )
+    write_json("condition_control", result, Path(out) / f"condition_control{tag}.json")
     return 0
 
 

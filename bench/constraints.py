@@ -1,8 +1,8 @@
-"""Constraints on a trained model: paths, keyframes, body parts, loops (mrlib.constraints).
+"""Constraints on a trained model: paths, keyframes, body parts, loops (mrlib.sampling.constraints).
 
 Uses the `tutorial` model of ``bench/condition_control.py`` (4 Bandai walks:
 normal / happy / sad / angry_001, 30 fps), trained there or here on first use and reused
-after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
+after (``mrlib.training.trainer.train_or_reuse``, same folder). Prints, per constraint:
 
 * **path**: a 20 s circle (r = 2 m) and a 20 s figure-eight (r = 2 m) for every walk
   label and ``--samples`` seeds, by ``bend`` (the default) and ``optimise`` (noise
@@ -21,7 +21,7 @@ after (``mrlib.train.train_or_reuse``, same folder). Prints, per constraint:
   pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
   on each label's second capture take, which the model never saw;
 * **sharpen**: each label's samples with the noise fitted towards that label on one
-  part (``mrlib.constraints.sharpen``, what ``generate_parts(..., sharpen=N)`` splices),
+  part (``mrlib.sampling.constraints.sharpen``, what ``generate_parts(..., sharpen=N)`` splices),
   for each of ``--sharpen-steps``: the part's fidelity by the measure the fit lowers
   (6D rotations) and by the part's joint positions in the body's frame, which it never
   sees; coverage (eps 2 and 1) and global diversity of the part against the label's
@@ -47,32 +47,31 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import sys
 import time
 from inspect import signature
-from pathlib import Path
 
 import numpy as np
 import torch
+from common import (
+    TUTORIAL_CLIPS,
+    add_iterations_arg,
+    bandai_clips,
+    bandai_dir,
+    set_threads,
+    trained_model,
+    tutorial_run,
+    with_iterations,
+    write_json,
+)
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "bench"))
+import mrlib
+from mrlib.metrics.paper import coverage, metric_features
+from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
+from mrlib.model.config import get_preset
+from mrlib.representation.features import features_to_motion
+from mrlib.sampling import constraints as C
+from mrlib.sampling.generation import generate
 
-from tutorial_checkpoint import add_iterations_arg, with_iterations  # noqa: E402
-
-import mrlib  # noqa: E402
-import mrlib.threads  # noqa: E402
-from mrlib import constraints as C  # noqa: E402
-from mrlib.config import get_preset  # noqa: E402
-from mrlib.data import TrainingSet  # noqa: E402
-from mrlib.features import features_to_motion  # noqa: E402
-from mrlib.io import default_data_dir  # noqa: E402
-from mrlib.metrics import coverage, metric_features  # noqa: E402
-from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics  # noqa: E402
-from mrlib.sample import generate  # noqa: E402
-from mrlib.train import train_or_reuse  # noqa: E402
-
-CLIPS = ["walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001"]
 SECTIONS = ("path", "keyframes", "parts", "sharpen", "loop")
 
 
@@ -98,7 +97,7 @@ def main() -> int:
                     help="keyframes: also condition the in-between on a label ramp from the "
                     "first keyframe's label to the last's")  # fmt: skip
     ap.add_argument("--joint-jerk", type=float, default=None,
-                    help="keyframes: mrlib.constraints.keyframes.JOINT_JERK [mrlib's]")  # fmt: skip
+                    help="keyframes: mrlib.sampling.constraints.keyframes.JOINT_JERK [mrlib's]")  # fmt: skip
     ap.add_argument("--no-clean", action="store_true",
                     help="keyframes: do not plant the feet of the in-betweens")  # fmt: skip
     ap.add_argument("--sharpen-steps", default=f"0,{C.SHARPEN_STEPS}",
@@ -110,7 +109,7 @@ def main() -> int:
                     help=f"sharpen: the hinge's margin [{C.MARGIN}]")  # fmt: skip
     ap.add_argument("--sharpen-prior", choices=("zero", "draw"), default=None,
                     help="sharpen: the noise fit's prior centred on 0 or on the draw "
-                    "(mrlib.constraints.optimise.optimise_noise prior_centre) [mrlib's]")  # fmt: skip
+                    "(mrlib.sampling.constraints.optimise.optimise_noise prior_centre) [mrlib's]")  # fmt: skip
     ap.add_argument("--lr", type=float, default=None,
                     help="the model trained with this learning rate "
                     "(bench/condition_control.py --lr) [the preset's]")  # fmt: skip
@@ -119,21 +118,16 @@ def main() -> int:
     ap.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS),
                     help="run these sections only [all]")  # fmt: skip
     a = ap.parse_args()
-    mrlib.threads.apply_policy(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
-    paths = [default_data_dir() / "data" / f"dataset-1_{c}.bvh" for c in CLIPS]
-    if not all(p.is_file() for p in paths):
-        ap.error("Bandai Namco clips not found (set MRLIB_DATA_DIR)")
+    set_threads(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    bandai_clips(TUTORIAL_CLIPS)  # exits before anything else when the data is missing
     cfg = get_preset("tutorial").replace(seed=a.seed)
-    name = f"tutorial_seed{a.seed}_detail{cfg.loss.detail:g}_mismatch{cfg.loss.mismatch:g}"
+    suffix = ""
     if a.lr is not None:
         cfg = cfg.replace(lr=a.lr)
-        name += f"_lr{a.lr:g}"
+        suffix += f"_lr{a.lr:g}"
     cfg, it_suffix = with_iterations(cfg, a.iterations)
-    name += it_suffix
-    out = ROOT / "outputs" / "condition_control" / name
-    body = mrlib.load_body_model()
-    data = TrainingSet.from_motions([mrlib.load_motion(p) for p in paths], body=body)
-    model, record = train_or_reuse(data, cfg, out, body=body)
+    out = tutorial_run(cfg, "tutorial", suffix + it_suffix)  # bench/condition_control.py's run
+    model, record, body = trained_model(cfg, TUTORIAL_CLIPS, out)
     print(f"model: {out} ({'reused' if record.reused else 'trained'})", flush=True)
     fps = model.fps
     train = {
@@ -167,7 +161,7 @@ def main() -> int:
         run_sharpen(model, body, a, results)
     if "loop" in a.only:
         run_loops(model, body, seeds, results)
-    saved.write_text(json.dumps(results, indent=1, default=float))
+    write_json("constraints", results, saved)
     return 0
 
 
@@ -281,8 +275,8 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
 def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body, clean=True):
     """``generate_with_keyframes`` with the condition eased over time from ``a_lab`` (the
     first keyframe's clip) to ``b_lab`` (the last's), the noise of their mean sigma."""
-    from mrlib.constraints.common import fitted_motion
-    from mrlib.sample import (
+    from mrlib.sampling.constraints.common import fitted_motion
+    from mrlib.sampling.generation import (
         check_conditions,
         draw_noise,
         guided_weights,
@@ -346,9 +340,9 @@ def run_parts(model, body, a, seeds, results) -> None:
 
 def run_sharpen(model, body, a, results) -> None:
     """Samples of each label fitted towards it on one part (module docstring)."""
-    from mrlib.constraints.compose import body_frame_joints
-    from mrlib.constraints.sharpen import part_columns
-    from mrlib.metrics import condition_fidelity, global_diversity
+    from mrlib.metrics.paper import condition_fidelity, global_diversity
+    from mrlib.sampling.constraints.compose import body_frame_joints
+    from mrlib.sampling.constraints.sharpen import part_columns
 
     steps_list = [int(v) for v in a.sharpen_steps.split(",")]
     length = 2 * int(model.lengths[:, -1].max())
@@ -378,7 +372,7 @@ def run_sharpen(model, body, a, results) -> None:
                                            push=a.sharpen_push, margin=a.sharpen_margin,
                                            **prior)  # fmt: skip
                 dt = (time.perf_counter() - t0) / a.samples
-                ms = [mrlib.cleanup_foot_contacts(m, body) for m in raw]
+                ms = [mrlib.sampling.cleanup_foot_contacts(m, body) for m in raw]
                 f = [metric_features(m)[:, cols] for m in ms]
                 ref = refs[lab][:, cols]
                 p = [body_frame_joints(m, body)[:, js].reshape(m.num_frames, -1) for m in ms]
@@ -409,8 +403,8 @@ def run_sharpen(model, body, a, results) -> None:
 def second_takes(model, body, results) -> None:
     """The same measure on capture the model never saw: each label's second Bandai take
     (``_002``), whole body and per part, against the model's training clips."""
-    from mrlib.fidelity import model_references, nearest_sequence_strip
-    from mrlib.metrics import condition_fidelity
+    from mrlib.evaluation.fidelity import nearest_sequence_strip
+    from mrlib.metrics.paper import condition_fidelity, model_references
 
     print("\n### The measure on each label's second capture take (not trained on)\n")
     print("| take | frames | whole body | upper | lower | nearest label, whole body |")
@@ -420,11 +414,11 @@ def second_takes(model, body, results) -> None:
             for lab in dict.fromkeys(labels)}  # fmt: skip
     results["second_takes"] = []
     for lab in model.labels:
-        path = default_data_dir() / "data" / f"dataset-1_{lab}_002.bvh"
+        path = bandai_dir() / "data" / f"dataset-1_{lab}_002.bvh"
         if not path.is_file():
             continue
         m = mrlib.load_motion(path)
-        m = m.replace(contacts=mrlib.foot_contacts(m, body), label=lab)
+        m = m.replace(contacts=mrlib.representation.foot_contacts(m, body), label=lab)
         if m.num_frames < 30:
             continue
         whole = condition_fidelity([(metric_features(m), lab)], refs)

@@ -9,20 +9,18 @@ condition fidelity, foot skating) beside the calibration rows:
     python bench/demo_budget.py --iterations 600 --n-critic 1
     python bench/demo_budget.py --iterations 400 --n-critic 2 --threads 2
 
-Prints a Markdown table and appends a JSON row to ``bench/results/demo_budget.jsonl``.
+Prints a Markdown table and appends a JSON row (with the machine) to
+``bench/results/demo_budget.jsonl``.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
-RESULTS = ROOT / "bench" / "results" / "demo_budget.jsonl"
+from common import describe, set_threads, write_json
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -50,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--clean",
         action="store_true",
-        help="also score the samples after the foot-contact clean-up (mrlib.footik), with "
+        help="also score the samples after the foot-contact clean-up (mrlib.sampling.cleanup), with "
         "global diversity and penetration",
     )
     args = ap.parse_args(argv)
@@ -58,15 +56,15 @@ def main(argv: list[str] | None = None) -> int:
     import dataclasses
 
     import mrlib
-    from mrlib.config import demo
-    from mrlib.data import TrainingSet
-    from mrlib.demo import DATA_SAMPLES, headline_table
-    from mrlib.evaluate import evaluate_model
-    from mrlib.sample import load_model
-    from mrlib.threads import apply_policy
-    from mrlib.train import train
+    from mrlib.app.demo import DATA_SAMPLES, headline_table
+    from mrlib.evaluation.evaluate import evaluate_model
+    from mrlib.model.config import demo
+    from mrlib.model.trained import load_model
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train
 
-    apply_policy(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    set_threads(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    print(describe(), flush=True)
     cfg = demo().replace(seed=args.seed)
     if args.iterations:
         its = tuple(int(v) for v in args.iterations.split(","))
@@ -146,9 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         print("\n| | " + " | ".join(keys) + " |\n|---|" + "---:|" * len(keys))
         for d in result.summary():
             print(f"| {d['method']} | " + " | ".join(f"{d[k + '_mean']:.3f}" for k in keys) + " |")
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    with RESULTS.open("a") as f:
-        f.write(json.dumps(row) + "\n")
+    write_json("demo_budget", row, append=True)
     return 0
 
 

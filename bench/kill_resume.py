@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _train_cmd(clip: Path, out: Path, resume: bool) -> list[str]:
-    cmd = [sys.executable, "-m", "mrlib.cli", "train", "--no-progress", "--out", str(out)]
+    cmd = [sys.executable, "-m", "mrlib.app.cli", "train", "--no-progress", "--out", str(out)]
     if resume:
         return cmd + ["--resume", str(out / "checkpoint.pt")]
     return cmd + [
@@ -45,7 +45,7 @@ def _train_cmd(clip: Path, out: Path, resume: bool) -> list[str]:
 
 
 def _weights(path: Path):
-    from mrlib.checkpoint import load_checkpoint
+    from mrlib.model.checkpoint import load_checkpoint
 
     state = load_checkpoint(path)
     return state["generator"], state["critics"], state["progress"]
@@ -59,8 +59,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
+    from mrlib.datasets.synthetic import synthetic_walk
     from mrlib.io import save_motion
-    from mrlib.synthetic import synthetic_walk
 
     env = dict(os.environ, OMP_NUM_THREADS="1")
     rng = random.Random(args.seed)

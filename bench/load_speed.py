@@ -5,9 +5,10 @@ Run from the repository root::
     python bench/load_speed.py                  # all Bandai Namco clips + a one-minute file
     python bench/load_speed.py --repeats 5      # more repeats of the one-minute file
 
-Needs the Bandai Namco Research Motion Dataset 1 (``$MRLIB_DATA_DIR``, default
-``../shared/data/bandai-namco-motion-1``). Two parts, printed and written to
-``bench/results/load_speed.json``:
+Needs the Bandai Namco Research Motion Dataset 1, found as mrlib finds it
+(``$MRLIB_DATA_DIR``, the ``../shared`` mirror, else the clips fetched into mrlib's cache:
+``mrlib data fetch bandai --all`` for every clip). Two parts, printed and written to
+``bench/results/load_speed.json`` (with the machine, ``bench/common.py``):
 
 1. **Every clip**: parse + retarget time of each clip, with its retargeting error.
 2. **One minute**: 1800 frames (60 s at 30 fps) made by looping the frames of a walking
@@ -22,22 +23,17 @@ notes were taken on a 2-core CPU machine.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import platform
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from common import RESULTS, bandai_dir, describe, write_json
 
 from mrlib.io import load_motion
+from mrlib.io.bodyfit import default_body
 from mrlib.io.bvh import format_bvh, parse_bvh, read_bvh
-from mrlib.io.paths import default_data_dir
-from mrlib.io.retarget import default_body, retarget_bvh
-
-ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = default_data_dir()
+from mrlib.io.retarget import retarget_bvh
 
 
 def one_minute_file(src: Path, frames: int, out_dir: Path) -> Path:
@@ -59,11 +55,10 @@ def main() -> None:
     ap.add_argument(
         "--frames", type=int, default=1800, help="frames of the long file (1800 = 1 min at 30 fps)"
     )
-    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "load_speed.json")
+    ap.add_argument("--out", type=Path, default=RESULTS / "load_speed.json")
     args = ap.parse_args()
-    files = sorted((DATA_DIR / "data").glob("*.bvh"))
-    if not files:
-        raise SystemExit(f"no BVH files under {DATA_DIR / 'data'}; set MRLIB_DATA_DIR")
+    files = sorted((bandai_dir() / "data").glob("*.bvh"))  # exits when there are none
+    print(describe(), flush=True)
     body = default_body()
     load_motion(files[0], body=body)  # warm-up: imports, caches
 
@@ -114,13 +109,7 @@ def main() -> None:
           f"load_motion {best['load_motion_s']:.3f} s (parse {best['parse_s']:.3f} s, "
           f"retarget {best['retarget_s']:.3f} s)")  # fmt: skip
 
-    args.out.parent.mkdir(parents=True, exist_ok=True)
     result = {
-        "machine": {
-            "python": platform.python_version(),
-            "cpus": os.cpu_count(),
-            "platform": platform.platform(),
-        },
         "clips": [
             {
                 "name": n,
@@ -142,8 +131,7 @@ def main() -> None:
         },
         "one_minute": {"frames": args.frames, "source": src.stem, "repeats": args.repeats, **best},
     }
-    args.out.write_text(json.dumps(result, indent=1))
-    print(f"wrote {args.out}")
+    print(f"wrote {write_json('load_speed', result, args.out)}")
 
 
 if __name__ == "__main__":

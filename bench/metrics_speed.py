@@ -1,4 +1,4 @@
-"""Speed and memory of mrlib.metrics against the naive oracles.
+"""Speed and memory of mrlib.metrics.paper against the naive oracles.
 
 Run from the repository root::
 
@@ -42,7 +42,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import resource
 import subprocess
 import sys
@@ -51,10 +50,10 @@ import tracemalloc
 from pathlib import Path
 
 import numpy as np
+from common import RESULTS, ROOT, describe, write_json
 
-from mrlib import metrics as mt
+from mrlib.metrics import paper as mt
 
-ROOT = Path(__file__).resolve().parents[1]
 DIM = 23 * 6 + 6
 
 
@@ -242,7 +241,7 @@ def main() -> None:
     ap.add_argument("--skip-scaling", action="store_true", help="skip the scaling table")
     ap.add_argument("--skip-headline", action="store_true", help="skip the 12k x 6k PNN run")
     ap.add_argument("--skip-samples", action="store_true", help="skip the 200-sample protocol run")
-    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "metrics_speed.json")
+    ap.add_argument("--out", type=Path, default=RESULTS / "metrics_speed.json")
     ap.add_argument("--child-headline", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--child-samples", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -254,14 +253,8 @@ def main() -> None:
         print(json.dumps(res))
         return
 
-    results: dict = {
-        "machine": {
-            "cpu_count": os.cpu_count(),
-            "python": platform.python_version(),
-            "numpy": np.__version__,
-            "platform": platform.platform(),
-        }
-    }
+    print(describe(), flush=True)
+    results: dict = {}
     if not args.skip_scaling:
         print(f"== scaling (L_gen = L_ref = L, D = {DIM}); peak = tracemalloc ==")
         results["scaling"] = scaling(args.sizes, args.naive_limit)
@@ -286,9 +279,7 @@ def main() -> None:
             f"(+{s['drawing_samples_s']:.1f} s per pass drawing samples), "
             f"peak RSS {s['peak_rss_mib']:.0f} MiB (after imports {s['baseline_rss_mib']:.0f} MiB)"
         )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(results, indent=2))
-    print(f"wrote {args.out}")
+    print(f"wrote {write_json('metrics_speed', results, args.out)}")
 
 
 if __name__ == "__main__":

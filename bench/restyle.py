@@ -1,6 +1,6 @@
-"""Restyling unseen walks (``mrlib.restyle``) with a model of four Bandai walks.
+"""Restyling unseen walks (``mrlib.sampling.restyling``) with a model of four Bandai walks.
 
-Run from the repository root (the Bandai Namco clips are found as ``mrlib.datasets``
+Run from the repository root (the Bandai Namco clips are found as ``mrlib.datasets.bandai``
 finds them)::
 
     python bench/restyle.py --seed 0          # trains or reuses the demo model (5-8 min)
@@ -8,10 +8,9 @@ finds them)::
     python bench/restyle.py --seed 0 --iterations 2   # a nearly untrained model: the negative
     python bench/restyle.py --checkpoint ckpt.pt      # measure a given checkpoint
     python bench/restyle.py --seed 0 --guidance 0.5   # restyled with label guidance
-    python bench/restyle.py --matrix 0-2              # the trained-model test's matrix
 
 Model: the ``demo`` preset trained on ``walk_{normal,happy,sad,angry}_001`` resampled
-to 15 fps (``mrlib.config.PRESET_FPS["demo"]``), through ``mrlib.train.train_cached``
+to 15 fps (``mrlib.model.config.PRESET_FPS["demo"]``), through ``mrlib.training.trainer.train_cached``
 (the same model as notebook 03's for seed 0, reused from mrlib's cache).
 
 Inputs the model never saw: the second takes ``walk_{style}_002`` and the side walks
@@ -20,50 +19,47 @@ with a label of the model: their own; ``walk_normal_002`` lasts 1.03 s, shorter 
 the 1.33 s the 8-level pyramid needs at 15 fps, and is refused), and four walks of
 other styles (no label of the model). Every input is restyled towards each label at
 every level ``k`` (seed 0, without the foot clean-up) and measured with
-``mrlib.restyle.restyle_evidence``:
+``mrlib.sampling.restyling.restyle_evidence``:
 
 * **path**: mean ground distance of the restyled root from the input's (cm);
 * **low band kept**: its low band (split at level k's Nyquist, as
-  ``mrlib.control.crossover_evidence`` splits) nearer the input's than any training
+  ``mrlib.evaluation.crossover.crossover_evidence`` splits) nearer the input's than any training
   clip's, share of (input, target) cases;
 * **residual given**: its high-frequency residual's RMS profile nearest the target
   label's (4 pure samples per label), share of the (input, target != own label) pairs;
   the **paired negative**: the same input restyled with its own label, share of those
   pairs whose residual is nearest the (other) target all the same (chance: 1/4); and
   the input itself, unrestyled, likewise;
-* **source share**: ``mrlib.restyle.RestyleShares.source_share``, mean over cases.
+* **source share**: ``mrlib.sampling.restyling.RestyleShares.source_share``, mean over cases.
 
-Then, at ``--level``, the coarse gap of every input (``mrlib.restyle.coarse_gap``) and
+Then, at ``--level``, the coarse gap of every input (``mrlib.sampling.restyling.coarse_gap``) and
 the same measures with ``invert=True`` (the coarse noise fitted), with its cost, also
 for two inputs far from walking; and the time per second of input of the direct route.
 
-``--matrix SEEDS`` measures instead the quantity of the trained-model test
-(``tests/test_restyle.py``, recipe 4 of ``tests/trained_models.py``: the recipe-2 model
-of ``walk_{angry,sad}_001``, 6 levels, 2-5 min of training, restyling six unseen takes
-of the two styles towards the other label) over training seeds x ``--matrix-threads``,
-and on the same recipe untrained (2 iterations per block), its negative.
+The quantity of the trained-model test (``tests/test_restyle.py``, recipe 4 of
+``tests/trained_models.py``) over training seeds x thread counts, and on the recipe
+untrained, is ``python tests/trained_test_matrix.py --recipe restyle`` (formerly
+``--matrix`` here).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import statistics
 import time
 from pathlib import Path
 
 import numpy as np
-import torch
-from tutorial_checkpoint import add_iterations_arg, with_iterations
+from common import add_iterations_arg, no_data, set_threads, with_iterations, write_json
 
 import mrlib
-from mrlib.config import PRESET_FPS, get_preset
-from mrlib.data import TrainingSet
+from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import ClipTooShortError
-from mrlib.io.outputs import write_text
-from mrlib.metrics import metric_features
-from mrlib.restyle import (
+from mrlib.metrics.paper import metric_features
+from mrlib.model.config import PRESET_FPS, get_preset
+from mrlib.model.trained import load_model
+from mrlib.sampling.restyling import (
     coarse_gap,
     restyle,
     restyle_evidence,
@@ -71,11 +67,9 @@ from mrlib.restyle import (
     restyle_references,
     restyle_shares,
 )
-from mrlib.sample import load_model
-from mrlib.synthetic import synthetic_walk
-from mrlib.train import train_cached
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import train_cached
 
-ROOT = Path(__file__).resolve().parents[1]
 STYLES = ("normal", "happy", "sad", "angry")
 TRAIN = [f"walk_{s}_001" for s in STYLES]
 LABELLED = (
@@ -87,30 +81,21 @@ OTHER = ["walk_tired_002", "walk_proud_002", "walk_old_002", "walk_active_002"]
 FAR = ["bow_normal_001", "byebye_normal_001"]  # not walks: the coarse gap is large
 
 
-def ints(text: str) -> list[int]:
-    """``"0-4"`` -> ``[0, 1, 2, 3, 4]``, ``"1,2"`` -> ``[1, 2]``."""
-    out = []
-    for part in text.split(","):
-        lo, _, hi = part.partition("-")
-        out += list(range(int(lo), int(hi or lo) + 1))
-    return out
-
-
 def own_label(name: str) -> str | None:
     style = name.split("_")[1]
     return f"walk_{style}" if style in STYLES else None
 
 
 def load(names: list[str]) -> dict[str, mrlib.Motion]:
-    source = mrlib.datasets.tutorial_clips(names)
+    source = mrlib.datasets.bandai.tutorial_clips(names)
     if source.synthetic:
-        raise SystemExit(f"the Bandai Namco clips are needed: {source.note}")
+        no_data(f"the Bandai Namco clips are needed: {source.note}")
     return {n: mrlib.load_motion(p) for n, p in zip(names, source.paths, strict=True)}
 
 
 def residual_nearest(model, motion, ref) -> str:
     """The label whose residual profile is nearest ``motion``'s (the input itself)."""
-    from mrlib.control import rms_profile, split_bands
+    from mrlib.metrics.bands import rms_profile, split_bands
 
     p = rms_profile(split_bands(metric_features(motion, contacts=False), model.fps,
                                 ref.cutoff_hz)[1])  # fmt: skip
@@ -225,38 +210,6 @@ def inversion(model, inputs: dict, body, level: int, steps: int) -> tuple[list[d
     return rows, "\n".join(out)
 
 
-def matrix(seeds: list[int], threads: list[int], untrained: bool) -> int:
-    """The trained-model test's quantity (``tests/trained_models.py``, recipe 4: the
-    recipe-2 model of two Bandai walks) over training seeds x torch thread counts, and
-    on the same recipe untrained (2 iterations per block)."""
-    import sys
-    import tempfile
-
-    sys.path.insert(0, str(ROOT / "tests"))
-    import trained_models as tm
-
-    from mrlib.io import default_data_dir
-    from mrlib.threads import policy
-
-    body = mrlib.load_body_model()
-    inputs = tm.restyle_inputs(default_data_dir())
-    print("| variant | seed | threads | mean log ratio | min | residual nearest target | s |")
-    print("|---|---|---|---|---|---|---|")
-    for variant in ["trained"] + ["untrained"] * untrained:
-        for seed in seeds:
-            for n in threads:
-                t = time.perf_counter()
-                cfg = tm.detail_config(seed, 2 if variant == "untrained" else 300)
-                clips = tm.detail_clips(default_data_dir(), body)
-                with tempfile.TemporaryDirectory() as tmp, policy(n):
-                    model = tm.train_recipe(clips, cfg, tmp, body, n)
-                    r = tm.restyle_log_ratios(model, inputs)
-                print(f"| {variant} | {seed} | {n} | {r[:, 0].mean():.3f} | {r[:, 0].min():.3f} "
-                      f"| {100 * r[:, 1].mean():.0f}% | {time.perf_counter() - t:.0f} |",
-                      flush=True)  # fmt: skip
-    return 0
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=0, help="training seed [0]")
@@ -270,16 +223,8 @@ def main(argv=None) -> int:
     p.add_argument("--json", type=Path, default=None, help="also write the rows here")
     p.add_argument("--checkpoint", type=Path, default=None,
                    help="measure this checkpoint instead of the cached demo model")  # fmt: skip
-    p.add_argument(
-        "--matrix", default=None, metavar="SEEDS",
-        help="instead: the trained-model test's quantity over these training seeds (e.g. "
-        "0-4) x --matrix-threads, and on untrained models",
-    )  # fmt: skip
-    p.add_argument("--matrix-threads", default="1,2", help="thread counts of --matrix [1,2]")
     a = p.parse_args(argv)
-    if a.matrix is not None:
-        return matrix(ints(a.matrix), ints(a.matrix_threads), untrained=True)
-    torch.set_num_threads(a.threads)
+    set_threads(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
 
     body = mrlib.load_body_model()
     fps = PRESET_FPS["demo"]
@@ -321,7 +266,7 @@ def main(argv=None) -> int:
 
     inv_rows = []
     if not a.no_inversion:
-        from mrlib.restyle import INVERT_STEPS
+        from mrlib.sampling.restyling import INVERT_STEPS
 
         steps = INVERT_STEPS if a.invert_steps is None else a.invert_steps
         chosen = {n: inputs[n] for n in ("walk_sad_002", "walk-right_happy_001", "walk_old_002")}
@@ -330,10 +275,9 @@ def main(argv=None) -> int:
         print(f"inversion at level {level}, {steps} Adam steps (targets: every label)\n")
         print(table + "\n", flush=True)
     if a.json is not None:
-        a.json.parent.mkdir(parents=True, exist_ok=True)
         summary = {"seed": a.seed, "iterations": list(cfg.block_iterations), "rows": rows,
                    "inversion": inv_rows}  # fmt: skip
-        write_text(a.json, json.dumps(summary, indent=1), overwrite=True)
+        write_json("restyle", summary, a.json)
     return 0
 
 

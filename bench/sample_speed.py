@@ -4,7 +4,7 @@ The demo's model: ``demo`` networks (the ``tutorial`` ones; weights barely train
 does not depend on them) on the four synthetic clips of ``data_samples/`` at the demo's
 15 fps, so a one-minute sample has 900 frames (``--fps 30`` for 1800). For 1, 8 and 64
 samples in one batch, and for 1 and 2 torch threads, it prints the time per call of
-``mrlib.sample.generate`` next to the sampler it replaced (samples packed end to end and
+``mrlib.sampling.generation.generate`` next to the sampler it replaced (samples packed end to end and
 run through the training path with per-frame FiLM, each converted alone with roma), as
 ratios measured in the same run; then the clean-up of a one-minute walk with the analytic
 IK (the default) against the per-frame optimisation:
@@ -17,14 +17,13 @@ Writes ``bench/results/sample_speed.json``.
 from __future__ import annotations
 
 import argparse
-import json
 import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from common import describe, set_threads, write_json
 
 
 def _best(fn, repeats: int) -> float:
@@ -44,11 +43,11 @@ def _packed_generate(model, label: str, length: int, seed: int, num_samples: int
     import roma
     import torch
 
-    from mrlib.features import root_velocity_to_trans, split_features
-    from mrlib.motion import Motion
-    from mrlib.pyramid import PackedLevels, pyramid_lengths
-    from mrlib.rotations import sixd_to_matrix
-    from mrlib.sample import label_weights
+    from mrlib.model.pyramid import PackedLevels, pyramid_lengths
+    from mrlib.representation.features import root_velocity_to_trans, split_features
+    from mrlib.representation.motion import Motion
+    from mrlib.representation.rotations import sixd_to_matrix
+    from mrlib.sampling.generation import label_weights
 
     L = model.num_levels
     W = label_weights(model, label)
@@ -94,12 +93,14 @@ def main(argv: list[str] | None = None) -> int:
     import torch
 
     import mrlib
-    import mrlib.synthetic
-    from mrlib.config import demo
-    from mrlib.data import TrainingSet
-    from mrlib.demo import DATA_SAMPLES
-    from mrlib.sample import cleanup_foot_contacts, generate, load_model
-    from mrlib.train import train
+    import mrlib.datasets.synthetic
+    from mrlib.app.demo import DATA_SAMPLES
+    from mrlib.model.config import demo
+    from mrlib.model.trained import load_model
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.generation import generate
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train
 
     body = mrlib.load_body_model()
     with tempfile.TemporaryDirectory() as tmp:
@@ -114,9 +115,9 @@ def main(argv: list[str] | None = None) -> int:
     T = round(60 * model.fps)
     label = model.labels[0]
     threads = [int(t) for t in args.threads.split(",")]
-    rows, result = [], {"frames": T, "fps": model.fps, "machine": platform.machine()}
+    rows, result = [], {"frames": T, "fps": model.fps}
     for th in threads:
-        mrlib.threads.apply_policy(th)  # explicit: mrlib's own calls keep it (mrlib.threads)
+        set_threads(th)  # explicit: mrlib's own calls keep it (mrlib.threads)
         for n in (1, 8, 64):
             reps = args.repeats if n < 64 else max(1, args.repeats - 1)
             new = _best(
@@ -129,11 +130,13 @@ def main(argv: list[str] | None = None) -> int:
             rows.append((f"generate {n} x 1 min, {th} thread(s)", new, old))
             result[f"generate_{n}_threads_{th}_s"] = new
             result[f"packed_{n}_threads_{th}_s"] = old
-    mrlib.threads.apply_policy(threads[-1])
+    set_threads(threads[-1])
     # a one-minute walk with contacts labelled from its own motion (a barely trained model
     # predicts few contacts, which would leave the clean-up nothing to do)
-    m = mrlib.synthetic.synthetic_walk("walk_normal", seconds=60.0, fps=model.fps, body=body)
-    m = m.replace(contacts=mrlib.foot_contacts(m, body))
+    m = mrlib.datasets.synthetic.synthetic_walk(
+        "walk_normal", seconds=60.0, fps=model.fps, body=body
+    )
+    m = m.replace(contacts=mrlib.representation.foot_contacts(m, body))
     ik = _best(lambda: cleanup_foot_contacts(m, body, method="ik"), args.repeats)
     opt = _best(lambda: cleanup_foot_contacts(m, body, method="optimise"), 1)
     both = _best(
@@ -142,6 +145,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     result.update(cleanup_ik_s=ik, cleanup_optimise_s=opt, generate_and_cleanup_s=both)
 
+    print(describe())
     print(
         f"one minute = {T} frames at {model.fps:g} fps; {platform.machine()}, "
         f"{torch.get_num_threads()} threads for the clean-up rows\n"
@@ -153,9 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"| clean-up of 1 min, per-frame optimisation | {opt:.3f} | | |")
     print(f"| generate 1 x 1 min + IK clean-up | {both:.3f} | | |")
     print(f"\nanalytic IK is {opt / ik:.0f}x faster than the per-frame optimisation")
-    out = ROOT / "bench" / "results"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "sample_speed.json").write_text(json.dumps(result, indent=2))
+    write_json("sample_speed", result)
     return 0
 
 

@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-import torch
+from common import set_threads
 
 import mrlib
 from mrlib.speech import (
@@ -46,7 +46,7 @@ def main() -> None:
     p.add_argument("--held-out", type=int, default=12, help="held-out utterances, >= 2 [12]")
     p.add_argument("--work", type=Path, default=None, help="folder for data and run")
     a = p.parse_args()
-    torch.set_num_threads(1)
+    set_threads(1)  # explicit: mrlib's own calls keep it (mrlib.threads)
     work = a.work or Path(tempfile.mkdtemp(prefix="mrlib_speech_sync_"))
     body = mrlib.load_body_model()
     train_dir, held_dir = work / "corpus", work / "heldout"

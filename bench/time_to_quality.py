@@ -11,11 +11,11 @@ Two fixed training sets of Bandai Namco clips (``$MRLIB_DATA_DIR``):
 * ``one``: ``dataset-1_walk_happy_001`` (213 frames at 30 fps), one model;
 * ``four``: ``dataset-1_walk_{normal,happy,sad,angry}_001``, one model with four labels.
 
-Training is the ordinary ``mrlib.train.train`` (preset ``--preset``, ``tutorial`` by
+Training is the ordinary ``mrlib.training.trainer.train`` (preset ``--preset``, ``tutorial`` by
 default) with a callback that, every ``--eval-every`` iterations and at the end of every
-block, pauses the clock, takes the current generator (``mrlib.sample.model_from_trainer``),
+block, pauses the clock, takes the current generator (``mrlib.sampling.generation.model_from_trainer``),
 draws ``--samples`` clips of twice each training clip's length with fixed seeds and scores
-them with ``mrlib.evaluate.score_motions`` (the Table-1 protocol of ``mrlib evaluate``).
+them with ``mrlib.evaluation.evaluate.score_motions`` (the Table-1 protocol of ``mrlib evaluate``).
 The global RNG state is saved and restored around each evaluation, so training follows
 the same trajectory as without the callback. *Training time* is wall time from the call
 to ``train`` (networks and data pyramids included) to the checkpoint, minus the time
@@ -25,7 +25,7 @@ spent evaluating; BVH loading and retargeting are reported separately.
 
 1. **coverage >= 99 %** (``T_c = 30``, ``eps = 2.0``; mean over the samples);
 2. **reconstruction error <= the clip's one-frame step**: the mean per-frame distance
-   between the reconstruction (``mrlib.sample.reconstruct``) and the clip, on the metric
+   between the reconstruction (``mrlib.sampling.generation.reconstruct``) and the clip, on the metric
    features (23 local joint rotations in 6D + 6 contact labels), is at most the mean
    distance between consecutive frames of the clip itself, i.e. the error of playing the
    clip one frame (33 ms) late. On the four walks this bound is 0.36 (sad, slow) to
@@ -40,7 +40,7 @@ spent evaluating; BVH loading and retargeting are reported separately.
    wander further from the data than a real retake are not counted as good;
 4. **foot skating <= the training clip's + ``--skate-margin`` points** (default 5):
    share of contact vertex-frames sliding faster than 0.15 m/s
-   (``mrlib.plausibility``), generated clips with the generator's own contact labels,
+   (``mrlib.metrics.plausibility``), generated clips with the generator's own contact labels,
    the training clip with labels computed from its foot speeds. The margin is the
    take-to-take spread of real data: on the four walks the training take and its
    second take differ by 0.7 to 3.2 points (walk_sad: 6.1 vs 2.9 %), and over the 30
@@ -70,7 +70,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -79,8 +78,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from common import (
+    RESULTS,
+    ROOT,
+    bandai_clips,
+    bandai_dir,
+    describe,
+    no_data,
+    set_threads,
+    write_json,
+)
 
-ROOT = Path(__file__).resolve().parents[1]
 SETS = {
     "one": ("dataset-1_walk_happy_001",),
     "four": (
@@ -106,37 +114,28 @@ class Targets:
 
 
 # -- data and thresholds ---------------------------------------------------------------------
-def data_dir() -> Path:
-    from mrlib.io import default_data_dir
-
-    return default_data_dir()
-
-
 def load_clips(names, body):
     """Loaded and retargeted clips, by name."""
     from mrlib.io import load_motion
 
-    folder = data_dir() / "data"
-    missing = [n for n in names if not (folder / f"{n}.bvh").exists()]
-    if missing:
-        sys.exit(f"error: {missing} not found in {folder}; set MRLIB_DATA_DIR")
-    return {n: load_motion(folder / f"{n}.bvh", body=body) for n in names}
+    return {n: load_motion(p, body=body) for n, p in zip(names, bandai_clips(names), strict=True)}
 
 
 def clip_thresholds(name, ref, body, settings, targets: Targets) -> dict:
     """The per-clip bounds of the target, and the calibration rows they come from."""
-    from mrlib import metrics as mt
-    from mrlib import plausibility as pl
-    from mrlib.evaluate import find_bandai_counterparts, score_motions
+    from mrlib.evaluation.calibration import find_bandai_counterparts
+    from mrlib.evaluation.evaluate import score_motions
     from mrlib.io import load_motion
+    from mrlib.metrics import paper as mt
+    from mrlib.metrics import plausibility as pl
 
     kin = pl.motion_kinematics(ref, body)
     labels, _ = pl.motion_contacts(ref, kin[1])
     feats = mt.metric_features(ref.replace(contacts=labels), kind=settings.feature_kind)
     step = mt.reconstruction_error(feats[1:], feats[:-1])  # the clip one frame late
-    others = find_bandai_counterparts(name)
+    others = find_bandai_counterparts(name, bandai_dir())
     if "other take" not in others:
-        sys.exit(f"error: no second take of {name} in {data_dir()}")
+        no_data(f"no second take of {name} in {bandai_dir()}")
     take = load_motion(others["other take"], body=body)
     own = score_motions([ref], ref, settings=settings, body=body)
     other = score_motions([take], ref, settings=settings, body=body)
@@ -161,8 +160,8 @@ def score_checkpoint(
 ) -> dict:
     """Metrics of the current generator on every clip, and whether each meets the target
     (samples cleaned up by foot-contact IK when ``fix_contacts``)."""
-    from mrlib.evaluate import score_motions
-    from mrlib.sample import generate, reconstruct
+    from mrlib.evaluation.evaluate import score_motions
+    from mrlib.sampling.generation import generate, reconstruct
 
     names = list(refs)
     multi = refs if len(refs) > 1 else None
@@ -228,7 +227,7 @@ class CheckpointEvaluator:
             raise KeyboardInterrupt  # train() writes a checkpoint and returns
 
     def evaluate(self, trainer, it, t_train, block_end) -> None:
-        from mrlib.sample import model_from_trainer
+        from mrlib.model.trained import model_from_trainer
 
         t0 = time.perf_counter()
         np_state = np.random.get_state()
@@ -293,7 +292,7 @@ def plot_curves(results: list[dict], targets: Targets, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from mrlib.plots import plot_quality_curve
+    from mrlib.viz.plots import plot_quality_curve
 
     panels = (
         ("coverage", "coverage % (worst clip)", targets.coverage_pct, True),
@@ -325,7 +324,7 @@ def ganimator_projection() -> tuple[float, dict | None]:
     for the 213-frame clip (the ratio is taken against it), and, when
     ``bench/results/train_speed.json`` has single-clip naive timings of all four blocks,
     the projection from those (measured under that run's load, on its clip)."""
-    path = ROOT / "bench" / "results" / "train_speed.json"
+    path = RESULTS / "train_speed.json"
     measured = None
     try:
         d = json.loads(path.read_text())
@@ -355,10 +354,10 @@ def git_commit() -> str:
 
 # -- one set ---------------------------------------------------------------------------------
 def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
-    from mrlib.config import config_to_json, training_config
-    from mrlib.data import TrainingSet
-    from mrlib.evaluate import EvaluationSettings
-    from mrlib.train import train
+    from mrlib.evaluation.evaluate import EvaluationSettings
+    from mrlib.model.config import config_to_json, training_config
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train
 
     names = SETS[key]
     print(f"\n== set '{key}': {', '.join(names)}")
@@ -456,14 +455,14 @@ def main(argv=None) -> int:
         "--fix-contacts", nargs="?", const="optimise", default=False, metavar="METHOD",
         help="score samples after the foot-contact clean-up: 'optimise' (the per-frame "
         "optimisation, as the README's figures were measured; the default with no METHOD) "
-        "or 'ik' (mrlib.footik)",
+        "or 'ik' (mrlib.sampling.cleanup)",
     )  # fmt: skip
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [default: 1]")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument(
         "--runs", type=Path, default=None, help="checkpoint folder (default: a temp dir)"
     )
-    p.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "time_to_quality.json")
+    p.add_argument("--out", type=Path, default=RESULTS / "time_to_quality.json")
     args = p.parse_args(argv)
     if args.iterations is not None:
         try:
@@ -472,9 +471,8 @@ def main(argv=None) -> int:
             p.error(f"--iterations wants integers, got {args.iterations!r}")
     if args.eval_every < 1 or args.samples < 1 or args.threads < 1:
         p.error("--eval-every, --samples and --threads must be positive")
-    from mrlib.threads import apply_policy
-
-    apply_policy(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    set_threads(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    print(describe(), flush=True)
     import tempfile
 
     import mrlib
@@ -483,9 +481,6 @@ def main(argv=None) -> int:
     targets = Targets(skate_margin_pct=args.skate_margin)
     keys = ["one", "four"] if args.set == "both" else [args.set]
     meta = {
-        "machine": platform.platform(),
-        "cpus": os.cpu_count(),
-        "torch": torch.__version__,
         "threads": args.threads,
         "commit": git_commit(),
         "date": time.strftime("%Y-%m-%d %H:%M:%S"),
@@ -519,8 +514,7 @@ def main(argv=None) -> int:
             f"GANimator projection from {measured['source']} (clip of {measured['frames']} "
             f"frames, load {measured['loadavg_at_end']}): {measured['hours']:.1f} h"
         )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps({"meta": meta, "sets": results}, indent=2, default=float) + "\n")
+    write_json("time_to_quality", {"meta": meta, "sets": results}, args.out)
     png = plot_curves(results, targets, args.out.with_suffix(".png"))
     print(f"\nwrote {args.out} and {png.name}")
     return 0

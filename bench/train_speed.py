@@ -15,7 +15,7 @@ the data is missing). One *iteration* is what trains the generator once:
 * **naive** (GANimator's published ``joint_train``): 5 critic steps, one adversarial
   generator step and one reconstruction step, each a fresh generation through every
   level, one clip per forward (a loop over clips), one optimizer step per level.
-* **mrlib** (``mrlib.train.Trainer.step``): 5 critic steps fed by one batched,
+* **mrlib** (``mrlib.training.trainer.Trainer.step``): 5 critic steps fed by one batched,
   gradient-free generation, then one generator step on the summed losses; all clips and
   both levels of the block in one batch, frozen levels' reconstructions cached.
 * **mrlib n_critic=2**: the same with the tutorial's critic ratio.
@@ -32,29 +32,25 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import resource
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import torch
+from common import ROOT, bandai_dir, describe, set_threads, write_json
 
-from mrlib.io.paths import default_data_dir
-
-ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = default_data_dir()
 STYLES = ("normal", "happy", "sad", "angry")
 
 
 def load_data(n_clips: int):
-    from mrlib.data import TrainingSet
+    from mrlib.training.data import TrainingSet
 
-    files = [DATA_DIR / "data" / f"dataset-1_walk_{s}_001.bvh" for s in STYLES[:n_clips]]
+    data_dir = bandai_dir(required=False) / "data"
+    files = [data_dir / f"dataset-1_walk_{s}_001.bvh" for s in STYLES[:n_clips]]
     if all(f.exists() for f in files):
         return TrainingSet.from_files(files), "bandai"
-    from mrlib.synthetic import synthetic_walk
+    from mrlib.datasets.synthetic import synthetic_walk
 
     names = ["walk_normal", "walk_happy", "walk_sad", "walk_normal"][:n_clips]
     clips = [synthetic_walk(s, seconds=6.0 + k, seed=k) for k, s in enumerate(names)]
@@ -70,7 +66,7 @@ class NaiveStep:
     clip separately (batch of one) and each level has its own optimizers."""
 
     def __init__(self, trainer):
-        from mrlib.pyramid import PackedLevels
+        from mrlib.model.pyramid import PackedLevels
 
         t = self.t = trainer
         c = t.config
@@ -106,7 +102,7 @@ class NaiveStep:
         return t.generator.run(lay, noises, conds, 0, stop, keep=True)  # with a graph, as GANimator
 
     def __call__(self):
-        from mrlib.losses import (
+        from mrlib.model.losses import (
             backward_velocity,
             body_kinematics,
             contact_consistency_loss,
@@ -172,10 +168,10 @@ def _current_rss_mib() -> float:
 
 # -- one measurement in a fresh process --------------------------------------------------------
 def measure(impl: str, n_clips: int, device: str, block: int, iters: int) -> dict:
-    from mrlib.config import paper
-    from mrlib.train import Trainer
+    from mrlib.model.config import paper
+    from mrlib.training.trainer import Trainer
 
-    torch.set_num_threads(int(os.environ.get("BENCH_THREADS", torch.get_num_threads())))
+    set_threads(int(os.environ.get("BENCH_THREADS", torch.get_num_threads())))
     data, source = load_data(n_clips)
     n_critic = 2 if impl == "mrlib_nc2" else 5
     cfg = paper().replace(device=device, n_critic=n_critic)
@@ -230,6 +226,7 @@ def main() -> None:
         print("RESULT " + json.dumps(measure(impl, int(n), dev, int(b), args.iters)))
         return
 
+    print(describe(), flush=True)
     devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
     rows = []
     for dev in devices:
@@ -275,18 +272,8 @@ def main() -> None:
         mem = f"{nv['peak_mem_mib']:.0f} / {mb['peak_mem_mib']:.0f}" if nv and mb else "-"
         lvs = f"{lv[0] + 1}-{lv[-1] + 1}"
         print(f"| {dev} | {n} | {lvs} | {f(nv)} | {f(mb)} | {sp} | {f(m2)} | {mem} |")
-    out_dir = ROOT / "bench" / "results"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    meta = {
-        "machine": platform.platform(),
-        "processor": platform.processor(),
-        "cpus": os.cpu_count(),
-        "torch": torch.__version__,
-        "iters": args.iters,
-        "loadavg_at_end": os.getloadavg(),
-    }
-    (out_dir / "train_speed.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2))
-    print(f"\nwrote {out_dir / 'train_speed.json'}")
+    meta = {"iters": args.iters, "loadavg_at_end": os.getloadavg()}
+    print(f"\nwrote {write_json('train_speed', {'meta': meta, 'rows': rows})}")
 
 
 if __name__ == "__main__":

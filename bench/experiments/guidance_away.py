@@ -7,21 +7,25 @@ For each label ``a`` and each reference ``r`` (``mean``, or each other label ``b
 planted as in ``generate``) under the per-level weights ``W_a + g (W_a - W_r)``: for
 ``mean`` that is ``GenerativeModel.guidance = g``, for a label ``b`` the blend
 ``(b, a, 1 + g)`` (a negative weight on ``b``, the FiLM embedding being linear in the
-condition). Prints the part's fidelity (``mrlib.constraints.part_fidelity``, the measure
+condition). Prints the part's fidelity (``mrlib.sampling.constraints.part_fidelity``, the measure
 of body-part composition) per label and reference.
 
-    python bench/guidance_away.py --checkpoint RUN/checkpoint.pt [--part lower] [--guidance 0.5]
+    python bench/experiments/guidance_away.py --checkpoint RUN/checkpoint.pt [--part lower] [--guidance 0.5]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
-from tutorial_checkpoint import add_checkpoint_arg, load
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
 
-from mrlib.constraints import part_fidelity
-from mrlib.footik import cleanup_foot_contacts
-from mrlib.sample import generate
+from common import add_checkpoint_arg, checkpoint_model
+
+from mrlib.sampling.cleanup import cleanup_foot_contacts
+from mrlib.sampling.constraints import part_fidelity
+from mrlib.sampling.generation import generate
 
 
 def main() -> int:
@@ -31,7 +35,7 @@ def main() -> int:
     ap.add_argument("--guidance", type=float, default=0.5, help="g [0.5]")
     ap.add_argument("--samples", type=int, default=10, help="samples per case [10]")
     a = ap.parse_args()
-    model, body = load(ap, a.checkpoint)
+    model, body = checkpoint_model(ap, a.checkpoint)
     length = 2 * int(model.lengths[:, -1].max())
     labs = model.labels
     print(f"{a.checkpoint}: {a.part} fidelity, g = {a.guidance:g}, {a.samples} samples\n")

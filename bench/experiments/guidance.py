@@ -5,13 +5,13 @@ For each ``--guidance`` value, ``--samples`` samples per label of twice the labe
 training clip (seed 0, one torch thread) from a checkpoint (default: the `tutorial`
 model of ``bench/condition_control.py``). Prints, averaged over the labels: condition
 fidelity of the whole body and of the upper and lower body alone
-(``mrlib.constraints.part_fidelity``, the measure of body-part composition), coverage of
+(``mrlib.sampling.constraints.part_fidelity``, the measure of body-part composition), coverage of
 the label's clip (eps 2 and 1), global and local diversity against it, and the raw
 samples' joint jerk (over the label's clip's) and foot skating; the figures except
 jerk and skating are of the cleaned samples.
 
-    python bench/guidance.py [--checkpoint ckpt.pt] [--guidance 0,0.25,0.5,1] [--samples 5]
-    python bench/guidance.py --guidance 0 --noise-scale 1,0.75,0.5 [--noise-levels coarse]
+    python bench/experiments/guidance.py [--checkpoint ckpt.pt] [--guidance 0,0.25,0.5,1] [--samples 5]
+    python bench/experiments/guidance.py --guidance 0 --noise-scale 1,0.75,0.5 [--noise-levels coarse]
 
 ``--noise-scale`` multiplies the sampling noise's sigma (every level, or with
 ``--noise-levels coarse`` level 1 only), a truncation of the noise as in BigGAN (Brock et
@@ -21,8 +21,13 @@ al. 2019): each value is measured at every guidance value.
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
-from tutorial_checkpoint import LabelClips, add_checkpoint_arg, load
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
+
+from common import add_checkpoint_arg, checkpoint_model
+from label_clips import LabelClips
 
 
 def main() -> int:
@@ -34,7 +39,7 @@ def main() -> int:
     ap.add_argument("--noise-levels", choices=["all", "coarse"], default="all",
                     help="levels whose noise --noise-scale scales [all]")  # fmt: skip
     a = ap.parse_args()
-    model, body = load(ap, a.checkpoint)
+    model, body = checkpoint_model(ap, a.checkpoint)
     clips = LabelClips(model, body)
     print(f"{a.checkpoint}: {a.samples} samples per label, twice the label's clip\n")
     print("| guidance | noise scale | fidelity % whole / upper / lower | worst part % "

@@ -1,11 +1,11 @@
 """Best of n by the model's own critics: does ranking a label's samples with the trained
 conditional critics pick the ones whose body parts keep the label?
 
-A route to body-part composition (``mrlib.constraints.generate_parts``, splice): each part
+A route to body-part composition (``mrlib.sampling.constraints.generate_parts``, splice): each part
 comes from a sample of its own label, so a part keeps its label as often as unmixed
 samples keep it on that part. Drawing n samples and keeping the one the critics like best
 is discriminator rejection sampling (Azadi et al., ICLR 2019) in its simplest form. The
-`tutorial` critics are projection critics (``mrlib.models.PatchCritic``):
+`tutorial` critics are projection critics (``mrlib.model.networks.PatchCritic``):
 ``D(x, c)_t = w * h(x)_t + <P c_t, g(x)_t>``, and ``g``'s channels belong to joints
 (skeleton-aware convolutions), so the label term splits by body part. Scores, each summed
 over the eight levels' critics on the sample's level outputs and averaged over frames:
@@ -15,30 +15,36 @@ over the eight levels' critics on the sample's level outputs and averaged over f
 * ``whole margin``: the same on every channel;
 * ``critic score``: ``D(x, c)`` with the sample's own label (realism and label together).
 
-Per label and part: the part's fidelity (``mrlib.constraints.part_fidelity``, the measure
+Per label and part: the part's fidelity (``mrlib.sampling.constraints.part_fidelity``, the measure
 of ``bench/constraints.py --only parts``) of all ``--samples`` samples, the correlation of
 each score with it over the samples, and the fidelity of the best-scored sample of each
 group of n (n = 2, 4, 8). Samples are twice the longest clip, as in
 ``bench/constraints.py``; seed 0; one torch thread.
 
-    python bench/critic_ranking.py [--checkpoint ckpt.pt] [--samples 32]
+    python bench/experiments/critic_ranking.py [--checkpoint ckpt.pt] [--samples 32]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
-from tutorial_checkpoint import add_checkpoint_arg
 
-from mrlib.checkpoint import load_checkpoint
-from mrlib.constraints import PARTS, part_fidelity
-from mrlib.features import features_to_motions
-from mrlib.models import build_critics, hidden_channel_joint
-from mrlib.pyramid import PackedLevels
-from mrlib.sample import label_inputs, label_weights, model_from_state, sample_features
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
+
+from common import add_checkpoint_arg, set_threads
+
+from mrlib.model.checkpoint import load_checkpoint
+from mrlib.model.networks import build_critics, hidden_channel_joint
+from mrlib.model.pyramid import PackedLevels
+from mrlib.model.trained import model_from_state
+from mrlib.representation.features import features_to_motions
+from mrlib.sampling.constraints import PARTS, part_fidelity
+from mrlib.sampling.generation import label_inputs, label_weights, sample_features
 
 GROUPS = (2, 4, 8)
 
@@ -75,7 +81,7 @@ def main() -> int:
     a = ap.parse_args()
     if not a.checkpoint.is_file():
         ap.error(f"{a.checkpoint} not found: run bench/condition_control.py first")
-    torch.set_num_threads(1)
+    set_threads(1)
     state = load_checkpoint(a.checkpoint)
     model = model_from_state(state)
     if not model.config.model.critic_condition:

@@ -8,14 +8,19 @@ samples coverage (eps 2 and 1), global and local diversity against the label's c
 condition fidelity and the skating share. Crossover figures at each value:
 ``python bench/condition_control.py --fine-noise F``.
 
-    python bench/fine_noise.py [--checkpoint ckpt.pt] [--fine 1,0.5,0] [--samples 5]
+    python bench/experiments/fine_noise.py [--checkpoint ckpt.pt] [--fine 1,0.5,0] [--samples 5]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
-from tutorial_checkpoint import LabelClips, add_checkpoint_arg, load
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
+
+from common import add_checkpoint_arg, checkpoint_model
+from label_clips import LabelClips
 
 
 def main() -> int:
@@ -24,7 +29,7 @@ def main() -> int:
     ap.add_argument("--fine", default="1,0.5,0", help="fine_noise values [1,0.5,0]")
     ap.add_argument("--samples", type=int, default=5, help="samples per label [5]")
     a = ap.parse_args()
-    model, body = load(ap, a.checkpoint)
+    model, body = checkpoint_model(ap, a.checkpoint)
     clips = LabelClips(model, body)
     print(f"{a.checkpoint}: {a.samples} samples per label, twice the label's clip\n")
     print("| fine_noise | jerk raw | jerk cleaned | coverage eps 2 / 1 % | global div. | "

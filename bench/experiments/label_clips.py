@@ -1,67 +1,24 @@
-"""The checkpoint the model-measuring benchmarks read: by default the Bandai `tutorial`
-model that ``bench/condition_control.py`` trains (seed 0), or any ``--checkpoint``."""
+"""A label model's training clips and the sampler measures that ``fine_noise.py`` and
+``guidance.py`` compare samples by (formerly ``bench/tutorial_checkpoint.py``)."""
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
 import numpy as np
-import torch
 
-import mrlib
-from mrlib.config import TrainConfig
-from mrlib.constraints import part_fidelity
-from mrlib.features import features_to_motion
-from mrlib.footik import cleanup_foot_contacts
-from mrlib.metrics import (
+from mrlib.metrics.paper import (
     condition_fidelity,
     coverage,
     global_diversity,
     local_diversity,
     metric_features,
 )
-from mrlib.motion import Motion
-from mrlib.plausibility import foot_skating, mean_jerk, motion_kinematics
-from mrlib.sample import GenerativeModel, generate, load_model
-
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT = ROOT / "outputs/condition_control/tutorial_seed0_detail100_mismatch0/checkpoint.pt"
-
-
-def add_checkpoint_arg(ap: argparse.ArgumentParser) -> None:
-    ap.add_argument("--checkpoint", type=Path, default=DEFAULT)
-
-
-def add_iterations_arg(ap: argparse.ArgumentParser, help: str) -> None:
-    """``--iterations N[,N...]``: one count for every block, or one per block."""
-    ap.add_argument(
-        "--iterations",
-        type=lambda v: tuple(int(n) for n in v.split(",")),
-        default=None,
-        metavar="N[,N...]",
-        help=help,
-    )
-
-
-def with_iterations(
-    cfg: TrainConfig, iterations: tuple[int, ...] | None
-) -> tuple[TrainConfig, str]:
-    """``cfg`` with ``--iterations`` applied, and the suffix of its run folder's name
-    (``_it1600``, ``_it3200-3200-800-800``; empty for the preset's own budget)."""
-    if iterations is None:
-        return cfg, ""
-    its = iterations * cfg.num_blocks if len(iterations) == 1 else iterations
-    suffix = "_it" + "-".join(str(n) for n in iterations)
-    return cfg.replace(block_iterations=its, checkpoint_every=0), suffix
-
-
-def load(ap: argparse.ArgumentParser, path: Path) -> tuple[GenerativeModel, object]:
-    """``(model, body)`` on one torch thread; a missing checkpoint is a usage error."""
-    if not path.is_file():
-        ap.error(f"{path} not found: run bench/condition_control.py first or pass --checkpoint")
-    torch.set_num_threads(1)
-    return load_model(path), mrlib.load_body_model()
+from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
+from mrlib.model.trained import GenerativeModel
+from mrlib.representation.features import features_to_motion
+from mrlib.representation.motion import Motion
+from mrlib.sampling.cleanup import cleanup_foot_contacts
+from mrlib.sampling.constraints import part_fidelity
+from mrlib.sampling.generation import generate
 
 
 class LabelClips:

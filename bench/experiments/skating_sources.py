@@ -15,7 +15,7 @@ prints the foot skating (share of contact vertex-frames whose feet move faster t
    ends), along or across the walking direction, and with the noise of levels 2 to L
    switched off (only z_1 drawn, as in the reconstructions).
 
-    python bench/skating_sources.py [--checkpoint ckpt.pt] [--samples 2] [--frames 400]
+    python bench/experiments/skating_sources.py [--checkpoint ckpt.pt] [--samples 2] [--frames 400]
 """
 
 from __future__ import annotations
@@ -23,17 +23,26 @@ from __future__ import annotations
 import argparse
 import copy
 import dataclasses
+import sys
+from pathlib import Path
 
 import numpy as np
 import torch
 from scipy.ndimage import binary_erosion, gaussian_filter1d
-from tutorial_checkpoint import add_checkpoint_arg, load
 
-from mrlib.features import features_to_motion
-from mrlib.plausibility import foot_skating, motion_kinematics
-from mrlib.pyramid import build_pyramid, level_fps
-from mrlib.rotations import axis_angle_to_6d, axis_angle_to_matrix, sixd_to_axis_angle
-from mrlib.sample import generate, reconstruct
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
+
+from common import add_checkpoint_arg, checkpoint_model
+
+from mrlib.metrics.plausibility import foot_skating, motion_kinematics
+from mrlib.model.pyramid import build_pyramid, level_fps
+from mrlib.representation.features import features_to_motion
+from mrlib.representation.rotations import (
+    axis_angle_to_6d,
+    axis_angle_to_matrix,
+    sixd_to_axis_angle,
+)
+from mrlib.sampling.generation import generate, reconstruct
 
 LEGS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
 LEGS_AND_PELVIS = (0, *LEGS)
@@ -45,7 +54,7 @@ def main() -> int:
     ap.add_argument("--samples", type=int, default=2, help="random samples per label [2]")
     ap.add_argument("--frames", type=int, default=400, help="frames per random sample [400]")
     a = ap.parse_args()
-    model, body = load(ap, a.checkpoint)
+    model, body = checkpoint_model(ap, a.checkpoint)
     fps, L = model.fps, model.num_levels
 
     def skate(m) -> np.ndarray:
