@@ -28,19 +28,21 @@ env: $(READY)
 demo: $(READY)
 	$(BIN)/mrlib demo --out outputs
 
-## Lint, unit and real-data tests, and every notebook executed headless (smoke budget,
-## models shared between notebooks through a fresh cache folder).
+## Lint, unit and real-data tests, and every notebook executed headless
+## (smoke budget, models shared between notebooks through a fresh cache folder), on every
+## core: one pytest-xdist worker per CPU, a test file (or the notebooks) per worker.
+TEST_JOBS ?= auto
 test: $(READY)
-	$(BIN)/ruff check mrlib tests bench tools notebooks/conftest.py
-	MRLIB_QUICK=1 MRLIB_CACHE_DIR=$${MRLIB_TEST_CACHE:-$$(mktemp -d)} $(BIN)/python -m pytest --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
+	$(BIN)/ruff check mrlib tests bench tools conftest.py notebooks/conftest.py
+	MRLIB_QUICK=1 MRLIB_CACHE_DIR=$${MRLIB_TEST_CACHE:-$$(mktemp -d)} $(BIN)/python -m pytest -n $(TEST_JOBS) --dist loadgroup --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
 
 lint: $(READY)
-	$(BIN)/ruff check mrlib tests bench tools notebooks/conftest.py
-	$(BIN)/ruff format --check mrlib tests bench tools notebooks/conftest.py
+	$(BIN)/ruff check mrlib tests bench tools conftest.py notebooks/conftest.py
+	$(BIN)/ruff format --check mrlib tests bench tools conftest.py notebooks/conftest.py
 
 format: $(READY)
-	$(BIN)/ruff format mrlib tests bench tools notebooks/conftest.py
-	$(BIN)/ruff check --fix mrlib tests bench tools notebooks/conftest.py
+	$(BIN)/ruff format mrlib tests bench tools conftest.py notebooks/conftest.py
+	$(BIN)/ruff check --fix mrlib tests bench tools conftest.py notebooks/conftest.py
 
 ## Execute every notebook in place at its default budget, so the committed files carry
 ## their figures (minutes each on 2 CPU cores; models are shared through mrlib's cache).

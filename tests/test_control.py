@@ -412,8 +412,7 @@ def detail_model(tmp_path_factory, body):
     """Two Bandai walks (angry, sad) at 15 fps, the ``tutorial`` losses (with the
     detail-statistics term) at 6 levels and 300 iterations per block (2-5 min on 2 cores)."""
     assert tm.detail_config().loss.detail > 0
-    out = tmp_path_factory.mktemp("detail_model")
-    return tm.train_recipe(tm.detail_clips(BANDAI, body), tm.detail_config(seed=0), out, body)
+    return tm.shared_detail_model(BANDAI, body, tmp_path_factory)
 
 
 @pytest.mark.slow

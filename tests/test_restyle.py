@@ -285,9 +285,9 @@ def _restyle_claim(r: np.ndarray) -> bool:
 @pytest.fixture(scope="module")
 def detail_model(tmp_path_factory, body):
     """Two Bandai walks (angry, sad) at 15 fps, the ``tutorial`` losses at 6 levels and
-    300 iterations per block (2-5 min on 2 cores): recipe 2 of ``trained_models``."""
-    out = tmp_path_factory.mktemp("restyle_detail_model")
-    return tm.train_recipe(tm.detail_clips(BANDAI, body), tm.detail_config(seed=0), out, body)
+    300 iterations per block (2-5 min on 2 cores): recipe 2 of ``trained_models``, the
+    same model ``test_control.py`` uses, trained once for both."""
+    return tm.shared_detail_model(BANDAI, body, tmp_path_factory)
 
 
 @pytest.mark.slow

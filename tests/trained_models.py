@@ -89,6 +89,21 @@ def detail_config(seed: int = 0, iterations: int = 300, detail: float | None = N
     )
 
 
+_SHARED: dict = {}
+
+
+def shared_detail_model(data_dir: Path, body, tmp_path_factory):
+    """The recipe-2 model at training seed 0, trained once per test process and shared by
+    the test files that use it (``test_control.py``, ``test_restyle.py``: one xdist
+    group, see the root ``conftest.py``)."""
+    if "detail" not in _SHARED:
+        out = tmp_path_factory.mktemp("detail_model")
+        _SHARED["detail"] = train_recipe(
+            detail_clips(data_dir, body), detail_config(seed=0), out, body
+        )
+    return _SHARED["detail"]
+
+
 def detail_clips(data_dir: Path, body):
     import mrlib
 
