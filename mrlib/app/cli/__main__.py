@@ -1,0 +1,7 @@
+"""``python -m mrlib.app.cli``: the ``mrlib`` command."""
+
+import sys
+
+from mrlib.app.cli import main
+
+sys.exit(main())

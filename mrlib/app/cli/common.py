@@ -1,0 +1,265 @@
+"""What the commands share: argument types, option blocks (each defined once here and
+added by every command that takes it), the sample writer and the one-line error.
+
+Heavy mrlib modules are imported inside the functions, so that building the parser
+stays light.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from mrlib.errors import MrlibError
+
+MAX_SEED = 2**32 - 1  # numpy's and torch's seeds are 32/64-bit unsigned
+MAX_SAMPLE_SECONDS = (
+    600.0  # one sample: a 10-minute walk stays within mrlib.representation.motion's 1000 m
+)
+
+
+# -- argument types ------------------------------------------------------------------------
+def parse_seed(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
+    if not 0 <= v <= MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be in [0, {MAX_SEED}], got {v}")
+    return v
+
+
+def parse_device(text: str) -> str:
+    from mrlib.model.config import ConfigError, check_device
+
+    try:
+        return check_device(text)
+    except ConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def parse_iterations(text: str | None) -> tuple[int, ...] | None:
+    if text is None:
+        return None
+    try:
+        its = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--iterations wants integers, got {text!r}") from None
+    if any(i <= 0 for i in its):
+        raise argparse.ArgumentTypeError("--iterations must be positive")
+    return its
+
+
+def parse_steps(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
+    return n
+
+
+def parse_non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
+    return value
+
+
+def parse_threads(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants a positive integer, got {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return n
+
+
+# -- presets -------------------------------------------------------------------------------
+def preset_choices(kind: str) -> list[str]:
+    from mrlib.model.config import preset_names
+
+    return preset_names(kind)
+
+
+def preset_help(kind: str) -> str:
+    from mrlib.model.config import describe_presets
+
+    return describe_presets(kind)
+
+
+# -- option blocks -------------------------------------------------------------------------
+def threads_option(p) -> None:
+    """``--threads``: every command takes it (``mrlib.threads``)."""
+    p.add_argument(
+        "--threads",
+        type=parse_threads,
+        default=None,
+        metavar="N",
+        help="torch threads for the CPU work [default: OMP_NUM_THREADS if set, else half the "
+        "usable CPUs, 1 on 2 cores; see mrlib.threads]",
+    )
+
+
+def joint_map_option(p) -> None:
+    p.add_argument(
+        "--joint-map",
+        default=None,
+        metavar="MAP",
+        help="BVH only: a shipped map name or a JSON file {smpl_joint: bvh_joint} (default: "
+        "the shipped map that fits, else one recognised from the skeleton)",
+    )
+
+
+def device_option(p, *, resume: bool = False) -> None:
+    """``--device``: cpu by default, or (``resume``) the checkpoint's when resuming."""
+    if resume:
+        p.add_argument(
+            "--device",
+            type=parse_device,
+            default=None,
+            help="cpu or cuda [default: cpu; with --resume, the checkpoint's]",
+        )
+    else:
+        p.add_argument(
+            "--device", type=parse_device, default="cpu", help="cpu or cuda [default: cpu]"
+        )
+
+
+def overwrite_option(p, help: str) -> None:
+    p.add_argument("--overwrite", action="store_true", help=help)
+
+
+def progress_option(p) -> None:
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def iterations_option(p, help: str) -> None:
+    """``--iterations N[,N...]`` of ``train`` and ``train-speech``."""
+    p.add_argument(
+        "--iterations", type=parse_iterations, default=None, metavar="N[,N...]", help=help
+    )
+
+
+def run_options(p, *, out: Path, out_help: str, overwrite_help: str) -> None:
+    """``--seed --device --out --resume --overwrite`` of ``train`` and ``train-speech``."""
+    p.add_argument(
+        "--seed", type=parse_seed, default=None, help="random seed (default: the preset's)"
+    )
+    device_option(p, resume=True)
+    p.add_argument("--out", type=Path, default=out, help=out_help)
+    p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
+    overwrite_option(p, overwrite_help)
+
+
+def sampler_options(p) -> None:
+    """``--fine-noise`` and ``--guidance`` (applied by :func:`with_sampler`)."""
+    p.add_argument(
+        "--fine-noise",
+        type=parse_non_negative,
+        default=None,
+        metavar="S",
+        help="the finest level's noise as a share of its training sigma [default: 1, the "
+        "paper's sampler]; lower: less frame-to-frame jitter and less of the fine label's "
+        "detail in crossovers (0: as smooth as the training clips)",
+    )
+    p.add_argument(
+        "--guidance",
+        type=parse_non_negative,
+        default=None,
+        metavar="G",
+        help="label models: exaggerate the label, each level's condition pushed G times "
+        "its distance away from the mean of all labels [default: 0, the paper's sampler]; "
+        "0.25 sharpens the label at about the same coverage, 1 and more leave the training "
+        "poses",
+    )
+
+
+def sample_output_options(
+    p, *, out: Path, render_help: str, glb_help: str, overwrite_help: str
+) -> None:
+    """The sampler options, then ``--render --glb --device --out --overwrite
+    --no-progress`` of ``sample`` and ``restyle`` (written by :func:`write_samples`)."""
+    sampler_options(p)
+    p.add_argument("--render", action="store_true", help=render_help)
+    p.add_argument("--glb", action="store_true", help=glb_help)
+    device_option(p)
+    p.add_argument("--out", type=Path, default=out)
+    overwrite_option(p, overwrite_help)
+    progress_option(p)
+
+
+# -- helpers of the commands ---------------------------------------------------------------
+def with_sampler(model, args, guidance: bool = True):
+    """``model`` with ``--fine-noise`` and (unless ``guidance=False``) ``--guidance``
+    applied where given (``GenerativeModel.fine_noise``, ``.guidance``; a speech model
+    takes the first only)."""
+    if args.fine_noise is not None:
+        model.fine_noise = args.fine_noise
+    if guidance and getattr(args, "guidance", None) is not None:
+        if model.generator.cond_dim != len(model.labels):
+            raise MrlibError("--guidance applies to label models only")
+        model.guidance = args.guidance
+    return model
+
+
+def sample_files(tag: str, args, count: int) -> list[dict[str, Path]]:
+    """Per sample, the files to write: ``<tag>_seed<seed>_<i>`` and one suffix per format,
+    joined as text (a tag such as ``walk-run-0.5`` or ``talk.v1`` keeps its dots: the name is
+    never cut at its last dot), each checked to stay in ``--out``."""
+    from mrlib.io.paths import inside, safe_component
+
+    tag = safe_component(tag, fallback="sample")  # labels come from files
+    kinds = [".npz", ".bvh"]
+    if getattr(args, "glb", False):
+        kinds.append(".glb")
+    if args.render:
+        kinds.append(".png")
+    return [
+        {k: inside(args.out, args.out / f"{tag}_seed{args.seed}_{i}{k}") for k in kinds}
+        for i in range(count)
+    ]
+
+
+def write_samples(motions, tag: str, args) -> int:
+    from mrlib.io import save_motion
+    from mrlib.io.outputs import check_writable, write_bytes
+
+    motions = motions if isinstance(motions, list) else [motions]
+    args.out.mkdir(parents=True, exist_ok=True)
+    files = sample_files(tag, args, len(motions))
+    for paths in files:  # refuse before writing any, not after half of them
+        for path in paths.values():
+            check_writable(path, overwrite=args.overwrite)
+    for m, paths in zip(motions, files, strict=True):
+        for kind, path in paths.items():
+            if kind == ".png":
+                import imageio.v3 as iio
+
+                from mrlib.viz.render import evenly_spaced_frames, render_meshes
+
+                image = render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
+                write_bytes(path, iio.imwrite("<bytes>", image, extension=".png"),
+                            overwrite=args.overwrite)  # fmt: skip
+            else:
+                save_motion(m, path, overwrite=args.overwrite)
+        stem = str(paths[".npz"])[: -len(".npz")]
+        kinds = "/".join(k for k in paths if k != ".png")
+        print(f"wrote {stem}{kinds}: {m}")
+    return 0
+
+
+def describe(e: BaseException) -> str:
+    """One line for an error: the file, the problem, and for OS errors what failed."""
+    if isinstance(e, OSError) and not isinstance(e, MrlibError):
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        return f"{where}{e.strerror or e}"
+    if isinstance(e, MemoryError):
+        return "out of memory (try a shorter clip, fewer samples or a lower --fps)"
+    return str(e) or type(e).__name__  # mrlib's errors name the file or flag themselves

@@ -1,0 +1,80 @@
+"""``mrlib info``: summarise a motion file (and, for a BVH, its joint map)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from mrlib.app.cli.common import joint_map_option
+from mrlib.errors import MrlibError
+
+
+def add_info(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "info",
+        help="print a summary of a motion file",
+        description="Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it. For "
+        "a BVH, also the joint map used (shipped, given or recognised, with its confidence) "
+        "and the retargeting error of each SMPL joint.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib info clip.bvh\n  mrlib info clip.bvh --write-map map.json\n"
+        "  mrlib info clip.bvh --joint-map map.json   # after editing it",
+    )
+    p.add_argument("path", type=Path)
+    p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first")
+    joint_map_option(p)
+    p.add_argument(
+        "--write-map",
+        type=Path,
+        default=None,
+        metavar="JSON",
+        help="BVH only: write the joint map used to this file, to edit and pass back with "
+        "--joint-map",
+    )
+    return p
+
+
+def cmd_info(args) -> int:
+    from mrlib.io import JointMap, load_motion
+
+    m = load_motion(args.path, fps=args.fps, joint_map=args.joint_map)
+    print(m)
+    print(f"  duration     {m.duration:.2f} s")
+    print(f"  label        {m.label}")
+    print(f"  betas        {[round(float(b), 3) for b in m.betas]}")
+    span = m.trans.max(0) - m.trans.min(0)
+    print(f"  root travel  x {span[0]:.2f} m, y {span[1]:.2f} m, z {span[2]:.2f} m")
+    table = ("joint_map_pairs", "retarget_joint_error_cm", "joint_map_report")
+    for k, v in m.meta.items():
+        if k not in table:
+            print(f"  meta.{k:<10} {f'{v:.4g}' if isinstance(v, float) else v}")
+    if "joint_map_pairs" not in m.meta:
+        if args.write_map is not None:
+            raise MrlibError(f"{args.path}: --write-map is for BVH files (this one has no map)")
+        return 0
+    pairs, errors = m.meta["joint_map_pairs"], m.meta.get("retarget_joint_error_cm", {})
+    if "joint_map_report" in m.meta:
+        print("  " + m.meta["joint_map_report"].replace("\n", "\n  "))
+    if m.meta.get("retarget_mode") == "rotations":
+        print(
+            "  body fit: motion transferred by rotations onto SMPL's mean shape (the source's "
+            f"proportions are beyond its shape space), the root scaled by {m.meta['scale']:.3g}"
+        )
+    elif "retarget_mode" in m.meta:
+        pinned = m.meta.get("retarget_betas_at_bound") or []
+        print(
+            "  body fit: motion transferred by positions; "
+            + (f"betas {pinned} at the shape bound" if pinned else "no beta at the shape bound")
+        )
+    print(f"  {'SMPL joint':<15} {'source joint':<28} error cm")
+    from mrlib.representation.skeleton import JOINT_NAMES
+
+    for name in JOINT_NAMES:
+        src = pairs.get(name)
+        err = f"{errors[name]:8.2f}" if name in errors else "       -"
+        print(f"  {name:<15} {src or '- (follows its parent)':<28} {err}")
+    if args.write_map is not None:
+        desc = f"written by `mrlib info` for {Path(args.path).name} ({m.meta['joint_map']} map)"
+        JointMap("custom", pairs, desc).to_json(args.write_map)
+        print(f"wrote {args.write_map}: edit it and pass it back with --joint-map")
+    return 0

@@ -1,0 +1,340 @@
+"""``mrlib sample``: generate motion from a trained model (a label, a crossover, a blend,
+body parts, speech), optionally under a path, keyframes, a loop or a continuation."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from mrlib.app.cli.common import (
+    MAX_SAMPLE_SECONDS,
+    MAX_SEED,
+    parse_seed,
+    parse_steps,
+    sample_output_options,
+    with_sampler,
+    write_samples,
+)
+from mrlib.errors import MrlibError
+
+MAX_SAMPLES = 1000  # --num: each sample is generated, cleaned up and written (2-4 files)
+MAX_SAMPLE_FRAMES = 200_000  # all samples of one command (~0.5 GB while generating)
+
+
+def _check_sample_frames(frames: int, fps: float, args) -> None:
+    """Refuse, before generating, samples longer than ``MAX_SAMPLE_SECONDS`` or more
+    frames in all than ``MAX_SAMPLE_FRAMES``."""
+    what = "--continue: the clip plus --seconds" if args.prefix is not None else "--seconds"
+    if frames > MAX_SAMPLE_SECONDS * fps + 1:
+        raise MrlibError(
+            f"{what}: {frames / fps:.0f} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s mrlib "
+            "generates in one sample (a longer walk leaves the 1000 m a motion may span); "
+            "generate shorter pieces and join them with --continue"
+        )
+    if frames * args.num > MAX_SAMPLE_FRAMES:
+        raise MrlibError(
+            f"--num: {args.num} samples of {frames} frames are {frames * args.num} frames, more "
+            f"than the {MAX_SAMPLE_FRAMES} one command generates; use fewer --num or a "
+            "shorter --seconds, and run again with another --seed"
+        )
+
+
+def _sample_count(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer >= 1, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
+    if v > MAX_SAMPLES:
+        raise argparse.ArgumentTypeError(
+            f"must be at most {MAX_SAMPLES}, got {v} (for more, run again with another --seed)"
+        )
+    return v
+
+
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and 0 < v <= 24 * 3600):
+        raise argparse.ArgumentTypeError(f"must be a number of seconds in (0, 86400], got {text!r}")
+    return v
+
+
+def _parse_range(spec: str) -> tuple[str, tuple[int, int]]:
+    try:
+        label, levels = spec.rsplit(":", 1)
+        a, b = (int(v) for v in levels.split("-"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LABEL:FIRST-LAST, got {spec!r}") from None
+    return label, (a, b)
+
+
+def add_sample(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "sample",
+        help="generate motion from a trained model",
+        description="Generate new motion. Choose the condition with --label, assign conditions to "
+        "level ranges with --crossover (coarse levels first), or blend two labels with --blend. "
+        "Writes one .npz (SMPL parameters) and one .bvh per sample, and a mesh render with --render.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10\n"
+        "  mrlib sample ckpt.pt --crossover walk_sad:1-4 walk_happy:5-8 --num 4 --render\n"
+        "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5\n"
+        "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render\n"
+        "  mrlib sample ckpt.pt --label walk_happy --path circle:2 --seconds 20\n"
+        "  mrlib sample ckpt.pt --parts upper=walk_happy,lower=walk_sad --sharpen\n"
+        "  mrlib sample ckpt.pt --label walk_sad --loop --seconds 4\n"
+        "  mrlib sample ckpt.pt --label walk_sad --keyframes kf.npz --seconds 6\n"
+        "  mrlib sample ckpt.pt --label walk_sad --continue clip.bvh --seconds 5",
+    )
+    p.add_argument("checkpoint", type=Path)
+    g = p.add_mutually_exclusive_group()
+    g.add_argument(
+        "--label", default=None, help="condition for every level (default: the first label)"
+    )
+    g.add_argument(
+        "--crossover",
+        nargs="+",
+        type=_parse_range,
+        metavar="LABEL:A-B",
+        help="conditions per level range, e.g. walk_sad:1-4 walk_happy:5-8",
+    )
+    g.add_argument(
+        "--blend",
+        nargs=3,
+        metavar=("LABEL_A", "LABEL_B", "W"),
+        help="interpolate the two label embeddings with weight W of B (0..1) at every level",
+    )
+    g.add_argument(
+        "--audio",
+        type=Path,
+        default=None,
+        help="speech-conditioned models: gestures for this audio file (.wav/.flac), as long as it",
+    )
+    g.add_argument(
+        "--parts",
+        type=_parse_parts,
+        default=None,
+        metavar="PART=LABEL,...",
+        help="a label per body part (upper, lower, left_arm, right_arm), e.g. "
+        "upper=walk_happy,lower=walk_sad",
+    )
+    p.add_argument(
+        "--in-step",
+        action="store_true",
+        help="with --parts: retime each part to the gait of the part holding the pelvis, so "
+        "the arms swing in step with the legs (mrlib.sampling.constraints.phase_align)",
+    )
+    p.add_argument(
+        "--sharpen",
+        type=parse_steps,
+        nargs="?",
+        const=None,
+        default=0,
+        metavar="N",
+        help="with --parts: fit the noise for N Adam steps (default when given without N: "
+        "mrlib.sampling.constraints.SHARPEN_STEPS) so that each part's windows are nearer its own "
+        "label's training clips than any other label's; seconds per sample instead of "
+        "milliseconds (docs/results.md 'Body parts')",
+    )
+    c = p.add_mutually_exclusive_group()
+    c.add_argument(
+        "--path",
+        default=None,
+        metavar="SPEC",
+        help="walk a ground path: circle:R, circle-right:R, eight:R, line:L (metres) or a CSV "
+        "of x,z[,t]; --seconds defaults to the path's times or its length at the label's pace",
+    )
+    c.add_argument(
+        "--keyframes",
+        type=Path,
+        default=None,
+        metavar="NPZ",
+        help="hold these keyframes (mrlib.sampling.constraints.save_keyframes); needs --seconds",
+    )
+    c.add_argument("--loop", action="store_true", help="a seamless loop (the end joins the start)")
+    c.add_argument(
+        "--continue",
+        dest="prefix",
+        type=Path,
+        default=None,
+        metavar="MOTION",
+        help="continue this motion file for --seconds more",
+    )
+    p.add_argument(
+        "--seconds",
+        type=_seconds,
+        default=None,
+        help="length in seconds (default: a training clip's)",
+    )
+    p.add_argument(
+        "--fit-steps",
+        type=parse_steps,
+        default=None,
+        metavar="N",
+        help="Adam steps of the noise fit for --keyframes and --continue (0: none; "
+        "default: the library's, 300 for keyframes and 100 for continuation)",
+    )
+    p.add_argument(
+        "--num",
+        type=_sample_count,
+        default=1,
+        help=f"number of samples, 1 to {MAX_SAMPLES} [default: 1]",
+    )
+    p.add_argument("--seed", type=parse_seed, default=0, help="random seed [default: 0]")
+    p.add_argument(
+        "--raw",
+        action="store_true",
+        help="skip the foot-contact clean-up (analytic leg IK that plants the feet while "
+        "they are labelled in contact; on by default)",
+    )
+    p.add_argument("--fix-contacts", action="store_true", help=argparse.SUPPRESS)  # the default now
+    sample_output_options(
+        p,
+        out=Path("outputs/samples"),
+        render_help="also write a mesh render (PNG) per sample",
+        glb_help="also write a .glb per sample: the skinned body mesh with the animation",
+        overwrite_help="replace sample files already in --out (refused otherwise)",
+    )
+    return p
+
+
+def _parse_parts(text: str) -> dict[str, str]:
+    from mrlib.sampling.constraints import parse_parts
+
+    try:
+        return parse_parts(text)
+    except MrlibError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def _constrained(model, kw: dict, length: int | None, args) -> list:
+    """Samples under --path / --keyframes / --loop / --continue (one per seed)."""
+    from mrlib.sampling import constraints as C
+
+    fit = {} if args.fit_steps is None else {"steps": args.fit_steps}
+    fit["progress"] = not args.no_progress
+    out = []
+    for b in range(args.num):
+        seed = args.seed + b
+        if args.path is not None:
+            m = C.generate_on_path(model, args.path, seconds=args.seconds, seed=seed,
+                                   clean=not args.raw, **kw)  # fmt: skip
+        elif args.keyframes is not None:
+            if length is None:
+                raise MrlibError("--keyframes needs --seconds (the length of the motion)")
+            kfs = C.load_keyframes(args.keyframes)
+            m = C.generate_with_keyframes(
+                model, kfs, length, seed=seed, clean=not args.raw, **fit, **kw
+            )
+        elif args.loop:
+            m = C.generate_loop(model, length=length, seed=seed, fix_contacts=not args.raw, **kw)
+        else:
+            from mrlib.io import load_motion
+
+            if args.seconds is None:
+                raise MrlibError("--continue needs --seconds (how much to add)")
+            prefix = load_motion(args.prefix)
+            frames = max(1, round(args.seconds * model.fps))
+            # the prefix is resampled to the model's rate: its duration counts, not its frames
+            _check_sample_frames(round(prefix.duration * model.fps) + frames, model.fps, args)
+            m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **fit, **kw)
+        out.append(m)
+    return out
+
+
+def cmd_sample(args) -> int:
+    from mrlib.model.trained import load_model
+    from mrlib.sampling.generation import generate
+
+    constrained = args.path or args.keyframes or args.loop or args.prefix
+    if args.seed + args.num - 1 > MAX_SEED:
+        raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
+    if args.in_step and not args.parts:
+        raise MrlibError("--in-step applies to --parts only")
+    if args.sharpen != 0 and not args.parts:
+        raise MrlibError("--sharpen applies to --parts only")
+    if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
+        raise MrlibError("--fit-steps applies to --keyframes and --continue only")
+    if args.audio is not None:
+        if constrained and not args.path:
+            raise MrlibError("with --audio only --path applies (keyframes, loops and "
+                             "continuation need a label model)")  # fmt: skip
+        motions, tag = _audio_samples(args)
+        if args.path:
+            from mrlib.sampling.constraints import follow_path
+
+            motions = [follow_path(m, args.path, clean=not args.raw) for m in motions]
+        return write_samples(motions, tag, args)
+    model = with_sampler(load_model(args.checkpoint, device=args.device), args)
+    if model.generator.cond_dim != len(model.labels):
+        raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
+    length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
+    if length is not None:
+        _check_sample_frames(length, model.fps, args)
+    if args.parts:
+        if constrained:
+            raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
+        from mrlib.sampling.constraints import SHARPEN_STEPS, generate_parts
+
+        sharpen = SHARPEN_STEPS if args.sharpen is None else args.sharpen
+        motions = generate_parts(model, args.parts, length, seed=args.seed, num_samples=args.num,
+                                 fix_contacts=not args.raw, align_gait=args.in_step,
+                                 sharpen=sharpen, progress=not args.no_progress)  # fmt: skip
+        return write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
+    kw = {}
+    if args.crossover:
+        kw["conditions"] = args.crossover
+        tag = "+".join(f"{lab}{a}-{b}" for lab, (a, b) in args.crossover)
+    elif args.blend:
+        a, b, w = args.blend
+        try:
+            w = float(w)
+        except ValueError:
+            raise MrlibError(f"--blend weight must be a number in [0, 1], got {w!r}") from None
+        if not 0 <= w <= 1:
+            raise MrlibError(f"--blend weight must be in [0, 1], got {w:g}")
+        kw["blend"] = (a, b, w)
+        tag = f"{a}-{b}-{float(w):g}"
+    else:
+        kw["condition"] = args.label if args.label is not None else model.labels[0]
+        tag = str(kw["condition"])
+    if constrained:
+        what = (
+            "path"
+            if args.path
+            else "keyframes"
+            if args.keyframes
+            else "loop"
+            if args.loop
+            else "continued"
+        )
+        return write_samples(_constrained(model, kw, length, args), f"{tag}_{what}", args)
+    motions = generate(
+        model,
+        length=length,
+        seed=args.seed,
+        num_samples=args.num,
+        fix_contacts=not args.raw,
+        **kw,
+    )
+    return write_samples(motions, tag, args)
+
+
+def _audio_samples(args):
+    from mrlib.speech import generate_from_audio, load_speech_model
+
+    if args.seconds is not None:
+        raise MrlibError(
+            "--seconds does not apply to --audio: the motion lasts as long as the audio"
+        )
+    model = load_speech_model(args.checkpoint, device=args.device)
+    with_sampler(model.model, args)
+    motions = generate_from_audio(
+        model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=not args.raw
+    )
+    return motions, args.audio.stem

@@ -1,0 +1,381 @@
+"""``mrlib train`` and ``mrlib train-speech``: train a label model, or a speech-conditioned
+one. Their shared options (``--iterations``, ``--seed --device --out --resume
+--overwrite``, ``--no-progress``) are the blocks in :mod:`mrlib.app.cli.common`."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import math
+import warnings
+from pathlib import Path
+
+from mrlib.app.cli.common import (
+    iterations_option,
+    joint_map_option,
+    preset_choices,
+    preset_help,
+    progress_option,
+    run_options,
+)
+from mrlib.errors import MrlibError
+
+
+def _level_count(text: str) -> int:
+    from mrlib.model.config import MAX_LEVELS
+
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"wants an integer, got {text!r}") from None
+    if not 1 <= v <= MAX_LEVELS:
+        raise argparse.ArgumentTypeError(
+            f"must be in [1, {MAX_LEVELS}], got {v} (the paper uses 8; a level needs about "
+            "4/3 times the frames of the one below)"
+        )
+    return v
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}")
+    return v
+
+
+def _short(name: str) -> str:
+    return name.removeprefix("speech_")
+
+
+def _preset_fps(name: str) -> float | None:
+    from mrlib.model.config import PRESET_FPS
+
+    return PRESET_FPS.get(name)
+
+
+@contextlib.contextmanager
+def _retarget_check(accept: bool):
+    """Loads inside refuse BVH clips retargeted with an error above the threshold (their
+    RetargetWarning), unless ``accept``; other warnings pass through."""
+    from mrlib.io.retarget import RetargetWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    bad = []
+    for w in caught:
+        if issubclass(w.category, RetargetWarning):
+            bad.append(str(w.message))
+        if not issubclass(w.category, RetargetWarning) or accept:
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    if bad and not accept:
+        raise MrlibError(
+            f"{len(bad)} clip(s) retargeted with a joint error above the threshold (or joint "
+            "angles no person holds); fix their joint map, or pass --accept-retarget-error "
+            "to train on them anyway:\n  " + "\n  ".join(bad)
+        )
+
+
+def _refuse_on_resume(args, options: dict[str, str]) -> None:
+    """A resumed run continues exactly as it was configured (its checkpoint holds the
+    config and the data), so an option that would change it is an error, not silently
+    dropped. ``options``: attribute name -> option as written."""
+    given = [flag for name, flag in options.items() if getattr(args, name) not in (None, False, [])]
+    if given:
+        raise MrlibError(
+            f"--resume continues the run as it was configured; {', '.join(given)} cannot "
+            "change it (start a new run in another --out folder instead)"
+        )
+
+
+# -- train ---------------------------------------------------------------------------------
+def add_train(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "train",
+        help="train a model on a few labelled clips",
+        description="Train the multi-resolution GAN on one or more clips. Each clip is one condition "
+        "(its label comes from the file: the npz 'label' key, the Bandai JSON next to a BVH, or else "
+        "the file name). Writes checkpoint.pt, checkpoint.pt.json (the config) and losses.csv to --out.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib train data_samples/*.npz --out runs/samples\n"
+        "  mrlib train a.bvh b.bvh --labels calm angry --preset paper --device cuda --out runs/ab\n"
+        "  mrlib train --resume runs/ab/checkpoint.pt --out runs/ab\n"
+        "  mrlib train data_samples/*.npz --preset demo --out runs/demo\n\n"
+        "presets (--preset, mrlib.model.config.PRESETS):\n" + preset_help("labels"),
+    )
+    p.add_argument(
+        "clips", nargs="*", type=Path, help="motion files (.bvh, .npz, EasyMocap folders)"
+    )
+    p.add_argument(
+        "--labels", nargs="+", default=None, help="one label per clip (default: from the files)"
+    )
+    p.add_argument(
+        "--preset",
+        default=None,
+        choices=preset_choices("labels"),
+        help="training schedule, one of the presets listed below; 'demo' also resamples "
+        "the clips to its frame rate unless --fps is given [default: tutorial]",
+    )
+    iterations_option(
+        p,
+        "iterations per block, overriding the preset (one value for all blocks, or one per block)",
+    )
+    p.add_argument(
+        "--levels",
+        type=_level_count,
+        default=None,
+        help="number of pyramid levels (overrides the preset)",
+    )
+    p.add_argument(
+        "--lr",
+        type=_positive_float,
+        default=None,
+        metavar="RATE",
+        help="Adam learning rate, overriding the preset's (tutorial: 5e-4; 2e-3 sharpens each "
+        "label, docs/results.md 'Body parts')",
+    )
+    p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
+    joint_map_option(p)
+    p.add_argument(
+        "--checkpoint-every",
+        type=int,
+        default=None,
+        metavar="N",
+        help="write the checkpoint every N iterations (default: the preset's; 0: at the end "
+        "of each block only)",
+    )
+    run_options(
+        p,
+        out=Path("runs/model"),
+        out_help="output folder [default: runs/model]",
+        overwrite_help="replace a run already in --out (refused otherwise; --resume in the "
+        "checkpoint's own folder needs no flag)",
+    )
+    p.add_argument(
+        "--per-clip",
+        action="store_true",
+        help="GANimator-mode baseline: train one model per clip (in OUT/<clip name>/), "
+        "so no model sees another condition and no crossover is learned",
+    )
+    p.add_argument(
+        "--accept-retarget-error",
+        action="store_true",
+        help="train on BVH clips retargeted with an error above "
+        "mrlib.io.retarget.RETARGET_WARN_CM or with joint angles no person holds (refused "
+        "otherwise, with a RetargetWarning each: check their joint map with "
+        "`mrlib info CLIP --write-map`)",
+    )
+    progress_option(p)
+    return p
+
+
+def _single_clip(data, k: int):
+    """Clip ``k`` of a TrainingSet as a set of its own (normaliser refitted)."""
+    from mrlib.representation.features import FeatureNormalizer
+    from mrlib.training.data import TrainingSet
+
+    x = data.features[k]
+    label = data.labels[data.clip_labels[k]]
+    return TrainingSet(
+        [x], [0], [label], data.fps, [data.names[k]], FeatureNormalizer.fit([x]), data.betas
+    )
+
+
+def cmd_train(args) -> int:
+    from mrlib.model.config import ganimator_mode, training_config
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import check_run_folder, train
+
+    if args.resume is None and not args.clips:
+        raise MrlibError("give clips to train on, or --resume a checkpoint")
+    if not args.per_clip:  # before loading anything (checked again under the run's lock)
+        check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
+    if args.resume is not None:
+        _refuse_on_resume(
+            args,
+            {
+                "clips": "clips",
+                "labels": "--labels",
+                "preset": "--preset",
+                "iterations": "--iterations",
+                "levels": "--levels",
+                "lr": "--lr",
+                "fps": "--fps",
+                "joint_map": "--joint-map",
+                "checkpoint_every": "--checkpoint-every",
+                "seed": "--seed",
+                "per_clip": "--per-clip",
+                "accept_retarget_error": "--accept-retarget-error",
+            },
+        )
+        res = train(
+            None,
+            None,
+            args.out,
+            resume=args.resume,
+            device=args.device,
+            progress=not args.no_progress,
+            overwrite=args.overwrite,
+        )
+        return _report_training(res)
+    fps = args.fps if args.fps is not None else _preset_fps(args.preset or "tutorial")
+    with _retarget_check(args.accept_retarget_error):
+        data = TrainingSet.from_files(
+            args.clips, labels=args.labels, fps=fps, joint_map=args.joint_map
+        )
+    print(
+        f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
+        f"lengths {data.lengths}"
+    )
+    cfg = training_config(
+        args.preset or "tutorial",
+        args.iterations,
+        args.levels,
+        args.seed,
+        args.device or "cpu",
+        lr=args.lr,
+    )
+    if args.checkpoint_every is not None:
+        if args.checkpoint_every < 0:
+            raise MrlibError(f"--checkpoint-every must be >= 0, got {args.checkpoint_every}")
+        cfg = cfg.replace(checkpoint_every=args.checkpoint_every)
+    if args.per_clip:
+        from mrlib.io.paths import inside, unique_components
+
+        # one folder per clip, named after the clip but never a path of its own: the name
+        # comes from the file, so it is sanitised, and repeated names get distinct folders
+        folders = unique_components(data.names, fallback="clip")
+        for k in range(data.num_clips):
+            one = _single_clip(data, k)
+            out = inside(args.out, args.out / folders[k])
+            print(f"[{k + 1}/{data.num_clips}] {data.names[k]} -> {out}")
+            res = train(
+                one,
+                ganimator_mode(cfg),
+                out,
+                progress=not args.no_progress,
+                overwrite=args.overwrite,
+            )
+            if res.interrupted:
+                return 130
+        return 0
+    res = train(data, cfg, args.out, progress=not args.no_progress, overwrite=args.overwrite)
+    return _report_training(res)
+
+
+def _report_training(res) -> int:
+    state = "interrupted; resume with --resume" if res.interrupted else "done"
+    print(f"{state} in {res.wall_time_s:.0f} s -> {res.checkpoint}")
+    return 130 if res.interrupted else 0
+
+
+# -- train-speech --------------------------------------------------------------------------
+def add_train_speech(sub) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "train-speech",
+        help="train a speech-conditioned (co-speech gesture) model",
+        description="Train the multi-resolution GAN with speech as the control signal (paper "
+        "Sec. 6): the reconstruction loss on paired clips (PAIRED holds <stem>.wav next to "
+        "<stem>.npz or <stem>.bvh), random generations on unpaired audio (--unpaired, a folder "
+        "of .wav/.flac). Speech FiLM modulates the upper body only. Writes checkpoint.pt, "
+        "checkpoint.pt.json and losses.csv to --out; generate with 'mrlib sample --audio'.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="examples:\n  mrlib train-speech talks/paired --unpaired talks/audio --out runs/speech\n"
+        "  mrlib train-speech talks/paired --unpaired talks/audio --features wavlm --wavlm ~/wavlm-base-plus\n"
+        "  mrlib train-speech --resume runs/speech/checkpoint.pt --out runs/speech\n\n"
+        "presets (--preset, mrlib.model.config.PRESETS):\n" + preset_help("speech"),
+    )
+    p.add_argument("paired", nargs="?", type=Path, help="folder of paired .wav + motion files")
+    p.add_argument("--unpaired", type=Path, default=None, help="folder of unpaired audio files")
+    p.add_argument(
+        "--features",
+        choices=["logmel", "wavlm"],
+        default=None,
+        help="speech features: 'wavlm' (the paper's; needs local weights) or 'logmel' "
+        "(no weights) [default: logmel]",
+    )
+    p.add_argument(
+        "--wavlm", type=Path, default=None, help="folder of WavLM weights (else $MRLIB_WAVLM_PATH)"
+    )
+    p.add_argument(
+        "--preset",
+        default=None,
+        choices=preset_choices("speech") + [_short(n) for n in preset_choices("speech")],
+        help="training schedule, one of the speech presets listed below ('tutorial' and "
+        "'paper' are short for speech_tutorial and speech_paper) [default: speech_tutorial]",
+    )
+    iterations_option(
+        p, "iterations per block, overriding the preset (one value, or one per block)"
+    )
+    p.add_argument(
+        "--random-audio",
+        choices=["paired", "unpaired", "all"],
+        default=None,
+        help="audio of the random generations [default: 'paired' for the tutorial preset, "
+        "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
+    )
+    p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
+    run_options(
+        p,
+        out=Path("runs/speech"),
+        out_help="output folder",
+        overwrite_help="replace a run already in --out",
+    )
+    progress_option(p)
+    return p
+
+
+def cmd_train_speech(args) -> int:
+    from mrlib.model.config import block_iterations_for, get_preset
+    from mrlib.speech import SpeechFeatureExtractor, SpeechTrainingSet, speech_train
+
+    if args.resume is not None:
+        _refuse_on_resume(
+            args,
+            {
+                "paired": "PAIRED",
+                "unpaired": "--unpaired",
+                "features": "--features",
+                "wavlm": "--wavlm",
+                "preset": "--preset",
+                "iterations": "--iterations",
+                "random_audio": "--random-audio",
+                "fps": "--fps",
+                "seed": "--seed",
+            },
+        )
+    from mrlib.training.trainer import check_run_folder
+
+    check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)  # before loading
+    data = cfg = None
+    if args.resume is None:
+        if args.paired is None:
+            raise MrlibError("give a folder of paired clips, or --resume a checkpoint")
+        name = args.preset or "speech_tutorial"
+        cfg = get_preset(name if name.startswith("speech_") else f"speech_{name}")
+        if args.iterations is not None:
+            cfg = cfg.replace(
+                block_iterations=block_iterations_for(args.iterations, cfg.num_blocks)
+            )
+        if args.seed is not None:
+            cfg = cfg.replace(seed=args.seed)
+        cfg = cfg.replace(device=args.device or "cpu")
+        wavlm = None if args.wavlm is None else str(args.wavlm)
+        extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
+        fps = 25.0 if args.fps is None else args.fps
+        data = SpeechTrainingSet.from_folders(args.paired, args.unpaired, extractor, fps=fps)
+        print(data)
+    res = speech_train(
+        data,
+        cfg,
+        args.out,
+        resume=args.resume,
+        random_audio=args.random_audio,
+        device=args.device if args.resume is not None else None,
+        progress=not args.no_progress,
+        overwrite=args.overwrite,
+    )
+    return _report_training(res)
