@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from mrlib.io.axes import UNITS, up_axis_rotation
 from mrlib.io.bvh import BVH, BVHSkeleton, matrix_to_euler
-from mrlib.io.retarget import UNITS, up_axis_rotation
 from mrlib.representation.body import resolve_body
 from mrlib.representation.rotations import axis_angle_to_matrix, kabsch_rotation, rotation_between
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS

@@ -11,6 +11,7 @@ import torch
 
 from mrlib.errors import JointMapError, MotionFileError, UnsupportedFormatError
 from mrlib.io import load_bvh, load_label, load_motion, save_motion
+from mrlib.io.axes import UNITS, change_up_axis, detect_up_axis, up_axis_rotation
 from mrlib.io.bodyfit import default_body
 from mrlib.io.bvh import (
     BVH,
@@ -23,17 +24,8 @@ from mrlib.io.bvh import (
 )
 from mrlib.io.jointmap import detect_joint_map, load_joint_map, shipped_joint_maps
 from mrlib.io.paths import default_data_dir
-from mrlib.io.retarget import (
-    RETARGET_WARN_CM,
-    UNITS,
-    RetargetWarning,
-    _solve_offset,
-    calibrate_retarget,
-    change_up_axis,
-    detect_up_axis,
-    retarget_bvh,
-    up_axis_rotation,
-)
+from mrlib.io.rest_alignment import _solve_offset
+from mrlib.io.retarget import RETARGET_WARN_CM, RetargetWarning, calibrate_retarget, retarget_bvh
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import (
     axis_angle_to_matrix,
