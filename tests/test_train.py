@@ -439,7 +439,7 @@ def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
 def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(
     data, body, tmp_path, monkeypatch
 ):
-    import mrlib.training.trainer as mt
+    import mrlib.training.steps as mt
 
     cfg = tiny(
         model=dataclasses.replace(TINY_MODEL, critic_condition=True), mix_prob=1.0, n_critic=2

@@ -1,5 +1,8 @@
-"""Training (paper, Sec. 3.4): the training set of clips and labels (``data``), the
-block-wise trainer and its run folder (``trainer``), checkpoints (``checkpoint``).
+"""Training (paper, Sec. 3.4): the training set of clips and labels (``data``); the
+block-wise :class:`Trainer` and :func:`train` (``trainer``), built from what a run
+builds first (``build``), one iteration's objectives (``steps``: the paper's Eq. 6 and
+WGAN-GP), the block loop and its loss log (``loop``), and the run folder, results and
+model cache (``run``). Checkpoints are ``mrlib.model.checkpoint``.
 """
 
 from mrlib.training.data import TrainingSet
