@@ -30,11 +30,11 @@ demo: $(READY)
 
 ## Lint, unit and real-data tests, and every notebook executed headless
 ## (smoke budget, models shared between notebooks through a fresh cache folder), on every
-## core: one pytest-xdist worker per CPU, a test file (or the notebooks) per worker.
+## core: one pytest-xdist worker per CPU, whole test files (or the notebooks) per worker.
 TEST_JOBS ?= auto
 test: $(READY)
 	$(BIN)/ruff check mrlib tests bench tools conftest.py notebooks/conftest.py
-	MRLIB_QUICK=1 MRLIB_CACHE_DIR=$${MRLIB_TEST_CACHE:-$$(mktemp -d)} $(BIN)/python -m pytest -n $(TEST_JOBS) --dist loadgroup --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
+	MRLIB_QUICK=1 MRLIB_CACHE_DIR=$${MRLIB_TEST_CACHE:-$$(mktemp -d)} $(BIN)/python -m pytest -n $(TEST_JOBS) --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
 
 lint: $(READY)
 	$(BIN)/ruff check mrlib tests bench tools conftest.py notebooks/conftest.py

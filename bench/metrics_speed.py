@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 from common import RESULTS, ROOT, describe, write_json
 
+from mrlib.metrics import oracles
 from mrlib.metrics import paper as mt
 
 DIM = 23 * 6 + 6
@@ -81,17 +82,17 @@ def rss_mib() -> float:
 METRICS = {
     "coverage": (
         lambda g, r: mt.coverage(g, r, window=30),
-        lambda g, r: mt._coverage_naive(g, r, window=30),
+        lambda g, r: oracles.coverage_naive(g, r, window=30),
         2,
     ),
     "global_diversity": (
         lambda g, r: mt.global_diversity(g, r, tmin=30),
-        lambda g, r: mt._global_diversity_naive(g, r, tmin=30)[0],
+        lambda g, r: oracles.global_diversity_naive(g, r, tmin=30)[0],
         3,
     ),
     "local_diversity": (
         lambda g, r: mt.local_diversity(g, r, window=15),
-        lambda g, r: mt._local_diversity_naive(g, r, window=15),
+        lambda g, r: oracles.local_diversity_naive(g, r, window=15),
         2,
     ),
 }

@@ -19,7 +19,7 @@ with a label of the model: their own; ``walk_normal_002`` lasts 1.03 s, shorter 
 the 1.33 s the 8-level pyramid needs at 15 fps, and is refused), and four walks of
 other styles (no label of the model). Every input is restyled towards each label at
 every level ``k`` (seed 0, without the foot clean-up) and measured with
-``mrlib.sampling.restyling.restyle_evidence``:
+``mrlib.evaluation.restyle_evidence.restyle_evidence``:
 
 * **path**: mean ground distance of the restyled root from the input's (cm);
 * **low band kept**: its low band (split at level k's Nyquist, as
@@ -30,10 +30,12 @@ every level ``k`` (seed 0, without the foot clean-up) and measured with
   the **paired negative**: the same input restyled with its own label, share of those
   pairs whose residual is nearest the (other) target all the same (chance: 1/4); and
   the input itself, unrestyled, likewise;
-* **source share**: ``mrlib.sampling.restyling.RestyleShares.source_share``, mean over cases.
+* **source share**: ``mrlib.evaluation.restyle_evidence.RestyleShares.source_share``, mean
+  over cases.
 
-Then, at ``--level``, the coarse gap of every input (``mrlib.sampling.restyling.coarse_gap``) and
-the same measures with ``invert=True`` (the coarse noise fitted), with its cost, also
+Then, at ``--level``, the coarse gap of every input
+(``mrlib.evaluation.restyle_evidence.coarse_gap``) and the same measures with
+``invert=True`` (the coarse noise fitted), with its cost, also
 for two inputs far from walking; and the time per second of input of the direct route.
 
 The quantity of the trained-model test (``tests/test_restyle.py``, recipe 4 of
@@ -56,17 +58,16 @@ from common import add_iterations_arg, no_data, set_threads, with_iterations, wr
 import mrlib
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import ClipTooShortError
-from mrlib.metrics.paper import metric_features
-from mrlib.model.config import PRESET_FPS, get_preset
-from mrlib.model.trained import load_model
-from mrlib.sampling.restyling import (
+from mrlib.evaluation.restyle_evidence import (
     coarse_gap,
-    restyle,
     restyle_evidence,
-    restyle_lengths,
     restyle_references,
     restyle_shares,
 )
+from mrlib.metrics.paper import metric_features
+from mrlib.model.config import PRESET_FPS, get_preset
+from mrlib.model.trained import load_model
+from mrlib.sampling.restyling import restyle, restyle_lengths
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train_cached
 

@@ -354,7 +354,7 @@ def git_commit() -> str:
 
 # -- one set ---------------------------------------------------------------------------------
 def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
-    from mrlib.evaluation.evaluate import EvaluationSettings
+    from mrlib.evaluation.results import EvaluationSettings
     from mrlib.model.config import config_to_json, training_config
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train

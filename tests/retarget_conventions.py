@@ -45,7 +45,7 @@ import mrlib
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.io import default_data_dir
 from mrlib.io.bvh import write_bvh
-from mrlib.io.retarget import RetargetWarning
+from mrlib.io.retarget_report import RetargetWarning
 
 
 def main() -> int:

@@ -82,10 +82,16 @@ def _forged_header(path: Path, clip: Path) -> Path:
 
 def _run_capped(cases: list[list[str]]) -> list[dict]:
     """Run ``mrlib.app.cli.main`` on every argv in a child under ``CAP_BYTES``; per case its
-    exit code, stderr and seconds, and the child's peak resident memory (MB) so far."""
+    exit code, stderr and seconds, and the child's peak resident memory (MB) so far
+    (``VmHWM``: ``ru_maxrss`` carries the parent's peak over fork + exec, and the parent
+    may be a test worker that has trained models)."""
     script = textwrap.dedent(
         f"""
         import contextlib, io, json, resource, sys, time
+        def vm_hwm_mb():
+            with open("/proc/self/status") as fh:
+                line = next(l for l in fh if l.startswith("VmHWM:"))
+            return int(line.split()[1]) / 1024
         resource.setrlimit(resource.RLIMIT_DATA, ({CAP_BYTES}, {CAP_BYTES}))
         from mrlib.app.cli import main
         for argv in json.loads(sys.argv[1]):
@@ -95,7 +101,7 @@ def _run_capped(cases: list[list[str]]) -> list[dict]:
                     code = main(argv)
                 except SystemExit as e:
                     code = e.code
-            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+            peak = vm_hwm_mb()
             print(json.dumps({{"code": code, "err": err.getvalue(),
                                "s": time.perf_counter() - t, "peak_mb": peak}}))
         """

@@ -55,12 +55,12 @@ HERE = ".jp-NotebookPanel:not(.lm-mod-hidden)"  # the notebook shown, not one be
 # notebook 03 as it stands there.
 SETUP = """\
 import torch
-from mrlib.viz import widgets
-from mrlib.representation.body import load_body_model
-from mrlib.model.config import ModelConfig, TrainConfig
-from mrlib.training.data import TrainingSet
-from mrlib.sampling.generation import load_model
+from mrlib import viz
 from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
+from mrlib.model.config import ModelConfig, TrainConfig
+from mrlib.model.trained import load_model
+from mrlib.representation.body import load_body_model
+from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train
 
 torch.set_num_threads(1)
@@ -73,7 +73,7 @@ model = load_model(train(TrainingSet.from_motions(clips), cfg, "run", body=body,
                          progress=False).checkpoint)
 """
 WIDGET = """\
-box, update = widgets.interactive_crossover(model, body, frames=3, window=10)
+box, update = viz.interactive_crossover(model, body, frames=3, window=10)
 display(box)
 view = update()
 """
@@ -81,9 +81,9 @@ view = update()
 # A walk in the live 3D player (trame), forced live: the server's kernel has the static
 # backend, as the notebooks under test have.
 PLAYER = """\
-from mrlib.representation.body import load_body_model
-from mrlib.viz.render import play_motion
 from mrlib.datasets.synthetic import synthetic_walk
+from mrlib.representation.body import load_body_model
+from mrlib.viz import play_motion
 
 body = load_body_model()
 walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)

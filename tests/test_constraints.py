@@ -457,12 +457,12 @@ def test_phase_align_puts_the_arms_in_step_with_the_legs(body):
 
 def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, body, monkeypatch):
     pytest.importorskip("ipywidgets")
-    import mrlib.viz.widgets
+    import mrlib.viz.constraint_views as CV
 
     monkeypatch.setattr(
-        mrlib.viz.widgets, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
+        CV, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
     )  # the real one takes seconds
-    box, update = mrlib.viz.widgets.interactive_parts(model, body=body, length=40)
+    box, update = CV.interactive_parts(model, body=body, length=40)
     controls = {c.description: c for row in box.children[:-1] for c in row.children}
     assert controls["guidance"].value == 0.0
     for method in ("splice", "film"):

@@ -36,8 +36,12 @@ from mrlib.model.pyramid import level_fps, pyramid_lengths
 from mrlib.sampling.generation import generate, label_weights
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train_or_reuse
-from mrlib.viz.plots import plot_condition_fidelity, plot_crossover_evidence, plot_nearest_sequence
-from mrlib.viz.render import crop_to_bodies
+from mrlib.viz.control_plots import (
+    plot_condition_fidelity,
+    plot_crossover_evidence,
+    plot_nearest_sequence,
+)
+from mrlib.viz.meshes import crop_to_bodies
 from mrlib.viz.widgets import CrossoverView, interactive_crossover
 
 

@@ -8,9 +8,9 @@ import torch
 
 from mrlib.errors import MotionFileError, UnsupportedFormatError
 from mrlib.io import load_motion, save_motion
+from mrlib.io.axes import up_axis_rotation
 from mrlib.io.bodyfit import default_body
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
-from mrlib.io.retarget import up_axis_rotation
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import (
     axis_angle_to_matrix,

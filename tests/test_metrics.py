@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.metrics import oracles
 from mrlib.metrics import paper as mt
 from mrlib.representation.motion import Motion
 
@@ -47,7 +48,7 @@ def check_segmentation(seg, L, Lr, tmin):
 
 
 def segmentation_cost(g, r, seg, squared=False):
-    D = mt._frame_distances_naive(g, r, squared)
+    D = oracles.frame_distances_naive(g, r, squared)
     return sum(D[a + m, s + m] for a, b, s in seg for m in range(b - a)) / len(g)
 
 
@@ -104,7 +105,7 @@ def test_frame_distances_match_naive():
     for squared in (False, True):
         np.testing.assert_allclose(
             mt.frame_distances(x, y, squared),
-            mt._frame_distances_naive(x, y, squared),
+            oracles.frame_distances_naive(x, y, squared),
             rtol=1e-10,
             atol=1e-10,
         )
@@ -126,14 +127,14 @@ def test_window_metrics_match_naive(monkeypatch, chunk):
         squared = bool(trial % 2)
         prof = mt.coverage_profile(gen, ref, w, squared)
         np.testing.assert_allclose(
-            prof, mt._window_nn_naive(ref, gen, w, squared), rtol=1e-9, atol=1e-7
+            prof, oracles.window_nn_naive(ref, gen, w, squared), rtol=1e-9, atol=1e-7
         )
         eps = float(np.median(prof)) + 1e-6  # about half covered
-        assert mt.coverage(gen, ref, w, eps, squared) == mt._coverage_naive(
+        assert mt.coverage(gen, ref, w, eps, squared) == oracles.coverage_naive(
             gen, ref, w, eps, squared
         )
         assert mt.local_diversity(gen, ref, w, squared) == pytest.approx(
-            mt._local_diversity_naive(gen, ref, w, squared), rel=1e-9, abs=1e-7
+            oracles.local_diversity_naive(gen, ref, w, squared), rel=1e-9, abs=1e-7
         )
 
 
@@ -146,10 +147,10 @@ def test_coverage_of_a_list_is_the_mean_and_accepts_iterables():
     assert mt.coverage(gens, ref, 10, eps=1.0) == pytest.approx(np.mean(per))
     assert mt.coverage(iter(gens), ref, 10, eps=1.0) == pytest.approx(np.mean(per))
     assert mt.coverage(gens, ref, 10, eps=1.0) == pytest.approx(
-        mt._coverage_naive(gens, ref, 10, eps=1.0)
+        oracles.coverage_naive(gens, ref, 10, eps=1.0)
     )
     assert mt.local_diversity(gens, ref, 5) == pytest.approx(
-        mt._local_diversity_naive(gens, ref, 5)
+        oracles.local_diversity_naive(gens, ref, 5)
     )
 
 
@@ -171,7 +172,7 @@ def test_global_diversity_matches_naive_dp(monkeypatch, chunk):
         ref = rng.normal(size=(Lr, D))
         gen = patchwork(ref, L, rng, noise=0.2) if trial % 3 else rng.normal(size=(L, D))
         try:
-            want, _ = mt._global_diversity_naive(gen, ref, tmin, squared)
+            want, _ = oracles.global_diversity_naive(gen, ref, tmin, squared)
         except ClipTooShortError:
             with pytest.raises(ClipTooShortError):
                 mt.global_diversity(gen, ref, tmin, squared)
@@ -192,9 +193,9 @@ def test_naive_dp_matches_enumeration_and_short_segments_suffice():
         tmin = int(rng.integers(2, 5))
         ref = rng.normal(size=(int(rng.integers(2 * tmin, 14)), 2))
         gen = patchwork(ref, int(rng.integers(tmin, 17)), rng, noise=0.3)
-        want = mt._global_diversity_enumerate(gen, ref, tmin)
-        assert mt._global_diversity_naive(gen, ref, tmin)[0] == pytest.approx(want)
-        assert mt._global_diversity_enumerate(
+        want = oracles.global_diversity_enumerate(gen, ref, tmin)
+        assert oracles.global_diversity_naive(gen, ref, tmin)[0] == pytest.approx(want)
+        assert oracles.global_diversity_enumerate(
             gen, ref, tmin, max_len=2 * tmin - 1
         ) == pytest.approx(want)
         assert mt.global_diversity(gen, ref, tmin) == pytest.approx(want, abs=1e-7)
@@ -207,7 +208,7 @@ def test_global_diversity_list_returns_mean_and_segmentations():
     v, segs = mt.global_diversity(gens, ref, 5, return_segmentation=True)
     assert len(segs) == 2
     assert v == pytest.approx(
-        np.mean([mt._global_diversity_naive(g, ref, 5)[0] for g in gens]), abs=1e-7
+        np.mean([oracles.global_diversity_naive(g, ref, 5)[0] for g in gens]), abs=1e-7
     )
 
 

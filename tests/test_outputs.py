@@ -34,7 +34,7 @@ from mrlib.io.outputs import (
     write_bytes,
 )
 from mrlib.model.checkpoint import load_checkpoint, save_checkpoint
-from mrlib.training.trainer import RunExistsError, check_run_folder
+from mrlib.training.run import RunExistsError, check_run_folder
 
 TRAIN = ["--iterations", "1", "--levels", "2", "--no-progress"]
 

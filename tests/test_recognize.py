@@ -14,9 +14,10 @@ import mrlib
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import JointMapError
 from mrlib.io import default_data_dir, load_motion
+from mrlib.io.axes import UNITS
 from mrlib.io.bvh import write_bvh
 from mrlib.io.recognize import is_helper, name_parts
-from mrlib.io.retarget import UNITS, retarget_bvh
+from mrlib.io.retarget import retarget_bvh
 from mrlib.representation.skeleton import JOINT_NAMES
 
 BANDAI = default_data_dir() / "data"
@@ -216,7 +217,7 @@ def test_a_split_hip_turns_with_the_legs_and_a_twisted_bone_with_its_twist(walk,
     """Character Creator's pelvis is its Hip (legs and spine part below it); SMPL's pelvis
     turns with the joint where the legs part. DAZ's thigh runs Bend -> Twist -> Shin: the
     hip turns with the twist bone, which carries the thigh's whole rotation."""
-    from mrlib.io.retarget import _rotation_sources
+    from mrlib.io.rest_alignment import rotation_sources
 
     for convention, expect in (
         ("character_creator", {"pelvis": "CC_Base_Pelvis", "left_knee": "CC_Base_L_Calf"}),
@@ -234,7 +235,7 @@ def test_a_split_hip_turns_with_the_legs_and_a_twisted_bone_with_its_twist(walk,
         bvh = rigs.write_rig(walk, rigs.RIGS[convention], default_body)
         r = retarget_bvh(bvh, body=default_body)
         src = r.joint_map.source_indices(bvh.skeleton.names)
-        rot = _rotation_sources(src, bvh.skeleton)
+        rot = rotation_sources(src, bvh.skeleton)
         for smpl, joint in expect.items():
             assert bvh.skeleton.names[rot[JOINT_NAMES.index(smpl)]] == joint, (convention, smpl)
 

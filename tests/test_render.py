@@ -14,13 +14,8 @@ import pytest
 from mrlib.errors import MotionValueError
 from mrlib.representation.body import load_body_model
 from mrlib.representation.motion import Motion
-from mrlib.viz.render import (
-    animate_skeleton,
-    evenly_spaced_frames,
-    plot_skeleton_strip,
-    render_meshes,
-    save_gif,
-)
+from mrlib.viz.meshes import evenly_spaced_frames, render_meshes, save_gif
+from mrlib.viz.render import animate_skeleton, plot_skeleton_strip
 
 pytest.importorskip("pyvista")
 
@@ -111,7 +106,7 @@ def test_mesh_animation_moves_and_shows_contacts(body, tmp_path):
     import imageio.v2 as imageio
 
     from mrlib.datasets.synthetic import synthetic_walk
-    from mrlib.viz.render import render_mesh_animation
+    from mrlib.viz.meshes import render_mesh_animation
 
     walk = synthetic_walk("walk_happy", seconds=2.0, fps=30.0, body=body)
     out = render_mesh_animation(
@@ -167,7 +162,7 @@ def test_live_3d_needs_a_kernel_a_live_backend_and_no_ci(monkeypatch):
     import IPython
     import pyvista as pv
 
-    from mrlib.viz.render import live_3d
+    from mrlib.viz.player import live_3d
 
     monkeypatch.delenv("CI", raising=False)
     monkeypatch.setattr(IPython, "get_ipython", lambda: None)
@@ -188,7 +183,7 @@ def test_play_motion_without_a_live_frontend_shows_a_still_picture(walk, body):
     import imageio.v3 as iio
     from IPython.display import Image
 
-    from mrlib.viz.render import play_motion
+    from mrlib.viz.player import play_motion
 
     still = play_motion(walk, body, live=False, frames=3)
     assert isinstance(still, Image) and still.format == "png"
@@ -203,7 +198,7 @@ def test_play_motion_without_a_live_frontend_shows_a_still_picture(walk, body):
 
 
 def test_motion_player_poses_each_frame_and_swaps_motions(walk, body, stub_show):
-    from mrlib.viz.render import MotionPlayer
+    from mrlib.viz.player import MotionPlayer
 
     player = MotionPlayer(walk, body, rate=10.0, window_size=(240, 160))
     assert player.widget.children[0] is stub_show
@@ -239,7 +234,7 @@ def test_motion_player_draws_frames_asked_from_other_threads_on_its_own(walk, bo
     import asyncio
     import threading
 
-    from mrlib.viz.render import MotionPlayer
+    from mrlib.viz.player import MotionPlayer
 
     async def main():
         player = MotionPlayer(walk, body, window_size=(240, 160))
@@ -263,7 +258,7 @@ def test_motion_player_draws_frames_asked_from_other_threads_on_its_own(walk, bo
 def test_vertex_normals_point_out_of_a_closed_mesh():
     import pyvista as pv
 
-    from mrlib.viz.render import vertex_normals
+    from mrlib.viz.player import vertex_normals
 
     sphere = pv.Sphere(radius=1.0, theta_resolution=16, phi_resolution=16).triangulate()
     v = np.asarray(sphere.points)

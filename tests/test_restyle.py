@@ -16,17 +16,16 @@ import torch
 
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.model.networks import LevelGenerator
-from mrlib.model.pyramid import pyramid_lengths, resample_linear
-from mrlib.representation.features import features_to_motion, motion_to_features
-from mrlib.sampling.restyling import (
+from mrlib.evaluation.restyle_evidence import (
     coarse_gap,
-    restyle,
     restyle_evidence,
-    restyle_level,
     restyle_references,
     restyle_shares,
 )
+from mrlib.model.networks import LevelGenerator
+from mrlib.model.pyramid import pyramid_lengths, resample_linear
+from mrlib.representation.features import features_to_motion, motion_to_features
+from mrlib.sampling.restyling import restyle, restyle_level
 
 
 @pytest.fixture(scope="module")

@@ -25,7 +25,8 @@ from mrlib.io.bvh import (
 from mrlib.io.jointmap import detect_joint_map, load_joint_map, shipped_joint_maps
 from mrlib.io.paths import default_data_dir
 from mrlib.io.rest_alignment import _solve_offset
-from mrlib.io.retarget import RETARGET_WARN_CM, RetargetWarning, calibrate_retarget, retarget_bvh
+from mrlib.io.retarget import calibrate_retarget, retarget_bvh
+from mrlib.io.retarget_report import RETARGET_WARN_CM, RetargetWarning
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import (
     axis_angle_to_matrix,

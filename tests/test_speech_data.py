@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import soundfile
 
+import mrlib.speech.gestures as gestures
 import mrlib.speech.synthetic as sd
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.io import load_motion, save_motion
@@ -27,7 +28,8 @@ from mrlib.speech import (
     synthesize_speech,
     synthetic_corpus,
 )
-from mrlib.speech.synthetic import SENTENCES, VOICES, corpus_text, loop_motion, quiet_window
+from mrlib.speech.gestures import loop_motion, quiet_window
+from mrlib.speech.synthetic import SENTENCES, VOICES, corpus_text
 
 SR = 16_000
 DATA = default_data_dir()
@@ -100,7 +102,7 @@ def test_loop_motion_goes_back_and_forth():
 @needs_data
 def test_bandai_bases_are_resting_stances(body):
     bases = load_base_motions(DATA, fps=25.0, body=body)
-    assert len(bases) == len(sd.BASE_CLIPS)
+    assert len(bases) == len(gestures.BASE_CLIPS)
     for b in bases:
         j = body.motion_joints(b)
         assert b.fps == 25 and b.num_frames >= 36

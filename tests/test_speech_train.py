@@ -40,7 +40,7 @@ from mrlib.speech import (
     standing_base,
     wrist_lift,
 )
-from mrlib.speech.synthetic import apply_offsets, gesture_offsets, loop_motion
+from mrlib.speech.gestures import apply_offsets, gesture_offsets, loop_motion
 from mrlib.speech.train import residual_operators
 
 SR = 16_000

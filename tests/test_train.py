@@ -494,7 +494,7 @@ def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
 ):
     """The 4th iteration's loss is NaN and its weights are poisoned: training raises,
     names the term, and the checkpoint of iteration 2 stays as it was."""
-    from mrlib.training.trainer import TrainingDivergedError
+    from mrlib.training.loop import TrainingDivergedError
 
     real_step = Trainer.step
     calls = {"n": 0}
@@ -517,7 +517,7 @@ def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
 
 
 def test_a_trainer_refuses_to_save_non_finite_weights(tmp_path, data, body):
-    from mrlib.training.trainer import TrainingDivergedError
+    from mrlib.training.loop import TrainingDivergedError
 
     trainer = Trainer(data, tiny(), tmp_path, body=body)
     trainer.save()

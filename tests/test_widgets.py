@@ -15,6 +15,8 @@ matplotlib.use("Agg")
 import numpy as np
 import pytest
 
+import mrlib.viz.constraint_views as CV
+import mrlib.viz.widget_kit as K
 import mrlib.viz.widgets as W
 from mrlib.errors import MotionValueError
 
@@ -29,7 +31,9 @@ def model(sad_wave_model):
 @pytest.fixture(autouse=True)
 def quick_render(monkeypatch):
     """Mesh renders take seconds; a blank picture stands in."""
-    monkeypatch.setattr(W, "render_meshes", lambda m, body, frames=None, **kw: np.zeros((8, 8, 3)))
+    blank = lambda m, body, frames=None, **kw: np.zeros((8, 8, 3))
+    monkeypatch.setattr(W, "render_meshes", blank)
+    monkeypatch.setattr(CV, "render_meshes", blank)
 
 
 def controls_of(box) -> dict:
@@ -130,7 +134,7 @@ def test_parts_labels_in_full_and_arms_in_step_only_for_splice(model, body, monk
         return generate_parts(*args, **kw)
 
     monkeypatch.setattr(mrlib.sampling.constraints, "generate_parts", recorded)
-    box, update = W.interactive_parts(model, body=body, length=40)
+    box, update = CV.interactive_parts(model, body=body, length=40)
     controls = controls_of(box)
     in_step = controls["arms in step with the legs (splice)"]
     sharpen = controls["sharpen each part's label (takes seconds)"]
@@ -161,7 +165,7 @@ def test_path_status_and_busy_text(model, body, monkeypatch):
         return on_path(*args, **kw)
 
     monkeypatch.setattr(mrlib.sampling.constraints, "generate_on_path", watched)
-    box, update = W.interactive_path(model, body, seconds=3.0)
+    box, update = CV.interactive_path(model, body, seconds=3.0)
     controls = controls_of(box)
     update()
     assert seen[-1].endswith("drawing...</span>")
@@ -184,7 +188,7 @@ def test_inbetween_changing_clip_redraws_once(model, body, sad_wave_clips, monke
 
     monkeypatch.setattr(mrlib.sampling.constraints, "generate_with_keyframes", counted)
     clips = {c.label: c for c in sad_wave_clips}
-    box, update = W.interactive_inbetween(model, clips, body, seconds=2.0, steps=0)
+    box, update = CV.interactive_inbetween(model, clips, body, seconds=2.0, steps=0)
     controls = controls_of(box)
     update()
     assert "walk_sad[0] -> walk_sad -> wave[35] (seed 0); keyframe error" in text_of(box)
@@ -196,7 +200,7 @@ def test_inbetween_changing_clip_redraws_once(model, body, sad_wave_clips, monke
 
 def test_the_3d_player_follows_the_sample(model, body, monkeypatch):
     shown = []
-    monkeypatch.setattr(W, "play_motion", lambda m, body, **kw: shown.append((m, kw)) or "still")
+    monkeypatch.setattr(K, "play_motion", lambda m, body, **kw: shown.append((m, kw)) or "still")
     box, update = W.interactive_crossover(model, body, frames=2, window=10)
     controls = controls_of(box)
     view = update()

@@ -188,7 +188,8 @@ def restyle_log_ratios(model, inputs: dict, levels=RESTYLE_LEVELS) -> np.ndarray
     towards the target brings the residual nearer the target than the paired negative,
     the input restyled with its own label, does), and 1 where the restyled residual's
     nearest label is the target."""
-    from mrlib.sampling.restyling import restyle, restyle_evidence, restyle_references
+    from mrlib.evaluation.restyle_evidence import restyle_evidence, restyle_references
+    from mrlib.sampling.restyling import restyle
 
     out = []
     for name, clip in inputs.items():

@@ -36,7 +36,7 @@ def crossover_figure(
     from mrlib.sampling.generation import generate
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
-    from mrlib.viz.render import crop_to_bodies, evenly_spaced_frames
+    from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames
 
     torch.set_num_threads(1)
     clips = [mrlib.load_motion(p) for p in sorted((ROOT / "data_samples").glob("*.npz"))]
@@ -59,7 +59,7 @@ def crossover_figure(
     frames = evenly_spaced_frames(length, 6)
     imgs = [
         crop_to_bodies(
-            mrlib.viz.render.render_meshes(
+            mrlib.viz.render_meshes(
                 m, body, frames=frames, highlight_contacts=False, window_size=(1400, 520)
             )
         )
@@ -91,7 +91,7 @@ def main() -> None:
     walk = mrlib.load_motion(ROOT / "data_samples" / "walk_happy.npz")
     contacts = mrlib.representation.foot_contacts(walk, body)
     frames = np.linspace(0, 44, 6).astype(int)
-    img = mrlib.viz.render.render_meshes(
+    img = mrlib.viz.render_meshes(
         walk.replace(contacts=contacts), body, frames=frames, layout="path", window_size=(1100, 420)
     )
     iio.imwrite(OUT / "walk_contacts.png", img)

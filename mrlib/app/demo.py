@@ -127,8 +127,8 @@ def run_demo(
     from mrlib.model.trained import load_model
     from mrlib.sampling.generation import generate
     from mrlib.training.data import TrainingSet
+    from mrlib.viz.meshes import evenly_spaced_frames, render_mesh_animation, render_meshes
     from mrlib.viz.plots import plot_evaluation, save_titled_image
-    from mrlib.viz.render import evenly_spaced_frames, render_mesh_animation, render_meshes
 
     cfg = get_preset(preset)
     its = 10 if quick else iterations

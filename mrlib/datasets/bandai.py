@@ -40,7 +40,6 @@ __all__ = [
     "DataFetchError",
     "bandai_registry",
     "bandai_local_dir",
-    "cache_root",
     "bandai_cache_dir",
     "bandai_dir",
     "fetch_bandai",

@@ -28,18 +28,16 @@ threshold 0.25 m/s), so every clip is compared on the same channels. GANimator's
 published numbers use its own features (21 joints of its skeleton plus 4 contacts), so
 the values here are not on the same scale as GANimator's tables.
 
-The module is the protocol and its table (``EvaluationResult``: Markdown, CSV, the
-summary) together, which runs a little past 600 lines; the calibration motions are in
-``mrlib.evaluation.calibration`` and the plot in ``mrlib.viz.plots``.
+The settings and the table (``EvaluationResult``: Markdown, CSV, the summary) are in
+``mrlib.evaluation.results``, the calibration motions in ``mrlib.evaluation.calibration``
+and the plot in ``mrlib.viz.plots``.
 """
 
 from __future__ import annotations
 
-import csv
-import json
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -47,6 +45,7 @@ import numpy as np
 
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.evaluation.calibration import CALIBRATION_METHODS, calibration_rows, load_counterparts
+from mrlib.evaluation.results import CALIB_PREFIX, EvaluationResult, EvaluationSettings
 from mrlib.metrics import paper as mt
 from mrlib.metrics import plausibility as pl
 from mrlib.representation.body import resolve_body
@@ -55,74 +54,12 @@ from mrlib.threads import with_policy
 
 __all__ = [
     "SampleFn",
-    "EvaluationSettings",
-    "EvaluationResult",
     "score_motions",
     "evaluate",
 ]
 
 SampleFn = Callable[[str, int, int], Motion]
 """``sample_fn(label, length, seed) -> Motion``: one generated clip of ``length`` frames."""
-
-# Names of the calibration rows, in the order they are reported.
-CALIB_PREFIX = "calib: "  # method name of a calibration row: CALIB_PREFIX + row name
-
-
-# ---------------------------------------------------------------------------------------
-# Settings
-# ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class EvaluationSettings:
-    """Everything that determines the numbers of an evaluation."""
-
-    num_samples: int = 200  # generated clips per sequence
-    length_factor: float = 2.0  # generated length / training clip length (GANimator: 2)
-    seed: int = 0  # sample i uses seed + i, for every sequence and every method
-    eps: float = 2.0  # coverage threshold on the mean per-frame distance (GANimator's)
-    coverage_window: int = 30  # T_c, frames
-    tmin: int = 30  # T_min, shortest PNN segment, frames
-    local_window: int = 15  # T_d, frames
-    feature_kind: str = "6d"  # mrlib.metrics.paper.metric_features(kind=...)
-    skate_threshold: float = pl.SKATE_SPEED_THRESHOLD  # m/s
-    penetration_threshold: float = pl.PENETRATION_THRESHOLD  # m
-    ground_percentile: float = pl.GROUND_PERCENTILE  # of the reference's foot heights
-
-    def __post_init__(self) -> None:
-        for name in ("num_samples", "coverage_window", "tmin", "local_window"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise MotionValueError(f"{name} must be a positive integer, got {v!r}")
-        for name in ("length_factor", "eps", "skate_threshold"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise MotionValueError(f"{name} must be a positive number, got {v!r}")
-        if self.feature_kind not in ("6d", "rotmat"):
-            raise MotionValueError(
-                f"feature_kind must be '6d' or 'rotmat', got {self.feature_kind!r}"
-            )
-
-    def describe(self) -> str:
-        """One paragraph stating the settings, for reports."""
-        feats = (
-            "local rotations of the 23 non-root SMPL joints in 6D + 6 foot-contact labels"
-            if self.feature_kind == "6d"
-            else "local rotation matrices of the 23 non-root SMPL joints + 6 foot-contact labels"
-        )
-        return (
-            f"{self.num_samples} samples per sequence, {self.length_factor:g}x the training "
-            f"length, seeds {self.seed}..{self.seed + self.num_samples - 1}. Coverage: "
-            f"eps = {self.eps:g}, T_c = {self.coverage_window}; global diversity (PNN): "
-            f"T_min = {self.tmin}; local diversity: T_d = {self.local_window}. Features: "
-            f"{feats}; per-frame Euclidean distance, mean over frames. Foot skating: "
-            f"horizontal speed of contact vertices while in contact, share above "
-            f"{self.skate_threshold:g} m/s. Jitter: mean joint jerk / the training clip's. "
-            f"Penetration: depth of the lowest foot vertex below the ground (percentile "
-            f"{self.ground_percentile:g} of the training clip's foot-vertex heights), share "
-            f"of frames deeper than {100 * self.penetration_threshold:g} cm. "
-            "W: 1-D Wasserstein distance to the training clip's per-frame root ground speed "
-            "and joint angular speeds (legs, arms, spine/head). Means and standard deviations "
-            "per method are over sequences (population std)."
-        )
 
 
 # ---------------------------------------------------------------------------------------
@@ -238,174 +175,6 @@ def score_motions(
         rep[k.replace("_share", "_pct")] = 100.0 * rep.pop(k)
     row.update(rep)
     return row
-
-
-# ---------------------------------------------------------------------------------------
-# Result
-# ---------------------------------------------------------------------------------------
-# (key, Markdown header, format) of the reported metric columns.
-METRIC_COLUMNS: tuple[tuple[str, str, str], ...] = (
-    ("coverage_pct", "Coverage %", "{:.1f}"),
-    ("global_div", "Global div.", "{:.2f}"),
-    ("local_div", "Local div.", "{:.2f}"),
-    ("recon_error", "Recon. err.", "{:.3f}"),
-    ("cond_fidelity_pct", "Cond. fid. %", "{:.1f}"),
-    ("skate_speed", "Skate m/s", "{:.3f}"),
-    ("skate_pct", "Skating %", "{:.1f}"),
-    ("jerk_ratio", "Jerk ratio", "{:.2f}"),
-    ("penetration_cm", "Pen. cm", "{:.2f}"),
-    ("penetration_pct", "Pen. %", "{:.1f}"),
-    ("w_root_speed", "W root m/s", "{:.3f}"),
-    ("w_angspeed_legs", "W legs rad/s", "{:.2f}"),
-    ("w_angspeed_arms", "W arms rad/s", "{:.2f}"),
-    ("w_angspeed_spine", "W spine rad/s", "{:.2f}"),
-)
-_ID_COLUMNS = ("method", "kind", "sequence", "source")
-_EXTRA_COLUMNS = (
-    "samples", "frames", "contact_share", "contacts_from_motion",
-    "jerk", "jerk_reference", "ground",
-)  # fmt: skip
-CSV_COLUMNS = _ID_COLUMNS + tuple(k for k, _, _ in METRIC_COLUMNS) + _EXTRA_COLUMNS
-# Panels of EvaluationResult.plot.
-PLOT_COLUMNS = (
-    "coverage_pct", "global_div", "local_div", "skate_pct",
-    "jerk_ratio", "penetration_cm", "w_root_speed", "w_angspeed_legs",
-)  # fmt: skip
-
-
-def _fmt(value: Any, fmt: str) -> str:
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return "–"
-    return fmt.format(value)
-
-
-@dataclass
-class EvaluationResult:
-    """Rows of an evaluation: one per (method, sequence).
-
-    Attributes:
-        rows: dicts with ``method``, ``kind`` (``"model"`` or ``"calibration"``),
-            ``sequence`` (the label), ``source`` (the clip a calibration row was built
-            from, empty for models) and the metrics of ``score_motions``.
-        settings: what the numbers were computed with.
-        notes: remarks gathered during the run (missing calibration clips, ...).
-    """
-
-    rows: list[dict[str, Any]]
-    settings: EvaluationSettings
-    notes: list[str] = field(default_factory=list)
-
-    @property
-    def methods(self) -> list[str]:
-        """Methods in order of first appearance (models first, then calibration rows)."""
-        return list(dict.fromkeys(r["method"] for r in self.rows))
-
-    def summary(self) -> list[dict[str, Any]]:
-        """Per method: ``method``, ``kind``, ``sequences`` and ``<metric>_mean`` /
-        ``<metric>_std`` over its sequences (population std; NaN entries left out)."""
-        out = []
-        for method in self.methods:
-            rows = [r for r in self.rows if r["method"] == method]
-            d: dict[str, Any] = {"method": method, "kind": rows[0]["kind"], "sequences": len(rows)}
-            for key, _, _ in METRIC_COLUMNS:
-                v = np.array([r.get(key, math.nan) for r in rows], dtype=np.float64)
-                v = v[~np.isnan(v)]
-                d[f"{key}_mean"] = float(v.mean()) if len(v) else math.nan
-                d[f"{key}_std"] = float(v.std()) if len(v) else math.nan
-            out.append(d)
-        return out
-
-    def _columns(self) -> list[tuple[str, str, str]]:
-        """Metric columns with at least one value (reconstruction and fidelity are
-        often absent)."""
-        return [
-            c for c in METRIC_COLUMNS
-            if any(not math.isnan(float(r.get(c[0], math.nan))) for r in self.rows)
-        ]  # fmt: skip
-
-    def to_markdown(self) -> str:
-        """The per-sequence table, the per-method mean ± std table and the settings."""
-        cols = self._columns()
-        lines = ["## Per sequence", ""]
-        lines.append("| Method | Sequence | " + " | ".join(h for _, h, _ in cols) + " |")
-        lines.append("|---|---|" + "---:|" * len(cols))
-        last = None
-        for r in self.rows:
-            name = r["method"] if r["method"] != last else ""
-            last = r["method"]
-            seq = r["sequence"] + (f" ({r['source']})" if r.get("source") else "")
-            vals = [_fmt(r.get(k), f) for k, _, f in cols]
-            lines.append(f"| {name} | {seq} | " + " | ".join(vals) + " |")
-        lines += ["", "## Mean ± std over sequences", ""]
-        lines.append("| Method | Sequences | " + " | ".join(h for _, h, _ in cols) + " |")
-        lines.append("|---|---:|" + "---:|" * len(cols))
-        for d in self.summary():
-            vals = [
-                f"{_fmt(d[f'{k}_mean'], f)} ± {_fmt(d[f'{k}_std'], f)}"
-                if not math.isnan(d[f"{k}_mean"])
-                else "–"
-                for k, _, f in cols
-            ]
-            lines.append(f"| {d['method']} | {d['sequences']} | " + " | ".join(vals) + " |")
-        lines += ["", "## Settings", "", self.settings.describe()]
-        lines += [
-            "",
-            "Columns: Skating % = share of contact vertex-frames sliding faster than the "
-            "threshold; Jerk ratio = mean joint jerk / the training clip's; Pen. cm = mean "
-            "depth below the ground; Pen. % = share of frames deeper than the threshold; "
-            "W = Wasserstein distance to the training clip's speed distribution. Rows "
-            "named 'calib: ...' are real or trivially built motions scored with the same "
-            "code, to read the other rows against.",
-        ]
-        if self.notes:
-            lines += ["", "Notes:", ""] + [f"- {n}" for n in self.notes]
-        return "\n".join(lines) + "\n"
-
-    def to_csv(self, path: str | Path) -> Path:
-        """Per-sequence rows as CSV (columns ``CSV_COLUMNS``; NaN left empty)."""
-        return _write_csv(path, CSV_COLUMNS, self.rows)
-
-    def summary_to_csv(self, path: str | Path) -> Path:
-        """Per-method mean/std as CSV."""
-        summ = self.summary()
-        cols = ["method", "kind", "sequences"] + [
-            f"{k}_{s}" for k, _, _ in METRIC_COLUMNS for s in ("mean", "std")
-        ]
-        return _write_csv(path, cols, summ)
-
-    def save(self, out_dir: str | Path) -> dict[str, Path]:
-        """Write ``evaluation.csv``, ``evaluation_summary.csv``, ``evaluation.md`` and the
-        settings as ``evaluation_settings.json`` into ``out_dir`` (created). Returns the
-        paths by kind. The figure is ``mrlib.viz.plots.plot_evaluation(result, path)``."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {
-            "csv": self.to_csv(out / "evaluation.csv"),
-            "summary_csv": self.summary_to_csv(out / "evaluation_summary.csv"),
-            "markdown": out / "evaluation.md",
-        }
-        paths["markdown"].write_text("# Evaluation\n\n" + self.to_markdown(), encoding="utf-8")
-        paths["settings"] = out / "evaluation_settings.json"
-        paths["settings"].write_text(
-            json.dumps(asdict(self.settings), indent=2) + "\n", encoding="utf-8"
-        )
-        return paths
-
-
-def _write_csv(path: str | Path, columns: Any, rows: list[dict[str, Any]]) -> Path:
-    path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(columns)
-        for r in rows:
-            vals = []
-            for c in columns:
-                v = r.get(c, "")
-                if isinstance(v, float):
-                    v = "" if math.isnan(v) else f"{v:.6g}"
-                vals.append(v)
-            w.writerow(vals)
-    return path
 
 
 # ---------------------------------------------------------------------------------------

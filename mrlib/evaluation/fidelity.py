@@ -30,7 +30,6 @@ from mrlib.metrics.paper import (
 from mrlib.representation.motion import Motion
 
 __all__ = [
-    "References",
     "reference_features",
     "NearestSequenceStrip",
     "nearest_sequence_strip",

@@ -29,7 +29,8 @@ from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, shippe
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
 from mrlib.io.outputs import check_writable, write_text
 from mrlib.io.paths import default_data_dir
-from mrlib.io.retarget import RetargetResult, calibrate_retarget, retarget_bvh
+from mrlib.io.retarget import calibrate_retarget, retarget_bvh
+from mrlib.io.retarget_report import RetargetResult
 from mrlib.representation.motion import Motion
 
 __all__ = [

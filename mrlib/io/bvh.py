@@ -1,5 +1,9 @@
 """BVH files: a strict parser, vectorised forward kinematics and a writer.
 
+The module is long because it is the whole format in one place: the writer must emit
+exactly what the parser accepts, and both follow the Euler-angle and channel
+conventions below, which the forward kinematics applies.
+
 BVH conventions assumed here (those of Biovision's format as read by Blender, MotionBuilder
 and most research code):
 

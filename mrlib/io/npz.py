@@ -38,9 +38,9 @@ import numpy as np
 import torch
 
 from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.io.axes import change_up_axis, detect_up_axis, up_axis_rotation
 from mrlib.io.bodyfit import default_body, rest_pelvis
 from mrlib.io.outputs import atomic_write
-from mrlib.io.retarget import change_up_axis, detect_up_axis, up_axis_rotation
 from mrlib.representation.motion import NUM_BETAS, Motion
 from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from mrlib.representation.skeleton import NUM_CONTACTS, NUM_JOINTS

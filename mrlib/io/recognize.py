@@ -1,6 +1,10 @@
 """Recognising a humanoid skeleton: a joint map from the tree, the bone lengths and the
 joint names, for skeletons no shipped map fits.
 
+The module is long because it is one algorithm, the seven numbered steps below, whose
+functions share one view of the tree (``_Tree``) and one set of name rules; split, each
+part would have to reach into the others' internals.
+
 A humanoid tree, whatever its names, has a *pelvis* where two legs and the spine part, a
 *chest* on the spine where two arms part from the way to the head, and five long chains
 to the feet, the hands and the head. ``match_skeleton`` finds them in numbered steps:

@@ -96,8 +96,6 @@ import numpy as np
 
 from mrlib.errors import JointMapError, MotionFileError
 from mrlib.io.axes import (
-    change_up_axis,
-    detect_up_axis,
     file_unit,
     source_up_axis,
     up_axis_rotation,
@@ -108,7 +106,6 @@ from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, valida
 from mrlib.io.proportions import compared_joints, source_bones
 from mrlib.io.recognize import SkeletonMatch, recognise_bvh, refit_torso
 from mrlib.io.retarget_report import (
-    RETARGET_WARN_CM,
     RetargetResult,
     RetargetWarning,
     clip_errors,
@@ -128,13 +125,6 @@ from mrlib.io.transfer import (
 __all__ = [
     "retarget_bvh",
     "calibrate_retarget",
-    "RetargetResult",
-    "RetargetWarning",
-    "RETARGET_WARN_CM",
-    # mrlib.io.axes's, read from here by mrlib.io.npz
-    "up_axis_rotation",
-    "detect_up_axis",
-    "change_up_axis",
 ]
 
 

@@ -1,7 +1,8 @@
 """Measures of motion, computed from motions and features alone (no model): the paper's
 metrics (Sec. 5: coverage, global diversity by patch nearest neighbours, local
 diversity) in ``paper``, physical plausibility (foot skating, jerk, ground penetration)
-in ``plausibility``, and the frequency bands of a motion in ``bands``.
+in ``plausibility``, and the frequency bands of a motion in ``bands``; ``oracles`` holds
+slow versions of the paper's metrics, written from their definitions, for the tests.
 """
 
 from mrlib.metrics.paper import (

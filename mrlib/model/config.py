@@ -1,5 +1,9 @@
 """Configuration of the networks and of training, with named presets.
 
+The module is long because it is the table of presets next to the fields they set,
+with the reasons for their values (below and in each preset's docstring), so that a
+reader checks a preset against its fields and the paper in one place.
+
 Configs are frozen dataclasses; make variants with ``dataclasses.replace`` (or
 ``TrainConfig.replace``) and save them as JSON next to every checkpoint
 (``config_to_json`` / ``config_from_json``). ``PRESETS`` names them: ``paper``,

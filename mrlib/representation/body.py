@@ -50,7 +50,6 @@ __all__ = [
     "resolve_body",
     "fit_betas",
     "default_body_path",
-    "read_smpl_arrays",
     "SMPL_PATH_ENV",
 ]
 

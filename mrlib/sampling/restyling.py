@@ -37,27 +37,24 @@ shape (``betas``).
 
 **Inversion.** The direct route puts the clip itself at level ``k``; when the clip is
 far from anything the coarse levels produce, the fine levels see input unlike anything
-they were trained on. :func:`coarse_gap` measures how far (the per-frame distance from
-the clip's level-k frames to the nearest level-k frame of the training clips, over how
-far the training clips are from one another), and ``invert=True`` fits the coarse
-levels' noise (``mrlib.sampling.constraints.optimise``, the networks frozen, under the target
-label) so that their level-k output comes as close to the clip's level k as the model
-can make it, and uses that output instead. It costs about 2 s per clip where the
-direct route costs milliseconds, and on the unseen Bandai clips measured (walks, side
-walks, a bow and a wave; coarse gaps 0.7-2.1) it kept less of the clip (its low band
-1.4-4 times further from the clip's) and gave the label as often, once in a while one pair
-more: the direct route is the default.
+they were trained on. ``coarse_gap`` (``mrlib.evaluation.restyle_evidence``) measures
+how far (the per-frame distance from the clip's level-k frames to the nearest level-k
+frame of the training clips, over how far the training clips are from one another),
+and ``invert=True`` fits the coarse levels' noise (``mrlib.sampling.constraints.optimise``,
+the networks frozen, under the target label) so that their level-k output comes as close
+to the clip's level k as the model can make it, and uses that output instead. It costs
+about 2 s per clip where the direct route costs milliseconds, and on the unseen Bandai
+clips measured (walks, side walks, a bow and a wave; coarse gaps 0.7-2.1) it kept less
+of the clip (its low band 1.4-4 times further from the clip's) and gave the label as
+often, once in a while one pair more: the direct route is the default.
 
-:func:`restyle_evidence` measures a result against the three claims (the path kept, the
-low band nearer the clip's than any training clip's, the residual nearest the target
-label's); :func:`restyle_shares` how much of the result is the clip's and how much the
+The measures of a result are ``mrlib.evaluation.restyle_evidence``'s (evaluation sits
+above sampling): ``restyle_evidence`` against the three claims (the path kept, the low
+band nearer the clip's than any training clip's, the residual nearest the target
+label's), ``restyle_shares`` how much of the result is the clip's and how much the
 label's, level by level. Measured figures: ``docs/notes/2026-12-04-restyle.md``.
 
-``mrlib.sampling.restyling`` is this module, and calling it calls :func:`restyle`
-(``mrlib.restyle(model, "clip.bvh", "walk_sad")``); its other names are reached as
-usual (``mrlib.sampling.restyling.coarse_gap``, ``from mrlib.sampling.restyling import restyle_evidence``).
-The module is long because the measures live beside the method they measure: the
-bench, the tests and the widget share them.
+``mrlib.restyle`` is :func:`restyle` (``mrlib.restyle(model, "clip.bvh", "walk_sad")``).
 
 Dimension letters (``mrlib`` glossary): T frames, C feature channels, D metric channels,
 L levels, K labels.
@@ -66,7 +63,6 @@ L levels, K labels.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
@@ -75,12 +71,10 @@ import numpy as np
 import torch
 
 from mrlib.errors import ClipTooShortError, MotionValueError
-from mrlib.metrics.bands import lowpass, rms_profile, split_bands
-from mrlib.metrics.paper import frame_distances, metric_features
+from mrlib.metrics.bands import lowpass
 from mrlib.model.networks import MultiResGenerator
 from mrlib.model.pyramid import level_fps, pyramid_lengths, resample_linear
 from mrlib.representation.features import (
-    CONTACT_SLICE,
     NUM_FEATURES,
     ROOT_SLICE,
     features_to_motion,
@@ -97,14 +91,6 @@ __all__ = [
     "restyle",
     "restyle_level",
     "restyle_lengths",
-    "CoarseGap",
-    "coarse_gap",
-    "RestyleReferences",
-    "restyle_references",
-    "RestyleEvidence",
-    "restyle_evidence",
-    "RestyleShares",
-    "restyle_shares",
 ]
 
 KEEP = ("coarse", "detail")  # what of the clip survives: its coarse levels, or its detail
@@ -117,12 +103,11 @@ INVERT_PRIOR = 1e-3  # weight of mean(e_i^2) on the whitened noise (1e-2 kept le
 # at k = 4, 61 % and 58 %); lower k give more of the label and less of the clip
 # (docs/notes/2026-12-04-restyle.md).
 RESTYLE_LEVELS_ABOVE = 2
-REFERENCE_SEED = 1_000_003  # the label references share no noise with the restyled clips
 _GROUND = [ROOT_SLICE.start, ROOT_SLICE.start + 2]  # vx, vz: the root's ground velocity
 
 
 # -- checks --------------------------------------------------------------------------------
-def _label_model(model: Any) -> Any:
+def check_label_model(model: Any) -> Any:
     """``model`` if it is a label-conditioned ``GenerativeModel``, else a clear error."""
     if hasattr(model, "feature_config") and hasattr(model, "model"):
         raise MotionValueError(
@@ -160,7 +145,9 @@ def restyle_level(model: Any, level: int | None) -> int:
     return int(level)
 
 
-def _at_model_rate(model: Any, motion: Motion | str | Path, resample: bool = True) -> Motion:
+def at_model_rate(model: Any, motion: Motion | str | Path, resample: bool = True) -> Motion:
+    """``motion`` (or the file it names) as a ``Motion``, resampled to the model's frame
+    rate unless ``resample`` is False."""
     if isinstance(motion, (str, Path)):
         from mrlib.io import load_motion
 
@@ -202,7 +189,7 @@ def restyle_lengths(model: Any, frames: int, name: str = "the clip") -> list[int
     return out
 
 
-# -- yaw of the features -------------------------------------------------------------------
+# -- yaw of the features (also mrlib.evaluation.restyle_evidence's) -------------------------
 def _yaw_matrices(theta: np.ndarray) -> np.ndarray:
     """``(..., 3, 3)`` rotations by ``theta`` about +Y (+Z turns towards +X)."""
     c, s = np.cos(theta), np.sin(theta)
@@ -211,17 +198,20 @@ def _yaw_matrices(theta: np.ndarray) -> np.ndarray:
     return R
 
 
-def _headings(f: np.ndarray) -> np.ndarray:
+def headings(f: np.ndarray) -> np.ndarray:
     """``(T,)`` facing of the pelvis (radians about +Y, 0 along +Z) of features ``(T, C)``."""
     R = sixd_to_matrix(torch.from_numpy(np.asarray(f[:, :6], np.float64))).numpy()
     return np.arctan2(R[:, 0, 2], R[:, 2, 2])
 
 
-def _mean_heading(headings: np.ndarray) -> float:
+def mean_heading(headings: np.ndarray) -> float:
+    """The circular mean of facing angles (radians)."""
     return float(np.arctan2(np.sin(headings).mean(), np.cos(headings).mean()))
 
 
-def _turn(f: np.ndarray, theta: float | np.ndarray, ground: bool = True) -> np.ndarray:
+def turn_about_vertical(
+    f: np.ndarray, theta: float | np.ndarray, ground: bool = True
+) -> np.ndarray:
     """Features ``(T, C)`` turned about the vertical by ``theta`` (a number or ``(T,)``):
     the pelvis orientation and, with ``ground``, the ground velocity."""
     f = np.array(f, np.float64)
@@ -235,8 +225,9 @@ def _turn(f: np.ndarray, theta: float | np.ndarray, ground: bool = True) -> np.n
     return f
 
 
-def _training_heading(model: Any) -> float:
-    return _mean_heading(np.concatenate([_headings(np.asarray(x)) for x in model.features]))
+def training_heading(model: Any) -> float:
+    """The mean facing of the model's training clips (radians about +Y)."""
+    return mean_heading(np.concatenate([headings(np.asarray(x)) for x in model.features]))
 
 
 # -- the generator, level by level ---------------------------------------------------------
@@ -322,7 +313,7 @@ def restyle(
         invert: ``keep="coarse"`` only: fit the coarse levels' noise to the clip
             (``invert_steps`` Adam steps) and run the fine levels on the model's own
             level-k output instead of the clip's (for clips far from the training data,
-            :func:`coarse_gap`).
+            ``mrlib.evaluation.restyle_evidence.coarse_gap``).
         align: turn the clip to the training clips' mean facing first (and back after).
         fix_contacts: plant the feet (``mrlib.sampling.generation.cleanup_foot_contacts``; a method
             name, or False for the raw result).
@@ -343,7 +334,7 @@ def restyle(
     )
 
     t0 = time.perf_counter()
-    model = _label_model(model)
+    model = check_label_model(model)
     if keep not in KEEP:
         raise MotionValueError(f"keep must be one of {KEEP}, got {keep!r}")
     if invert and keep != "coarse":
@@ -352,8 +343,8 @@ def restyle(
         raise MotionValueError(f"invert_steps must be a positive integer, got {invert_steps!r}")
     k = restyle_level(model, level)
     lab = model.label_index(label)
-    motion = _at_model_rate(model, motion, resample=False)
-    source = _at_model_rate(model, motion)
+    motion = at_model_rate(model, motion, resample=False)
+    source = at_model_rate(model, motion)
     name = source.name or "clip"
     T = source.num_frames
     lengths = restyle_lengths(model, T, name)
@@ -361,8 +352,8 @@ def restyle(
     body = resolve_body(body, shared=True)
 
     f_in = motion_to_features(source, body).double().numpy()  # (T, C)
-    turn = _training_heading(model) - _mean_heading(_headings(f_in)) if align else 0.0
-    f_in = _turn(f_in, turn)
+    turn = training_heading(model) - mean_heading(headings(f_in)) if align else 0.0
+    f_in = turn_about_vertical(f_in, turn)
     dev = model.device
     x = model.normalizer.normalize(torch.from_numpy(f_in).float()).T[None].to(dev)  # (1, C, T)
     x_k = resample_linear(x, lengths[k - 1])
@@ -389,9 +380,9 @@ def restyle(
         out[:, _GROUND] += lowpass(f_in[:, _GROUND] - out[:, _GROUND], model.fps, cutoff)
     else:
         out[:, _GROUND] = f_in[:, _GROUND]
-    dyaw = np.unwrap(np.angle(np.exp(1j * (_headings(f_in) - _headings(out)))))
-    out = _turn(out, lowpass(dyaw[:, None], model.fps, cutoff)[:, 0], ground=False)
-    out = _turn(out, -turn)
+    dyaw = np.unwrap(np.angle(np.exp(1j * (headings(f_in) - headings(out)))))
+    out = turn_about_vertical(out, lowpass(dyaw[:, None], model.fps, cutoff)[:, 0], ground=False)
+    out = turn_about_vertical(out, -turn)
 
     tag = model.labels[lab]
     m = features_to_motion(
@@ -413,253 +404,3 @@ def restyle(
         method = fix_contacts if isinstance(fix_contacts, str) else "ik"
         m = cleanup_foot_contacts(m, body, method=method)
     return m
-
-
-# -- how far the clip is from the coarse levels --------------------------------------------
-@dataclass(frozen=True)
-class CoarseGap:
-    """How far a clip's level-k version is from the training clips' level-k versions.
-
-    ``distance``: mean over the clip's level-k frames of the RMS per channel (normalised
-    pose and root channels) to the nearest level-k frame of any training clip;
-    ``spread``: the same for each training clip against the others, averaged (how far
-    the training clips are from one another; NaN with one clip); ``ratio``: the two's
-    quotient. Below 1 the clip is nearer the training data than its clips are to each
-    other; well above 1 the fine levels see input unlike anything they were trained on
-    (where ``restyle(..., invert=True)`` may help; the module docstring says what it did
-    on the clips measured)."""
-
-    level: int
-    distance: float
-    spread: float
-    ratio: float
-    nearest_clip: str
-
-
-def _level_frames(model: Any, f: np.ndarray, n: int) -> np.ndarray:
-    """Normalised pose and root channels of features ``(T, C)`` at ``n`` frames, ``(n, D)``."""
-    x = model.normalizer.normalize(torch.as_tensor(np.asarray(f), dtype=torch.float32))
-    x = resample_linear(x.T[None].cpu(), int(n))[0].T
-    return x[:, : CONTACT_SLICE.start].double().numpy()
-
-
-def coarse_gap(
-    model: Any, motion: Motion | str | Path, level: int | None = None, *, align: bool = True,
-    body: Any = None,
-) -> CoarseGap:  # fmt: skip
-    """How far ``motion`` is from what the coarse levels ``1..level`` produce
-    (:class:`CoarseGap`), taking the training clips' level-k versions as that: the coarse
-    levels reconstruct them (the training's reconstruction loss) and their samples stay
-    near them."""
-    from mrlib.representation.body import resolve_body
-
-    model = _label_model(model)
-    k = restyle_level(model, level)
-    source = _at_model_rate(model, motion)
-    lengths = restyle_lengths(model, source.num_frames, source.name or "the clip")
-    f = motion_to_features(source, resolve_body(body, shared=True)).double().numpy()
-    if align:
-        f = _turn(f, _training_heading(model) - _mean_heading(_headings(f)))
-    D = CONTACT_SLICE.start
-    x = _level_frames(model, f, lengths[k - 1])
-    refs = [
-        _level_frames(model, np.asarray(c), int(model.lengths[n, k - 1]))
-        for n, c in enumerate(model.features)
-    ]
-    per_clip = np.stack([frame_distances(x, r).min(1) for r in refs])  # (N, T_k)
-    distance = float(per_clip.min(0).mean() / np.sqrt(D))
-    nearest = model.clip_names[int(np.bincount(per_clip.argmin(0), minlength=len(refs)).argmax())]
-    spreads = []
-    for n, r in enumerate(refs):
-        others = [q for j, q in enumerate(refs) if j != n]
-        if others:
-            d = np.min([frame_distances(r, q).min(1) for q in others], 0)
-            spreads.append(d.mean() / np.sqrt(D))
-    spread = float(np.mean(spreads)) if spreads else float("nan")
-    return CoarseGap(k, distance, spread, distance / spread if spreads else float("nan"), nearest)
-
-
-# -- measuring a restyled clip -------------------------------------------------------------
-@dataclass(frozen=True)
-class RestyleReferences:
-    """What a restyled clip of ``length`` frames at level ``level`` is compared with:
-    the band split's ``cutoff_hz`` (level k's Nyquist frequency), the low bands of the
-    training clips and the mean residual RMS profile ``(D,)`` of every label's pure
-    samples (or training clips). Built by :func:`restyle_references`."""
-
-    level: int
-    length: int
-    cutoff_hz: float
-    clip_names: tuple[str, ...]
-    clip_lows: list[np.ndarray] = field(repr=False)
-    label_profiles: dict[str, np.ndarray] = field(repr=False)
-    reference: str = "samples"
-
-
-def restyle_references(
-    model: Any, length: int, level: int | None = None, *, num_samples: int = 4,
-    seed: int = REFERENCE_SEED, reference: str = "samples",
-) -> RestyleReferences:  # fmt: skip
-    """The references of :func:`restyle_evidence` for clips of ``length`` frames at the
-    model's rate restyled at ``level``: per label, ``num_samples`` pure samples of that
-    length (``reference="samples"``, as ``mrlib.evaluation.crossover.crossover_evidence``) or its
-    training clips (``"clips"``)."""
-    from mrlib.metrics.paper import model_references
-    from mrlib.sampling.generation import generate
-
-    model = _label_model(model)
-    k = restyle_level(model, level)
-    lengths = restyle_lengths(model, int(length))
-    cutoff = level_fps(model.fps, lengths)[k - 1] / 2
-    if reference not in ("samples", "clips"):
-        raise MotionValueError(f"reference must be 'samples' or 'clips', got {reference!r}")
-    names, clip_labels, feats = model_references(model, contacts=False)
-    lows = [split_bands(f, model.fps, cutoff)[0] for f in feats]
-    profiles = {}
-    for lab in model.labels:
-        if reference == "samples":
-            ms = generate(model, lab, length=int(length), seed=seed, num_samples=num_samples,
-                          fix_contacts=False)  # fmt: skip
-            refs = [metric_features(m, contacts=False) for m in ([ms] if num_samples == 1 else ms)]
-        else:
-            refs = [f for f, cl in zip(feats, clip_labels, strict=True) if cl == lab]
-        profiles[lab] = np.mean(
-            [rms_profile(split_bands(r, model.fps, cutoff)[1]) for r in refs], 0
-        )
-    return RestyleReferences(k, int(length), float(cutoff), tuple(names), lows, profiles, reference)
-
-
-@dataclass(frozen=True)
-class RestyleEvidence:
-    """A restyled clip against the three claims.
-
-    ``trajectory_cm``: mean ground distance between the restyled and the source root
-    (SMPL translation, same body); ``low_to_source`` / ``low_to_clips``: mean per-frame
-    nearest-neighbour distance of the restyled clip's low band (6D local rotations below
-    ``cutoff_hz``) to the source's low band and to each training clip's;
-    ``residual_to_labels``: distance of its residual's RMS profile to each label's."""
-
-    label: str
-    level: int
-    cutoff_hz: float
-    trajectory_cm: float
-    low_to_source: float
-    low_to_clips: dict[str, float]
-    residual_to_labels: dict[str, float]
-
-    @property
-    def low_holds(self) -> bool:
-        """The low band is nearer the source's than any training clip's."""
-        return self.low_to_source < min(self.low_to_clips.values())
-
-    @property
-    def nearest_label(self) -> str:
-        """The label whose residual profile is nearest the restyled clip's."""
-        return min(self.residual_to_labels, key=self.residual_to_labels.get)
-
-    @property
-    def high_holds(self) -> bool:
-        """The residual is nearest the target label's."""
-        return self.nearest_label == self.label
-
-
-def restyle_evidence(
-    model: Any, restyled: Motion, source: Motion | str | Path,
-    references: RestyleReferences | None = None,
-) -> RestyleEvidence:  # fmt: skip
-    """Measure ``restyled`` (a result of :func:`restyle`, best without the foot clean-up)
-    against its ``source`` clip; ``references`` from :func:`restyle_references` (built
-    for the restyled clip's length and level when None)."""
-    info = restyled.meta.get("restyle", {})
-    source = _at_model_rate(model, source)
-    if source.num_frames != restyled.num_frames:
-        raise MotionValueError(
-            f"the source has {source.num_frames} frames at {model.fps:g} fps, the restyled "
-            f"clip {restyled.num_frames}: not a restyling of it"
-        )
-    ref = references or restyle_references(model, restyled.num_frames, info.get("level"))
-    if ref.length != restyled.num_frames or info.get("level", ref.level) != ref.level:
-        raise MotionValueError(
-            f"references for {ref.length} frames at level {ref.level}, a restyled clip of "
-            f"{restyled.num_frames} frames at level {info.get('level')}"
-        )
-    lab = restyled.label if restyled.label in ref.label_profiles else info.get("label")
-    if lab not in ref.label_profiles:
-        raise MotionValueError(f"the restyled clip's label {lab!r} is not one of the model's")
-    d = np.linalg.norm(restyled.trans[:, [0, 2]] - source.trans[:, [0, 2]], axis=1)
-    low, high = split_bands(metric_features(restyled, contacts=False), model.fps, ref.cutoff_hz)
-    src_low = split_bands(metric_features(source, contacts=False), model.fps, ref.cutoff_hz)[0]
-    p = rms_profile(high)
-    return RestyleEvidence(
-        label=lab,
-        level=ref.level,
-        cutoff_hz=ref.cutoff_hz,
-        trajectory_cm=float(100 * d.mean()),
-        low_to_source=_nn(low, src_low),
-        low_to_clips={n: _nn(low, c) for n, c in zip(ref.clip_names, ref.clip_lows, strict=True)},
-        residual_to_labels={k: float(np.linalg.norm(p - v)) for k, v in ref.label_profiles.items()},
-    )
-
-
-def _nn(x: np.ndarray, ref: np.ndarray) -> float:
-    """Mean over the frames of ``x`` of the distance to the nearest frame of ``ref``."""
-    return float(frame_distances(x, ref).min(1).mean())
-
-
-# -- how much clip, how much label ---------------------------------------------------------
-@dataclass(frozen=True)
-class RestyleShares:
-    """Per level ``k``: the mean per-frame nearest-neighbour distance of the restyled
-    clip's poses (6D local rotations) to the source clip's (``to_source``) and to the
-    target label's own sample (``to_label``; same seed and length), and the source's
-    share ``to_label / (to_source + to_label)``: 1 when the result is the source, 0 when
-    it is the label's sample, 0.5 halfway."""
-
-    label: str
-    keep: str
-    levels: tuple[int, ...]
-    to_source: np.ndarray
-    to_label: np.ndarray
-
-    @property
-    def source_share(self) -> np.ndarray:
-        return self.to_label / np.maximum(self.to_source + self.to_label, 1e-12)
-
-    def to_markdown(self) -> str:
-        rows = [
-            "| level k | to source | to label | source share | label share |",
-            "|---|---|---|---|---|",
-        ]
-        for k, a, b, s in zip(self.levels, self.to_source, self.to_label, self.source_share,
-                              strict=True):  # fmt: skip
-            rows.append(f"| {k} | {a:.3f} | {b:.3f} | {100 * s:.0f}% | {100 * (1 - s):.0f}% |")
-        return "\n".join(rows)
-
-
-def restyle_shares(
-    model: Any, motion: Motion | str | Path, label: str | int, *, keep: str = "coarse",
-    seed: int = 0, levels: Any = None, body: Any = None, label_sample: Motion | None = None,
-) -> RestyleShares:  # fmt: skip
-    """How much of a restyling is the clip's and how much the label's, at every level
-    (``levels``, default ``1..L-1``): :class:`RestyleShares` of ``restyle(model, motion,
-    label, k, keep=keep, seed=seed, fix_contacts=False)``. ``label_sample``: the label's
-    own sample to compare with (default ``generate(model, label, length=T, seed=seed)``
-    without the foot clean-up)."""
-    from mrlib.sampling.generation import generate
-
-    model = _label_model(model)
-    source = _at_model_rate(model, motion)
-    levels = tuple(range(1, model.num_levels)) if levels is None else tuple(levels)
-    ks = [restyle_level(model, k) for k in levels]
-    tag = model.labels[model.label_index(label)]
-    if label_sample is None:
-        label_sample = generate(model, tag, length=source.num_frames, seed=seed, fix_contacts=False)
-    src = metric_features(source, contacts=False)
-    lab = metric_features(label_sample, contacts=False)
-    to_src, to_lab = [], []
-    for k in ks:
-        r = restyle(model, source, tag, k, keep=keep, seed=seed, fix_contacts=False, body=body)
-        x = metric_features(r, contacts=False)
-        to_src.append(_nn(x, src))
-        to_lab.append(_nn(x, lab))
-    return RestyleShares(tag, keep, tuple(ks), np.asarray(to_src), np.asarray(to_lab))

@@ -17,7 +17,8 @@ onsets), ``features`` (WavLM and the log-mel fallback), ``align`` (motion frame 
 levels, residuals, normalisation), ``data`` (folders of paired and unpaired clips, the
 training set), ``train`` (the trainer), ``sample`` (generation from audio),
 ``evaluate`` (hand speed, lagged correlation, beat alignment, synchrony of a model);
-``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``).
+``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``) and
+rule-based gestures (``gestures``).
 """
 
 from mrlib.model.config import SPEECH_NUM_LEVELS, speech_paper, speech_tutorial
@@ -83,6 +84,7 @@ from mrlib.speech.features import (
     log_mel_features,
     wavlm_features,
 )
+from mrlib.speech.gestures import GestureParams, load_base_motions, standing_base
 from mrlib.speech.sample import (
     SpeechModel,
     audio_conditions,
@@ -92,12 +94,9 @@ from mrlib.speech.sample import (
     speech_model_from_trainer,
 )
 from mrlib.speech.synthetic import (
-    GestureParams,
     SyntheticCorpus,
     espeak_available,
-    load_base_motions,
     make_synthetic_pair,
-    standing_base,
     synthesize_speech,
     synthetic_corpus,
 )

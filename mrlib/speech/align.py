@@ -30,7 +30,6 @@ from mrlib.model.config import SPEECH_NUM_LEVELS
 from mrlib.model.pyramid import pyramid_lengths, resample_linear
 
 __all__ = [
-    "SPEECH_NUM_LEVELS",
     "interpolate_to_fps",
     "downsample_levels",
     "align_to_levels",

@@ -66,7 +66,9 @@ from mrlib.model.networks import build_critics, build_generator
 from mrlib.model.pyramid import PackedLevels
 from mrlib.speech.align import downsample_levels, levels_to_residuals, speech_conditions
 from mrlib.speech.data import SpeechTrainingSet
-from mrlib.training.trainer import RandomDraw, Trainer, TrainResult, check_run_folder
+from mrlib.training.build import RandomDraw
+from mrlib.training.run import TrainResult, check_run_folder
+from mrlib.training.trainer import Trainer
 
 __all__ = [
     "RANDOM_AUDIO",

@@ -6,14 +6,9 @@ model cache (``run``). Checkpoints are ``mrlib.model.checkpoint``.
 """
 
 from mrlib.training.data import TrainingSet
-from mrlib.training.trainer import (
-    Trainer,
-    TrainingDivergedError,
-    TrainResult,
-    train,
-    train_cached,
-    train_or_reuse,
-)
+from mrlib.training.loop import TrainingDivergedError
+from mrlib.training.run import TrainResult
+from mrlib.training.trainer import Trainer, train, train_cached, train_or_reuse
 
 __all__ = [
     "TrainingSet",

@@ -38,17 +38,15 @@ from mrlib.model.checkpoint import (
 from mrlib.model.config import TrainConfig, config_from_json, config_to_json
 from mrlib.model.trained import load_model
 from mrlib.threads import with_policy
-from mrlib.training.build import RandomDraw, TrainerBase, make_adam
+from mrlib.training.build import TrainerBase
 from mrlib.training.data import TrainingSet
-from mrlib.training.loop import LOSS_NAMES, TrainingDivergedError, run_blocks
+from mrlib.training.loop import TrainingDivergedError, run_blocks
 from mrlib.training.run import (
     RUN_FILES,
-    RunExistsError,
     TrainRecord,
     TrainResult,
     cache_folder,
     check_run_folder,
-    model_cache_key,
     models_root,
     reuse_finished_run,
     same_file,
@@ -60,17 +58,7 @@ __all__ = [
     "train_or_reuse",
     "train_cached",
     "train_cached_many",
-    "model_cache_key",
     "Trainer",
-    "TrainResult",
-    "TrainRecord",
-    "RandomDraw",
-    "TrainingDivergedError",
-    "make_adam",
-    "RunExistsError",
-    "check_run_folder",
-    "RUN_FILES",
-    "LOSS_NAMES",
 ]
 
 

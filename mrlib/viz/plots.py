@@ -12,9 +12,11 @@ well the training timeline is covered, and how quality evolves during training.
   (covered) and red above it.
 * :func:`plot_quality_curve` draws a quantity measured at checkpoints against training
   time, with its target (``bench/time_to_quality.py``).
-* :func:`plot_crossover_evidence`, :func:`plot_nearest_sequence` and
-  :func:`plot_condition_fidelity` draw the measurements of ``mrlib.evaluation.crossover``;
-  :func:`plot_contacts` draws foot-contact labels over time.
+* :func:`plot_contacts` draws foot-contact labels over time, :func:`plot_evaluation` the
+  table of ``mrlib.evaluation.evaluate``.
+* :func:`plot_crossover_evidence`, :func:`plot_nearest_sequence`,
+  :func:`plot_condition_fidelity` (the measurements of ``mrlib.evaluation.crossover``) and
+  :func:`plot_ground_paths` are drawn by ``mrlib.viz.control_plots`` and reachable here.
 
 Like ``mrlib.viz.render``, this module imports matplotlib only inside its functions; every
 function draws into a given Axes or a new figure and returns the Axes.
@@ -39,12 +41,8 @@ __all__ = [
     "plot_coverage_strip",
     "plot_quality_curve",
     "save_titled_image",
-    "plot_crossover_evidence",
-    "plot_nearest_sequence",
-    "plot_condition_fidelity",
     "plot_contacts",
     "plot_evaluation",
-    "plot_ground_paths",
 ]
 
 # Colours of consecutive segments (tab10 without its grey, which reads as "missing").
@@ -313,135 +311,6 @@ def save_titled_image(img: np.ndarray, title: str, path: str | Path) -> Path:
     return Path(path)
 
 
-# -- condition control (mrlib.evaluation.crossover) ------------------------------------------------------
-def plot_crossover_evidence(evidence: Any, axes: Any = None):
-    """Bars per band of a ``mrlib.evaluation.crossover.CrossoverEvidence``: distance to the coarse
-    label A and to the fine label B, with the per-sample values as dots. The bands have
-    their own scales.
-
-    Args:
-        axes: two matplotlib Axes (low-pass, residual); a new figure when None.
-    Returns:
-        the two Axes.
-    """
-    import matplotlib.pyplot as plt
-
-    e = evidence
-    if axes is None:
-        _, axes = plt.subplots(1, 2, figsize=(9, 3.6), layout="constrained")
-    axes = np.atleast_1d(axes)
-    if len(axes) != 2:
-        raise MotionValueError("plot_crossover_evidence needs two axes (one per band)")
-    a, b = e.coarse_label, e.fine_label
-    panels = (
-        ("low", "low-pass band: per-frame NN distance", "expected: closer to A"),
-        ("high", "residual band: RMS-profile distance", "expected: closer to B"),
-    )
-    for k, (ax, (key, title, note)) in enumerate(zip(axes, panels, strict=True)):
-        vals = [getattr(e, f"{key}_to_coarse"), getattr(e, f"{key}_to_fine")]
-        ax.bar([0, 1], vals, 0.6, color=["tab:blue", "tab:orange"])
-        ps = e.per_sample[:, 2 * k : 2 * k + 2]
-        jitter = np.linspace(-0.15, 0.15, len(ps)) if len(ps) > 1 else np.zeros(1)
-        for j in range(2):
-            ax.scatter(j + jitter, ps[:, j], s=7, color="k", zorder=3)
-        ax.set_xticks([0, 1], [f"A = {a}\n(coarse, 1-{e.level})", f"B = {b}\n(fine)"])
-        ax.set_title(f"{title}\n({note})", fontsize=9)
-        ax.set_ylabel(f"distance to {e.reference}")
-    axes[0].figure.suptitle(
-        f"crossover at level {e.level}: bands split at {e.cutoff_hz:.1f} Hz",
-        fontsize=10,
-    )
-    return axes
-
-
-_STRIP_COLOURS = (
-    "tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple",
-    "tab:brown", "tab:pink", "tab:gray", "tab:olive", "tab:cyan",
-)  # fmt: skip
-
-
-def plot_nearest_sequence(strip: Any, axes: Any = None, *, title: str | None = None):
-    """Two panels over generated time for a ``mrlib.evaluation.crossover.NearestSequenceStrip``: a
-    colour band naming the nearest training sequence of every window, and where in that
-    sequence the window is (start frame, seconds). Diagonal runs in the lower panel are
-    stretches that follow one training clip.
-
-    Args:
-        strip: from ``mrlib.evaluation.crossover.nearest_sequence_strip``.
-        axes: two matplotlib Axes (band, position); a new figure when None.
-    Returns:
-        the two Axes.
-    """
-    import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
-    from matplotlib.patches import Patch
-
-    if axes is None:
-        _, axes = plt.subplots(
-            2, 1, figsize=(9, 3.4), sharex=True, gridspec_kw={"height_ratios": [1, 3]}
-        )
-    axes = np.atleast_1d(axes)
-    if len(axes) != 2:
-        raise MotionValueError("plot_nearest_sequence needs two axes")
-    fps = strip.fps if np.isfinite(strip.fps) else 1.0
-    unit = "s" if np.isfinite(strip.fps) else "frames"
-    K, N = len(strip.names), len(strip.index)
-    colours = [_STRIP_COLOURS[k % len(_STRIP_COLOURS)] for k in range(K)]
-    t = np.arange(N) / fps
-    band, pos = axes
-    band.imshow(
-        strip.index[None],
-        aspect="auto",
-        cmap=ListedColormap(colours),
-        vmin=-0.5,
-        vmax=K - 0.5,
-        interpolation="nearest",
-        extent=(0, N / fps, 0, 1),
-    )
-    band.set_yticks([])
-    band.tick_params(labelbottom=False)
-    pos.set_xlim(0, N / fps)
-    band.set_title(
-        title or f"nearest training sequence of every {strip.window}-frame window", fontsize=10
-    )
-    for k in range(K):
-        on = strip.index == k
-        if on.any():
-            pos.scatter(t[on], strip.start[on] / fps, s=6, color=colours[k])
-    pos.set_xlabel(f"generated window start ({unit})")
-    pos.set_ylabel(f"position in source ({unit})")
-    shares = strip.shares()
-    handles = [
-        Patch(color=colours[k], label=f"{nm} [{lab}] {100 * shares[nm]:.0f}%")
-        for k, (nm, lab) in enumerate(zip(strip.names, strip.labels, strict=True))
-    ]
-    pos.legend(handles=handles, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    return axes
-
-
-def plot_condition_fidelity(fidelity: Any, ax: Any = None):
-    """The confusion matrix of a ``mrlib.evaluation.crossover.ConditionFidelity`` as an image, shares
-    in %: rows the requested label, columns the label of the nearest training window."""
-    import matplotlib.pyplot as plt
-
-    if ax is None:
-        _, ax = plt.subplots(figsize=(4.6, 3.8))
-    labels = fidelity.labels
-    K = len(labels)
-    ax.imshow(100 * fidelity.confusion, cmap="Blues", vmin=0, vmax=100)
-    for i in range(K):
-        for j in range(K):
-            v = 100 * fidelity.confusion[i, j]
-            ax.text(j, i, f"{v:.0f}", ha="center", va="center",
-                    color="white" if v > 60 else "black", fontsize=9)  # fmt: skip
-    ax.set_xticks(range(K), labels, rotation=30, ha="right")
-    ax.set_yticks(range(K), labels)
-    ax.set_xlabel("label of the nearest training window")
-    ax.set_ylabel("requested label")
-    ax.set_title(f"condition fidelity {100 * fidelity.overall:.1f}% (diagonal, %)", fontsize=10)
-    return ax
-
-
 def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: str | None = None):
     """Contact labels as six horizontal bars over time (seconds).
 
@@ -479,12 +348,12 @@ def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: st
 
 def plot_evaluation(result: Any, path: str | Path | None = None):
     """Bars (mean over sequences) and dots (sequences) per method for the main metrics of
-    a ``mrlib.evaluation.evaluate.EvaluationResult``; calibration rows in grey. Returns the
+    a ``mrlib.evaluation.results.EvaluationResult``; calibration rows in grey. Returns the
     matplotlib Figure; saved to ``path`` when given."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure  # no pyplot: works headless, no global state
 
-    from mrlib.evaluation.evaluate import CALIB_PREFIX, METRIC_COLUMNS, PLOT_COLUMNS
+    from mrlib.evaluation.results import CALIB_PREFIX, METRIC_COLUMNS, PLOT_COLUMNS
 
     methods = result.methods
     kinds = {r["method"]: r["kind"] for r in result.rows}
@@ -525,47 +394,3 @@ def plot_evaluation(result: Any, path: str | Path | None = None):
     if path is not None:
         fig.savefig(path, dpi=110)
     return fig
-
-
-def plot_ground_paths(
-    path: Any, motions: Any, body: Any = None, ax: Any = None, *, title: str | None = None
-):
-    """Top-down view of a target path (dashed) and the pelvis tracks of ``motions``
-    (a ``{name: Motion}`` dict or a list), with each motion's planted heels as dots.
-
-    Args:
-        path: a ``mrlib.sampling.constraints.GroundPath`` or a spec (``"circle:2"``).
-        body: body model for the pelvis and feet (default: mrlib's).
-    Returns:
-        The Axes (x to the right, z up the page, metres, equal aspect), its legend
-        under the plot.
-    """
-    import matplotlib.pyplot as plt
-
-    from mrlib.metrics.plausibility import motion_kinematics
-    from mrlib.sampling.constraints import parse_path, path_error
-
-    path = parse_path(path)
-    items = motions.items() if isinstance(motions, dict) else enumerate(motions)
-    if ax is None:
-        _, ax = plt.subplots(figsize=(6, 6))
-    q = np.vstack([path.points, path.points[:1]]) if path.closed else path.points
-    ax.plot(q[:, 0], q[:, 1], "k--", lw=1.2, label=f"target: {path.name}")
-    for k, (name, m) in enumerate(items):
-        joints, feet = motion_kinematics(m, body)
-        colour = f"C{k}"
-        err = path_error(m, path, body)
-        ax.plot(joints[:, 0, 0], joints[:, 0, 2], color=colour, lw=1.5,
-                label=f"{name}: {100 * err['mean_m']:.1f} cm mean, {100 * err['max_m']:.0f} cm max")  # fmt: skip
-        if m.contacts is not None:
-            for v in (2, 5):  # heels
-                down = m.contacts[:, v] > 0.5
-                ax.plot(feet[down, v, 0], feet[down, v, 2], ".", ms=2, color=colour, alpha=0.5)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("z (m)")
-    # below the axes: inside, a legend covers part of a path that fills the plot
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
-    if title:
-        ax.set_title(title, fontsize=10)
-    return ax

@@ -1,9 +1,13 @@
 """Interactive views for notebooks (ipywidgets): the label crossover, with a mesh render
-and the nearest-sequence strip of every generated sample; path following; body parts;
-in-betweening.
+and the nearest-sequence strip of every generated sample, and the restyling of a clip.
+The views of the constraints (path following, body parts, in-betweening) are in
+``mrlib.viz.constraint_views``; their names are reachable from here too
+(``mrlib.viz.widgets.interactive_path``).
 
-The measurements behind the views are ``mrlib.evaluation.crossover``'s, their pictures
-``mrlib.viz.plots``' and ``mrlib.viz.render``'s; this module only wires them to controls.
+The measurements behind the views are ``mrlib.evaluation.crossover``'s and
+``mrlib.evaluation.restyle_evidence``'s, their pictures ``mrlib.viz.plots``' and
+``mrlib.viz.render``'s; these modules only wire them to controls, with the plumbing the
+views share in ``mrlib.viz.widget_kit``.
 
 Every view has a status line under its controls. While a redraw runs it reads
 "drawing..." and the controls are disabled (some redraws fit noise for seconds); then it
@@ -11,14 +15,10 @@ reads what the picture shows, updated on every redraw. An invalid value (NaN, ou
 range) is reported there and the last good picture stays. The "3D player" toggle shows
 the current sample playable and rotatable (``mrlib.viz.render.play_motion``: pyvista's trame
 backend in a live JupyterLab, an animated GIF where there is none).
-
-The module is long because each of the four views wires its own controls; the plumbing
-they share (the busy state, the status line, the 3D player) comes first.
 """
 
 from __future__ import annotations
 
-import html
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -35,29 +35,17 @@ from mrlib.evaluation.fidelity import (
 from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion
 from mrlib.sampling.generation import generate, label_weights
-from mrlib.viz.plots import plot_nearest_sequence
-from mrlib.viz.render import (
-    MotionPlayer,
-    crop_to_bodies,
-    evenly_spaced_frames,
-    play_motion,
-    render_meshes,
-)
+from mrlib.viz.control_plots import plot_nearest_sequence
+from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
+from mrlib.viz.widget_kit import BUSY, WIDE, checked, show_figure, view_parts, wire
 
 __all__ = [
     "CrossoverView",
     "interactive_crossover",
-    "interactive_path",
-    "interactive_parts",
-    "interactive_inbetween",
     "crossover_title",
     "RestyleView",
     "interactive_restyle",
 ]
-
-BUSY = "drawing..."
-WIDE = {"description_width": "initial"}  # descriptions in full, never cut off
-_COLOURS = {"busy": "#9a6700", "error": "#b3261e", "done": "inherit"}
 
 
 @dataclass
@@ -83,134 +71,6 @@ def crossover_title(coarse: str, fine: str, weight: float, level: int, levels: i
     mix = fine if weight == 1.0 else f"{1 - weight:.2f} {coarse} + {weight:.2f} {fine}"
     return (f"coarse '{coarse}' at levels 1-{level}, fine '{mix}' at levels "
             f"{level + 1}-{levels} (seed {seed})")  # fmt: skip
-
-
-# -- plumbing shared by the views ------------------------------------------------------------
-def _status_html(text: str, kind: str = "done") -> str:
-    """The status line's HTML; ``kind`` is ``busy``, ``error`` or ``done`` (also its CSS
-    class, ``mrlib-busy`` and so on, which the browser test reads)."""
-    body = html.escape(text, quote=False)
-    return f'<span class="mrlib-{kind}" style="color: {_COLOURS[kind]}">{body}</span>'
-
-
-def _checked(control: Any) -> float:
-    """A numeric control's value, or a ``MotionValueError`` naming it when the value is
-    not finite or outside the control's range (sliders clamp, but NaN passes through)."""
-    value = float(control.value)
-    lo, hi = float(control.min), float(control.max)
-    if not (np.isfinite(value) and lo <= value <= hi):
-        raise MotionValueError(
-            f"{control.description} must be a number in [{lo:g}, {hi:g}], got {value}"
-        )
-    return value
-
-
-class _Runner:
-    """Runs a view's redraws: "drawing..." and disabled controls while one runs (each
-    control's own disabled state restored after, whatever happens), then the redraw's
-    status text, or the error with the last good picture left in place."""
-
-    def __init__(self, status: Any, controls: list[Any]) -> None:
-        self.status = status
-        self.controls = controls
-        self.text = ""  # what the last good picture shows
-        self.hold = 0  # > 0: value changes do not redraw (a control being adjusted)
-
-    def run(self, work: Callable[[], tuple[Any, str]], busy: str = BUSY) -> Any:
-        was = [c.disabled for c in self.controls]
-        for c in self.controls:  # first, so that the page never shows busy and enabled
-            c.disabled = True
-        self.status.value = _status_html(busy, "busy")
-        try:
-            result, text = work()
-        except ValueError as e:  # MotionValueError and the like: an invalid value
-            still = f" (the picture still shows: {self.text})" if self.text else ""
-            self.status.value = _status_html(f"not drawn: {e}{still}", "error")
-            raise
-        except Exception as e:
-            self.status.value = _status_html(f"failed: {type(e).__name__}: {e}", "error")
-            raise
-        finally:
-            for c, d in zip(self.controls, was, strict=True):
-                c.disabled = d
-        self.text = text
-        self.status.value = _status_html(text)
-        return result
-
-    def on_change(self, work: Callable[[], tuple[Any, str]],
-                  busy: Callable[[], str] = lambda: BUSY) -> Callable[..., None]:  # fmt: skip
-        """An observer that redraws and leaves an invalid value's error in the status line
-        (a notebook shows no traceback for it)."""
-
-        def changed(change: Any = None) -> None:
-            if self.hold:
-                return
-            try:
-                self.run(work, busy())
-            except ValueError:
-                pass  # reported in the status line
-
-        return changed
-
-
-class _Player3D:
-    """The "3D player" toggle of a view and the output it shows the player in; the
-    player follows every redraw while the toggle is on."""
-
-    def __init__(self, w: Any, body: Callable[[], Any], *, in_place: bool = True) -> None:
-        self.toggle = w.ToggleButton(
-            value=False, description="3D player", icon="cube", layout=w.Layout(width="auto"),
-            tooltip="show the current sample playable and rotatable: drag to orbit, the "
-            "play button and slider for time (a live JupyterLab with pyvista's trame "
-            "backend; an animated GIF elsewhere)",
-        )  # fmt: skip
-        self.out = w.Output()
-        self.body = body
-        self.in_place = in_place
-        self.motion: Motion | None = None
-        self.player: MotionPlayer | None = None
-
-    def show(self, motion: Motion | None = None) -> None:
-        from IPython.display import display
-
-        if motion is not None:
-            self.motion = motion
-        if not self.toggle.value or self.motion is None:
-            self.close()
-            return
-        if self.player is not None:
-            self.player.set_motion(self.motion)
-            return
-        view = play_motion(self.motion, self.body(), still="gif", in_place=self.in_place)
-        self.player = view if isinstance(view, MotionPlayer) else None
-        with self.out:
-            self.out.clear_output(wait=True)
-            display(view)
-
-    def close(self) -> None:
-        if self.player is not None:
-            self.player.close()
-            self.player = None
-        self.out.clear_output()
-
-
-def _wire(runner: _Runner, player: _Player3D, controls: list[Any],
-          draw: Callable[[], tuple[Any, str]], busy: Callable[[], str]) -> None:  # fmt: skip
-    for c in controls:
-        c.observe(runner.on_change(draw, busy), names="value")
-    player.toggle.observe(
-        runner.on_change(
-            lambda: (player.show(), runner.text or "not drawn yet"),
-            lambda: "opening the 3D view...",
-        ),
-        names="value",
-    )
-
-
-def _status_widget(w: Any) -> Any:
-    status = w.HTML(value=_status_html("not drawn yet"))
-    status.add_class("mrlib-status")
-    return status
 
 
 # -- the views ---------------------------------------------------------------------------------
@@ -240,10 +100,10 @@ def interactive_crossover(
     (``mrlib.sampling.generation.guided_weights``): above 0 the labels are exaggerated.
 
     Every change regenerates the sample and redraws, into an ``Output`` widget, a mesh
-    render of ``frames`` frames (``mrlib.viz.render.render_meshes``) titled with the labels and the
-    nearest-sequence strip (``mrlib.viz.plots.plot_nearest_sequence``); the status line shows
-    the title (:func:`crossover_title`) and the share of each label among the nearest
-    windows.
+    render of ``frames`` frames (``mrlib.viz.render.render_meshes``) titled with the labels
+    and the nearest-sequence strip (``mrlib.viz.control_plots.plot_nearest_sequence``); the
+    status line shows the title (:func:`crossover_title`) and the share of each label
+    among the nearest windows.
 
     Args:
         model: a ``GenerativeModel`` with at least two levels.
@@ -261,7 +121,6 @@ def interactive_crossover(
     """
     import ipywidgets as w
     import matplotlib.pyplot as plt
-    from IPython.display import display
 
     L = model.num_levels
     if L < 2:
@@ -291,16 +150,13 @@ def interactive_crossover(
         value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
         description="guidance", continuous_update=False, style=WIDE,
     )  # fmt: skip
-    out = w.Output()
-    status = _status_widget(w)
-    player = _Player3D(w, lambda: resolve_body(body, shared=True))
     controls = [coarse, fine, level, seed, weight, noise, guidance]
-    runner = _Runner(status, [*controls, player.toggle])
+    out, status, player, runner = view_parts(w, controls, lambda: resolve_body(body, shared=True))
 
     def draw() -> tuple[CrossoverView, str]:
         a, b = coarse.value, fine.value
-        i, s, wt = int(_checked(level)), int(_checked(seed)), _checked(weight)
-        fine_noise, g = _checked(noise), _checked(guidance)
+        i, s, wt = int(checked(level)), int(checked(seed)), checked(weight)
+        fine_noise, g = checked(noise), checked(guidance)
         blend = crossover_blend(model, a, b, i, wt)
         W = label_weights(model, blend=blend).numpy()
         # a view of the model with this UI's sampler settings; it shares the networks
@@ -324,10 +180,7 @@ def interactive_crossover(
         axs[1].sharex(axs[0])
         plot_nearest_sequence(strip, axs, title=None if render else title)
         fig.tight_layout()
-        with out:
-            out.clear_output(wait=True)
-            display(fig)
-        plt.close(fig)
+        show_figure(out, fig)
         player.show(motion)
         shares = ", ".join(f"{k} {100 * v:.0f}%" for k, v in strip.label_shares().items())
         view = CrossoverView(motion=motion, weights=W, strip=strip, image=image, title=title)
@@ -336,7 +189,7 @@ def interactive_crossover(
     def update(*_: Any) -> CrossoverView:
         return runner.run(draw)
 
-    _wire(runner, player, controls, draw, lambda: BUSY)
+    wire(runner, player, controls, draw, lambda: BUSY)
     box = w.VBox(
         [
             w.HBox([coarse, fine]),
@@ -351,252 +204,6 @@ def interactive_crossover(
     return box, update
 
 
-def interactive_path(
-    model: Any, body: Any = None, *, label: str | None = None, seconds: float = 20.0
-) -> tuple[Any, Callable[[], Motion]]:
-    """An ipywidgets UI for path following: path preset and size, label, seed and
-    method (``bend`` / ``optimise``); every change regenerates and redraws the top-down
-    plot of target and generated paths (``mrlib.viz.plots.plot_ground_paths``), the status
-    line the pelvis's distance to the path.
-
-    Returns:
-        ``(widget, update)``; ``update()`` regenerates and returns the Motion.
-    """
-    import ipywidgets as w
-    import matplotlib.pyplot as plt
-    from IPython.display import display
-
-    from mrlib.sampling.constraints import generate_on_path, path_error
-    from mrlib.viz.plots import plot_ground_paths
-
-    body = resolve_body(body, shared=True)
-    kind = w.Dropdown(options=["circle", "circle-right", "eight", "line"], value="circle",
-                      description="path", style=WIDE)  # fmt: skip
-    size = w.FloatSlider(value=2.0, min=0.5, max=10.0, step=0.5, description="size (m)",
-                         continuous_update=False, style=WIDE)  # fmt: skip
-    lab = w.Dropdown(options=list(model.labels), value=label or model.labels[0],
-                     description="label", style=WIDE)  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    method = w.ToggleButtons(
-        options=["bend", "optimise"], value="bend", description="method", style=WIDE,
-        tooltips=["bend the model's own walk onto the path (fast)",
-                  "fit the noise, networks frozen (a few seconds)"],
-    )  # fmt: skip
-    out = w.Output()
-    status = _status_widget(w)
-    player = _Player3D(w, lambda: body, in_place=False)
-    controls = [kind, size, lab, seed, method]
-    runner = _Runner(status, [*controls, player.toggle])
-
-    def draw() -> tuple[Motion, str]:
-        spec = f"{kind.value}:{_checked(size):g}"
-        s = int(_checked(seed))
-        m = generate_on_path(model, spec, lab.value, seconds=seconds, seed=s,
-                             method=method.value, body=body)  # fmt: skip
-        fig, ax = plt.subplots(figsize=(6, 7))
-        plot_ground_paths(spec, {f"{lab.value} ({method.value})": m}, body, ax)
-        fig.tight_layout()
-        with out:
-            out.clear_output(wait=True)
-            display(fig)
-        plt.close(fig)
-        player.show(m)
-        e = path_error(m, spec, body)
-        return m, (f"'{lab.value}' on {spec} ({method.value}, seed {s}): the pelvis "
-                   f"{100 * e['mean_m']:.1f} cm from the path on average, "
-                   f"{100 * e['max_m']:.0f} cm at most")  # fmt: skip
-
-    def busy() -> str:
-        return BUSY + (" (fitting the noise: a few seconds)" if method.value == "optimise" else "")
-
-    def update(*_: Any) -> Motion:
-        return runner.run(draw, busy())
-
-    _wire(runner, player, controls, draw, busy)
-    rows = [w.HBox([kind, size]), w.HBox([lab, seed]), w.HBox([method, player.toggle]),
-            w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
-
-
-def interactive_parts(
-    model: Any, body: Any = None, *, frames: int = 5, length: int | None = None
-) -> tuple[Any, Callable[[], Motion]]:
-    """An ipywidgets UI for body-part composition: a label for the upper body, one for
-    the lower body, the method (``splice`` / ``film``), the seed and the sampler's label
-    ``guidance`` for this view (``mrlib.sampling.generation.guided_weights``: above 0 each part keeps
-    its label more often, at some distance from the training motion); every change
-    regenerates and shows a mesh render of ``frames`` frames, titled (and the status line
-    too) with each part's condition fidelity (``mrlib.sampling.constraints.part_fidelity``).
-    "arms in step" retimes a splice's upper body to the legs' gait (``align_gait``; film
-    has nothing to retime, so it is disabled there); "sharpen" fits the noise so that
-    each part shows its label (``generate_parts(..., sharpen=SHARPEN_STEPS)``)."""
-    import ipywidgets as w
-    import matplotlib.pyplot as plt
-    from IPython.display import display
-
-    from mrlib.sampling.constraints import (
-        SHARPEN_STEPS,
-        arm_leg_coordination,
-        generate_parts,
-        part_fidelity,
-    )
-
-    body = resolve_body(body, shared=True)
-    labels = list(model.labels)
-    upper = w.Dropdown(options=labels, value=labels[0], description="upper body", style=WIDE)
-    lower = w.Dropdown(options=labels, value=labels[-1], description="lower body", style=WIDE)
-    method = w.ToggleButtons(
-        options=["splice", "film"], value="splice", description="method", style=WIDE,
-        tooltips=["each part's joints from its own label's sample",
-                  "one generator run, each part's channels modulated by its own label"],
-    )  # fmt: skip
-    in_step = w.Checkbox(
-        value=False, description="arms in step with the legs (splice)", indent=False,
-        layout=w.Layout(width="auto"), style=WIDE,
-        tooltip="splice only: retime the upper body's sample to the legs' gait phase, so "
-        "that the arms swing in step with the legs (align_gait); film makes one sample, "
-        "with nothing to retime",
-    )  # fmt: skip
-    sharpen = w.Checkbox(
-        value=False, description="sharpen each part's label (takes seconds)", indent=False,
-        layout=w.Layout(width="auto"), style=WIDE,
-        tooltip=f"fit each part's noise ({SHARPEN_STEPS} steps, seconds per redraw) so that "
-        "its windows are nearer its own label's training clips than any other label's",
-    )  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    guidance = w.FloatSlider(
-        value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
-        description="guidance", continuous_update=False, style=WIDE,
-    )  # fmt: skip
-    out = w.Output()
-    status = _status_widget(w)
-    player = _Player3D(w, lambda: body)
-    controls = [upper, lower, method, in_step, sharpen, seed, guidance]
-    runner = _Runner(status, [*controls, player.toggle])
-
-    def film_has_no_step(change: Any = None) -> None:
-        in_step.disabled = method.value == "film"
-
-    method.observe(film_has_no_step, names="value")  # before the redraw's observer
-    film_has_no_step()
-
-    def draw() -> tuple[Motion, str]:
-        parts = {"upper": upper.value, "lower": lower.value}
-        s, g = int(_checked(seed)), _checked(guidance)
-        aligned = bool(in_step.value) and method.value == "splice"
-        sampler = replace(model, guidance=g)  # shares the networks
-        m = generate_parts(sampler, parts, length, seed=s, method=method.value,
-                           align_gait=aligned, body=body,
-                           sharpen=SHARPEN_STEPS if sharpen.value else 0)  # fmt: skip
-        windows = min(len(m), int(model.lengths[:, -1].min())) >= 30
-        fid = part_fidelity([m], model, parts) if windows else {}
-        coordination = arm_leg_coordination(m, body)
-        image = crop_to_bodies(render_meshes(m, body, frames=evenly_spaced_frames(len(m), frames)))
-        how = ", ".join([method.value] + ["arms in step"] * aligned + ["sharpened"] * sharpen.value)
-        kept = ", ".join(f"{p} {100 * f:.0f}%" for p, f in fid.items())
-        title = (f"upper body {upper.value}, lower body {lower.value} ({how}, seed {s})"
-                 + (f"; windows keeping their part's label: {kept}" if kept else "")
-                 + f"; arm-leg coordination {coordination:.2f}")  # fmt: skip
-        fig, ax = plt.subplots(figsize=(10, 4))
-        ax.imshow(image)
-        ax.axis("off")
-        ax.set_title(title, fontsize=10)
-        with out:
-            out.clear_output(wait=True)
-            display(fig)
-        plt.close(fig)
-        player.show(m)
-        return m, title
-
-    def busy() -> str:
-        return BUSY + (" (sharpening: several seconds)" if sharpen.value else "")
-
-    def update(*_: Any) -> Motion:
-        return runner.run(draw, busy())
-
-    _wire(runner, player, controls, draw, busy)
-    rows = [w.HBox([upper, lower]), w.HBox([method, in_step]), w.HBox([seed, guidance]),
-            w.HBox([sharpen, player.toggle]), w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
-
-
-def interactive_inbetween(
-    model: Any, clips: dict[str, Motion], body: Any = None, *, seconds: float = 4.0,
-    steps: int | None = None,
-) -> tuple[Any, Callable[[], Motion]]:  # fmt: skip
-    """An ipywidgets UI for in-betweening: a start frame of one clip and an end pose
-    of another (clip and frame pickers), the label of what lies between and the seed;
-    every change regenerates (``mrlib.sampling.constraints.generate_with_keyframes``, with
-    ``steps`` of noise fit: default its own) and shows the mesh at the two keyframes and
-    between them; the status line the error at the keyframes."""
-    import ipywidgets as w
-    import matplotlib.pyplot as plt
-    from IPython.display import display
-
-    from mrlib.sampling.constraints import Keyframe, generate_with_keyframes, keyframe_errors
-
-    body = resolve_body(body, shared=True)
-    names = list(clips)
-    a = w.Dropdown(options=names, value=names[0], description="from clip", style=WIDE)
-    fa = w.IntSlider(value=0, min=0, max=clips[names[0]].num_frames - 1, description="frame",
-                     continuous_update=False, style=WIDE)  # fmt: skip
-    b = w.Dropdown(options=names, value=names[-1], description="to clip", style=WIDE)
-    fb = w.IntSlider(value=clips[names[-1]].num_frames - 1, min=0,
-                     max=clips[names[-1]].num_frames - 1, description="frame",
-                     continuous_update=False, style=WIDE)  # fmt: skip
-    lab = w.Dropdown(options=list(model.labels), value=model.labels[0], description="between",
-                     style=WIDE)  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    out = w.Output()
-    status = _status_widget(w)
-    player = _Player3D(w, lambda: body)
-    controls = [a, fa, b, fb, lab, seed]
-    runner = _Runner(status, [*controls, player.toggle])
-    N = max(2, round(seconds * model.fps))
-
-    def clamp(slider: Any, clip: Motion) -> None:
-        runner.hold += 1  # one redraw, by the clip's own observer, not two
-        try:
-            slider.max = clip.num_frames - 1
-            slider.value = min(slider.value, slider.max)
-        finally:
-            runner.hold -= 1
-
-    def draw() -> tuple[Motion, str]:
-        i, j, s = int(_checked(fa)), int(_checked(fb)), int(_checked(seed))
-        kfs = [
-            Keyframe.from_motion(clips[a.value], i, 0),
-            Keyframe.from_motion(clips[b.value], j, N - 1, root=False),
-        ]
-        fit = {} if steps is None else {"steps": steps}
-        m = generate_with_keyframes(model, kfs, N, lab.value, seed=s, body=body, **fit)
-        shown = [0, N // 4, N // 2, 3 * N // 4, N - 1]
-        image = crop_to_bodies(render_meshes(m, body, frames=shown))
-        title = f"{a.value}[{i}] -> {lab.value} -> {b.value}[{j}] (seed {s})"
-        fig, ax = plt.subplots(figsize=(10, 4))
-        ax.imshow(image)
-        ax.axis("off")
-        ax.set_title(f"{title}: frames {shown}, keyframes first and last", fontsize=10)
-        with out:
-            out.clear_output(wait=True)
-            display(fig)
-        plt.close(fig)
-        player.show(m)
-        e = keyframe_errors(m, kfs)
-        return m, f"{title}; keyframe error {e['rotation_deg']:.3f} deg, {e['trans_cm']:.3f} cm"
-
-    def update(*_: Any) -> Motion:
-        return runner.run(draw, BUSY + " (fitting the noise to the keyframes)")
-
-    a.observe(lambda change: clamp(fa, clips[a.value]), names="value")
-    b.observe(lambda change: clamp(fb, clips[b.value]), names="value")
-    _wire(runner, player, controls, draw,
-          lambda: BUSY + " (fitting the noise to the keyframes)")  # fmt: skip
-    rows = [w.HBox([a, fa]), w.HBox([b, fb]), w.HBox([lab, seed, player.toggle]),
-            w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
-
-
 @dataclass
 class RestyleView:
     """What one call of :func:`interactive_restyle` made."""
@@ -604,7 +211,7 @@ class RestyleView:
     motion: Motion  # the restyled clip
     source: Motion  # the input at the model's frame rate
     label_sample: Motion  # the target label's own sample, same seed and length
-    shares: Any  # mrlib.sampling.restyling.RestyleShares over every level
+    shares: Any  # mrlib.evaluation.restyle_evidence.RestyleShares over every level
     image: np.ndarray | None  # (H, W, 3) mesh renders, None when rendering is off
     title: str
 
@@ -622,17 +229,18 @@ def interactive_restyle(
     restyled clip and the target label's own sample (same seed and length) side by side
     as mesh renders of ``frames`` frames (off with ``render=False``), their paths on the
     ground, and per level the share of the result that is the input's and the label's
-    (``mrlib.sampling.restyling.restyle_shares``: nearness of its poses to the input's and to the
-    label sample's), the current level marked; the status line says the same in words.
+    (``mrlib.evaluation.restyle_evidence.restyle_shares``: nearness of its poses to the
+    input's and to the label sample's), the current level marked; the status line says
+    the same in words.
 
     Returns:
         ``(widget, update)``; ``update()`` redraws and returns a :class:`RestyleView`.
     """
     import ipywidgets as w
     import matplotlib.pyplot as plt
-    from IPython.display import display
 
-    from mrlib.sampling.restyling import KEEP, restyle, restyle_level, restyle_shares
+    from mrlib.evaluation.restyle_evidence import restyle_shares
+    from mrlib.sampling.restyling import KEEP, restyle, restyle_level
 
     if render:
         body = resolve_body(body)
@@ -656,11 +264,8 @@ def interactive_restyle(
         tooltip="fit the coarse levels' noise to the clip and restyle the model's own "
         "version of it (for clips far from the training data; keep=coarse only)",
     )  # fmt: skip
-    out = w.Output()
-    status = _status_widget(w)
-    player = _Player3D(w, lambda: shared_body)
     controls = [lab, lvl, keep, seed, invert]
-    runner = _Runner(status, [*controls, player.toggle])
+    out, status, player, runner = view_parts(w, controls, lambda: shared_body)
     cache: dict[tuple, Any] = {}
 
     def detail_has_no_inversion(change: Any = None) -> None:
@@ -672,7 +277,7 @@ def interactive_restyle(
     def draw() -> tuple[RestyleView, str]:
         from mrlib.sampling.generation import generate
 
-        k, s = int(_checked(lvl)), int(_checked(seed))
+        k, s = int(checked(lvl)), int(checked(seed))
         inv = bool(invert.value) and keep.value == "coarse"
         m = restyle(model, source, lab.value, k, keep=keep.value, seed=s, invert=inv,
                     body=shared_body)  # fmt: skip
@@ -722,10 +327,7 @@ def interactive_restyle(
         ax.legend(fontsize=8, loc="lower right")
         fig.suptitle(title, fontsize=10)
         fig.tight_layout()
-        with out:
-            out.clear_output(wait=True)
-            display(fig)
-        plt.close(fig)
+        show_figure(out, fig)
         player.show(m)
         view = RestyleView(m, source, sample, shares, image, title)
         return view, (f"{title}; at level {k} the result is {100 * share:.0f}% input, "
@@ -739,7 +341,7 @@ def interactive_restyle(
     def update(*_: Any) -> RestyleView:
         return runner.run(draw, busy())
 
-    _wire(runner, player, controls, draw, busy)
+    wire(runner, player, controls, draw, busy)
     rows = [w.HBox([lab, lvl]), w.HBox([keep, seed]), w.HBox([invert, player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
     return w.VBox(rows), update

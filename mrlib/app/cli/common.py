@@ -242,7 +242,7 @@ def write_samples(motions, tag: str, args) -> int:
             if kind == ".png":
                 import imageio.v3 as iio
 
-                from mrlib.viz.render import evenly_spaced_frames, render_meshes
+                from mrlib.viz.meshes import evenly_spaced_frames, render_meshes
 
                 image = render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
                 write_bytes(path, iio.imwrite("<bytes>", image, extension=".png"),

@@ -60,7 +60,7 @@ def _preset_fps(name: str) -> float | None:
 def _retarget_check(accept: bool):
     """Loads inside refuse BVH clips retargeted with an error above the threshold (their
     RetargetWarning), unless ``accept``; other warnings pass through."""
-    from mrlib.io.retarget import RetargetWarning
+    from mrlib.io.retarget_report import RetargetWarning
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -187,7 +187,8 @@ def _single_clip(data, k: int):
 def cmd_train(args) -> int:
     from mrlib.model.config import ganimator_mode, training_config
     from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import check_run_folder, train
+    from mrlib.training.run import check_run_folder
+    from mrlib.training.trainer import train
 
     if args.resume is None and not args.clips:
         raise MrlibError("give clips to train on, or --resume a checkpoint")
@@ -347,7 +348,7 @@ def cmd_train_speech(args) -> int:
                 "seed": "--seed",
             },
         )
-    from mrlib.training.trainer import check_run_folder
+    from mrlib.training.run import check_run_folder
 
     check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)  # before loading
     data = cfg = None

@@ -17,14 +17,12 @@ How each works, and what was measured against what, is in the submodules' docstr
 and ``docs/results.md``; ``notebooks/06_constraints.ipynb`` shows them with widgets.
 """
 
+from mrlib.sampling.constraints.common import PARTS, parse_parts, part_joints
 from mrlib.sampling.constraints.compose import (
-    PARTS,
     arm_leg_coordination,
     gait_phase,
     generate_parts,
-    parse_parts,
     part_fidelity,
-    part_joints,
     phase_align,
     splice_parts,
 )

@@ -30,15 +30,10 @@ from mrlib.errors import MotionValueError
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS
 from mrlib.sampling.constraints.common import (
-    PARTS,
-    parse_parts,
     part_joints,
 )
 
 __all__ = [
-    "PARTS",
-    "part_joints",
-    "parse_parts",
     "generate_parts",
     "splice_parts",
     "gait_phase",
