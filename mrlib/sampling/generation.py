@@ -30,6 +30,7 @@ __all__ = [
     "generate",
     "reconstruct",
     "reconstruct_features",
+    "training_floor",
     "reconstruction_error",
 ]
 
@@ -251,6 +252,28 @@ def sampler_record(model: GenerativeModel, seed: int | None, index: int, W: torc
 
 
 @with_policy
+def training_floor(model: GenerativeModel, labels: Sequence[int] | None = None, body=None):
+    """The height (m) the planted feet of the model's training clips rest at
+    (``mrlib.sampling.cleanup.contact_floor``), over the clips of ``labels`` (indices;
+    all clips when None or when none has them): the floor the foot-contact clean-up
+    puts generated feet on. None without contact labels. Cached on the model."""
+    from mrlib.metrics.plausibility import motion_kinematics
+    from mrlib.sampling.cleanup import contact_floor
+
+    cache = model.__dict__.setdefault("_training_floor", {})
+    clips = [k for k, lab in enumerate(model.clip_labels) if labels is None or lab in labels]
+    key = tuple(clips or range(len(model.clip_labels)))
+    if key not in cache:
+        feet, cs = [], []
+        for k in key:
+            m = features_to_motion(model.features[k], model.fps, betas=model.betas)
+            if m.contacts is not None:
+                feet.append(motion_kinematics(m, body)[1])
+                cs.append(m.contacts)
+        cache[key] = contact_floor(feet, cs) if feet else None
+    return cache[key]
+
+
 def generate(
     model: GenerativeModel,
     condition: str | int | None = None,
@@ -304,7 +327,8 @@ def generate(
         m.meta["sampler"] = sampler_record(model, seed, b, W)
     if fix_contacts:
         method = fix_contacts if isinstance(fix_contacts, str) else "ik"
-        motions = [cleanup_foot_contacts(m, body, method=method) for m in motions]
+        floor = training_floor(model, [int(k) for k in W.argmax(1).unique()], body)
+        motions = [cleanup_foot_contacts(m, body, method=method, floor=floor) for m in motions]
     single = num_samples == 1
     if not return_levels:
         return motions[0] if single else motions
