@@ -32,19 +32,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--samples", type=int, default=10, help="evaluation samples per label")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument(
-        "--critic-contacts",
-        action="store_true",
-        help="ModelConfig.critic_contacts: critics see foot slides",
-    )
     ap.add_argument("--lr", type=float, default=None, help="Adam learning rate [preset's]")
     ap.add_argument("--con", type=float, default=None, help="LossWeights.con [preset's]")
-    ap.add_argument(
-        "--con-norm", choices=["squared", "speed"], default=None, help="LossWeights.con_norm"
-    )
-    ap.add_argument(
-        "--con-on-rec", action="store_true", help="LossWeights.con_on_rec: L_con on reconstructions"
-    )
     ap.add_argument(
         "--clean",
         action="store_true",
@@ -74,19 +63,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.gen_hidden:
         hidden = tuple(int(v) for v in args.gen_hidden.split(","))
         cfg = cfg.replace(model=dataclasses.replace(cfg.model, gen_hidden=hidden))
-    loss = {}
     if args.con is not None:
-        loss["con"] = args.con
-    if args.con_norm:
-        loss["con_norm"] = args.con_norm
-    if args.con_on_rec:
-        loss["con_on_rec"] = True
-    if loss:
-        cfg = cfg.replace(loss=dataclasses.replace(cfg.loss, **loss))
+        cfg = cfg.replace(loss=dataclasses.replace(cfg.loss, con=args.con))
     if args.lr is not None:
         cfg = cfg.replace(lr=args.lr)
-    if args.critic_contacts:
-        cfg = cfg.replace(model=dataclasses.replace(cfg.model, critic_contacts=True))
     body = mrlib.load_body_model()
     clips = [mrlib.load_motion(p, fps=args.fps) for p in sorted(DATA_SAMPLES.glob("*.npz"))]
     data = TrainingSet.from_motions(clips, body=body)
@@ -116,9 +96,6 @@ def main(argv: list[str] | None = None) -> int:
         "seed": args.seed,
         "lr": cfg.lr,
         "con": cfg.loss.con,
-        "con_norm": cfg.loss.con_norm,
-        "con_on_rec": cfg.loss.con_on_rec,
-        "critic_contacts": cfg.model.critic_contacts,
         "train_s": round(train_s, 1),
         "eval_s": round(eval_s, 1),
         **{

@@ -345,9 +345,9 @@ def test_train_or_reuse_trains_once_per_config(tmp_path, body, clips, plumbing_m
     # a run written by an older mrlib (a config field missing from its JSON) is not reused
     meta = r3.checkpoint.with_suffix(".pt.json")
     saved = json.loads(meta.read_text())
-    saved.pop("samples_per_clip")  # today's default, the same value as in cfg
+    saved.pop("critic_mixed")  # today's default, the same value as in cfg
     meta.write_text(json.dumps(saved))
-    with pytest.warns(UserWarning, match="samples_per_clip missing"):
+    with pytest.warns(UserWarning, match="critic_mixed missing"):
         _, r4 = train_or_reuse(data, cfg.replace(mix_prob=0.0), tmp_path, body=body, progress=False)
     assert not r4.reused and len(list(tmp_path.glob("previous-*"))) == 2
 

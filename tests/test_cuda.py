@@ -66,7 +66,7 @@ def full_precision():
     torch.backends.cudnn.allow_tf32, torch.backends.cuda.matmul.allow_tf32 = flags
 
 
-@pytest.mark.parametrize("band", ["full", "detail", "level"])
+@pytest.mark.parametrize("band", ["full", "detail"])
 def test_label_training_on_the_device_loads_and_samples_on_both(
     tmp_path, body, walks, band, full_precision
 ):

@@ -262,47 +262,24 @@ def test_detail_band_critic_judges_the_label_on_detail_only():
     assert not torch.allclose(full(y, pad, a) - full(y, pad, b), d_x, atol=1e-3)
     # no branch without a condition; bad values are refused
     assert PatchCritic(cfg).detail is None
-    with pytest.raises(ConfigError, match="critic_band"):
-        ModelConfig(critic_band="high")
+    for bad in ("high", "level"):  # "level" was a study option, removed
+        with pytest.raises(ConfigError, match="critic_band"):
+            ModelConfig(critic_band=bad)
 
 
-@pytest.mark.parametrize("band", ["full", "detail", "level"])
+@pytest.mark.parametrize("band", ["full", "detail"])
 def test_critic_split_gives_the_two_terms_forward_adds(band):
     torch.manual_seed(0)
     critic = PatchCritic(dataclasses.replace(TINY, critic_band=band), cond_dim=3)
-    x, lb = torch.randn(2, C, 30), 0.1 * torch.randn(2, C, 30)
+    x = torch.randn(2, C, 30)
     pad = _pad(30).expand(2, -1, -1)
     c = torch.softmax(torch.randn(2, 30, 3), -1)
-    score, feats = critic.split(x, pad, lb)
+    score, feats = critic.split(x, pad)
     assert score.shape == (2, 30) and feats.shape[::2] == (2, 30)
     # one joint per feature channel, as the skeleton-aware layers assign them
     assert len(hidden_channel_joint(feats.shape[1])) == feats.shape[1]
     label = (critic.project(c).transpose(1, 2) * feats).sum(1)
-    assert torch.allclose(critic(x, pad, c, lb), score + label, atol=1e-5)
-    if band != "level":  # the same call without the band the other two never read
-        assert torch.allclose(critic.split(x, pad)[1], feats)
-
-
-def test_level_band_critic_reads_the_band_it_is_given():
-    torch.manual_seed(0)
-    critic = PatchCritic(dataclasses.replace(TINY, critic_band="level"), cond_dim=3)
-    assert critic.detail is not None and critic.band == "level"
-    x, band = torch.randn(1, C, 40), 0.1 * torch.randn(1, C, 40)
-    pad = _pad(40)
-    a, b = torch.eye(3)[0].expand(1, 40, 3), torch.eye(3)[2].expand(1, 40, 3)
-    d = critic(x, pad, a, band) - critic(x, pad, b, band)
-    assert d.abs().max() > 1e-4
-    # the label term reads the band only: a new x with the same band moves the
-    # unconditional score, not the difference between labels
-    y = torch.randn(1, C, 40)
-    assert not torch.allclose(critic(y, pad, a, band), critic(x, pad, a, band), atol=1e-3)
-    assert torch.allclose(critic(y, pad, a, band) - critic(y, pad, b, band), d, atol=1e-5)
-    assert not torch.allclose(critic(x, pad, a, 2 * band) - critic(x, pad, b, 2 * band), d)
-    with pytest.raises(ValueError, match="needs band"):
-        critic(x, pad, a)
-    with pytest.raises(ValueError, match="needs band"):
-        critic(x, pad, a, band[..., :30])
-    assert PatchCritic(dataclasses.replace(TINY, critic_band="level")).band == "full"
+    assert torch.allclose(critic(x, pad, c), score + label, atol=1e-5)
 
 
 def test_masked_weights_stay_zero_through_training_and_loading():

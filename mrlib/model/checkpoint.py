@@ -18,7 +18,7 @@ Keys (``FORMAT_VERSION`` 1)::
     features                 training clips, list of (T_k, C) unnormalised
     lengths                  (N, L) int: pyramid lengths of every clip
     sigma_clip, sigma        (N, L) noise amplitudes per clip; (K, L) per label (mean)
-    zstar                    list of (1 or C, T_1,k) fixed reconstruction noise per clip
+    zstar                    list of (1, T_1,k) fixed reconstruction noise per clip
     generator, critics       state dicts
     progress                 {"block": int, "iteration": int, "done": bool}
     optim_g, optim_d         optimizer state dicts of the running block (or None)

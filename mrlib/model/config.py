@@ -42,10 +42,9 @@ Beyond the paper, on in the ``tutorial`` presets and off in ``paper``:
 * for speech, the mismatch term (``LossWeights.mismatch``, Reed et al. 2016): what ties
   gestures to the audio rather than to any speech.
 
-Beyond the paper and off in every preset, for studies of raw foot skating (measured
-in ``docs/results.md``, "Why raw samples slide"; none brings it to the training clips'
-level on its own): ``LossWeights.con_norm`` and ``LossWeights.con_on_rec`` (forms of the
-contact term) and ``ModelConfig.critic_contacts`` (critics that see foot slides).
+Options that only studies used, and no preset, were removed after their study (their
+findings stay in ``docs/results.md`` and ``docs/notes/``): ``REMOVED_OPTIONS`` lists them;
+a saved config that still sets one to its old default loads, any other value is refused.
 
 Every measured figure behind these choices is in ``docs/results.md``, with the command
 that measures it (``bench/condition_control.py``, ``bench/speech_sync.py``,
@@ -127,14 +126,8 @@ class ModelConfig:
     critic_condition: bool = False
     # What the condition term of a conditional critic looks at: "full" = the critic's own
     # features of the whole signal; "detail" = features of a separate branch that sees only
-    # the detail band ``x - box_K(x)`` (K = kernel_size), so the label is judged on detail;
-    # "level" = a branch that sees only the band the level adds over the level below,
-    # ``x - up(down(x))`` with the pyramid's own resampling (``PackedLevels.level_band``).
+    # the detail band ``x - box_K(x)`` (K = kernel_size), so the label is judged on detail.
     critic_band: str = "full"
-    # Beyond the paper: critics that also see, per contact vertex, its ground-plane speed
-    # from the body model gated by its contact label (``mrlib.model.losses.foot_slide``), so
-    # a planted foot that slides is as visible to them as a wrong pose.
-    critic_contacts: bool = False
 
     def __post_init__(self):
         if not 1 <= self.num_levels <= MAX_LEVELS:
@@ -159,10 +152,8 @@ class ModelConfig:
                     f"{name} must have at most {MAX_HIDDEN_LAYERS} layers of 1 to {MAX_HIDDEN} "
                     f"channels, got {widths}"
                 )
-        if self.critic_band not in ("full", "detail", "level"):
-            raise ConfigError(
-                f"critic_band must be 'full', 'detail' or 'level', got {self.critic_band!r}"
-            )
+        if self.critic_band not in ("full", "detail"):
+            raise ConfigError(f"critic_band must be 'full' or 'detail', got {self.critic_band!r}")
         if self.film_joints is not None:
             object.__setattr__(self, "film_joints", tuple(int(j) for j in self.film_joints))
             if any(not 0 <= j < 24 for j in self.film_joints):
@@ -194,18 +185,11 @@ class LossWeights:
     # (Gatys et al. 2016; Huang & Belongie 2017), so a crossover's fine levels carry the
     # fine label's amount of detail per joint. 0: off.
     detail: float = 0.0
-    # How L_con weighs a foot's speed: "squared" is the paper's ||v||^2 (Eq. 9); "speed"
-    # is ||v||, whose gradient does not fade as a planted foot's slide gets small.
-    con_norm: str = "squared"
-    # Also apply L_con to the reconstructions (the paper applies it to random samples).
-    con_on_rec: bool = False
 
     def __post_init__(self):
         for name in ("adv", "con", "rec", "smooth", "gp", "mismatch", "detail"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"loss weight {name} must be >= 0, got {getattr(self, name)}")
-        if self.con_norm not in ("squared", "speed"):
-            raise ConfigError(f"con_norm must be 'squared' or 'speed', got {self.con_norm!r}")
 
 
 @dataclass(frozen=True)
@@ -220,17 +204,11 @@ class TrainConfig:
     betas: tuple[float, float] = (0.9, 0.999)
     n_critic: int = 5  # critic steps per generator step (GANimator's D_fact)
     mix_prob: float = 0.9  # share of random generations that mix two conditions
-    samples_per_clip: int = 1  # random generations per training clip and step
-    # z*_1: "shared" = a draw of z_1 itself, N(0, sigma_1) shared by all channels (the paper's
-    # noise, Sec. 3.2); "full" = N(0, 1) on every channel (GANimator's default)
-    zstar: str = "shared"
     # With conditional critics (ModelConfig.critic_condition): how a style-mixed sample is
     # scored from its crossover level on. "none": without a label (a zero condition, i.e.
     # the critic's unconditional score), so only single-label generations are held to
     # their label; "label": with the label that drove each level.
     critic_mixed: str = "none"
-    smooth_from_level: int | None = None  # first level (1-based) with L_smooth; None: L//2+1
-    contact_from_level: int = 1  # first level with L_con
     seed: int = 0
     checkpoint_every: int = 1000  # iterations; 0 = only at the end of each block
     log_every: int = 10  # iterations between CSV rows / progress-bar updates
@@ -249,10 +227,8 @@ class TrainConfig:
             )
         if any(n < 0 for n in self.block_iterations):
             raise ConfigError("block_iterations must be >= 0")
-        if self.n_critic < 0 or self.samples_per_clip < 1:
-            raise ConfigError("n_critic must be >= 0 and samples_per_clip >= 1")
-        if self.zstar not in ("shared", "full"):
-            raise ConfigError(f"zstar must be 'shared' or 'full', got {self.zstar!r}")
+        if self.n_critic < 0:
+            raise ConfigError(f"n_critic must be >= 0, got {self.n_critic}")
         if self.critic_mixed not in ("none", "label"):
             raise ConfigError(f"critic_mixed must be 'none' or 'label', got {self.critic_mixed!r}")
         if not 0 <= self.mix_prob <= 1:
@@ -274,12 +250,8 @@ class TrainConfig:
 
     @property
     def smooth_start(self) -> int:
-        """First level (1-based) that gets the smoothness loss."""
-        return (
-            self.model.num_levels // 2 + 1
-            if self.smooth_from_level is None
-            else self.smooth_from_level
-        )
+        """First level (1-based) that gets the smoothness loss: the finer half."""
+        return self.model.num_levels // 2 + 1
 
     def replace(self, **changes) -> TrainConfig:
         return dataclasses.replace(self, **changes)
@@ -548,11 +520,51 @@ def config_to_json(config: TrainConfig) -> str:
     return json.dumps(dataclasses.asdict(config), indent=2, sort_keys=True)
 
 
-def config_from_json(text: str | dict) -> TrainConfig:
-    d = json.loads(text) if isinstance(text, str) else dict(text)
+# Study options removed from mrlib, by section of a saved config ("" = TrainConfig
+# itself), with the value every preset had: a saved config that has one at that value
+# loads as if it were absent (the same training); any other value is refused.
+REMOVED_OPTIONS: dict[str, dict[str, object]] = {
+    "model": {"critic_contacts": False},
+    "loss": {"con_norm": "squared", "con_on_rec": False},
+    "": {
+        "zstar": "shared",
+        "samples_per_clip": 1,
+        "smooth_from_level": None,
+        "contact_from_level": 1,
+    },
+}
+
+
+def _drop_removed(d: dict, section: str) -> dict:
+    """``d`` without the removed options of ``section`` that hold their old default;
+    a :class:`ConfigError` for one that does not."""
     d = dict(d)
-    model = ModelConfig(**d.pop("model"))
-    loss = LossWeights(**d.pop("loss"))
+    for name, default in REMOVED_OPTIONS[section].items():
+        if name in d:
+            value = d.pop(name)
+            if value != default:
+                where = f"{section}.{name}" if section else name
+                raise ConfigError(
+                    f"config option {where}={value!r} was a study option removed from mrlib; "
+                    "train or load this run with an earlier version of mrlib"
+                )
+    return d
+
+
+def config_from_json(text: str | dict) -> TrainConfig:
+    """The config of ``config_to_json`` text (or its dict). A config saved by an earlier
+    mrlib may still hold an option of ``REMOVED_OPTIONS``: at its old default it is
+    dropped; with another value (a run that used the study option) it is refused."""
+    d = json.loads(text) if isinstance(text, str) else dict(text)
+    d = _drop_removed(d, "")
+    model = _drop_removed(d.pop("model"), "model")
+    if model.get("critic_band") == "level":
+        raise ConfigError(
+            "config option model.critic_band='level' was a study option removed from mrlib; "
+            "train or load this run with an earlier version of mrlib"
+        )
+    model = ModelConfig(**model)
+    loss = LossWeights(**_drop_removed(d.pop("loss"), "loss"))
     names = {f.name for f in dataclasses.fields(TrainConfig)}
     unknown = set(d) - names
     if unknown:

@@ -34,7 +34,6 @@ __all__ = [
     "detail_statistics_loss",
     "reconstruction_loss",
     "contact_consistency_loss",
-    "foot_slide",
     "smoothness_loss",
     "backward_velocity",
     "interior_mask",
@@ -119,8 +118,6 @@ def wgan_gp_critic_loss(
     pad_index_pair: torch.Tensor,
     cond_real: torch.Tensor | None = None,
     cond_fake: torch.Tensor | None = None,
-    band_of: Callable[[torch.Tensor], torch.Tensor] | None = None,
-    band_of_pair: Callable[[torch.Tensor], torch.Tensor] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Critic loss ``E[D(fake)] - E[D(real)]`` and gradient penalty of packed batches.
 
@@ -138,17 +135,14 @@ def wgan_gp_critic_loss(
         cond_real, cond_fake: ``(1, S, D)`` conditions of a conditional critic (the real
             clips' own, and those the fakes were generated with; the penalty's
             interpolates take the fakes'); None for an unconditional critic.
-        band_of, band_of_pair: ``x -> level band of x`` in the layout and in the pair
-            layout, for critics with ``critic_band="level"`` (``PackedLevels.level_band``).
     """
     S = real.shape[-1]
     pair = torch.cat([real, fake], -1)
     both = None if cond_fake is None else torch.cat([cond_real, cond_fake], 1)
-    band = None if band_of is None else band_of_pair(pair)
-    scores = critic(pair, pad_index_pair, both, band)  # (1, 2S)
+    scores = critic(pair, pad_index_pair, both)  # (1, 2S)
 
     def one(x: torch.Tensor) -> torch.Tensor:
-        return critic(x, pad_index, cond_fake, None if band_of is None else band_of(x))
+        return critic(x, pad_index, cond_fake)
 
     gp = gradient_penalty(one, real, fake, weights, alpha)
     return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
@@ -161,7 +155,6 @@ def mismatch_critic_loss(
     cond_wrong: torch.Tensor,
     weights: torch.Tensor,
     pad_index_pair: torch.Tensor,
-    band_of_pair: Callable[[torch.Tensor], torch.Tensor] | None = None,
 ) -> torch.Tensor:
     """``E[D(real, wrong condition)] - E[D(real, own condition)]``: the real clips shown
     once more with conditions that are not theirs, scored as fakes (the "real data, wrong
@@ -172,12 +165,10 @@ def mismatch_critic_loss(
         real: ``(1, C, S)`` packed; ``weights (1, S)``.
         cond_own, cond_wrong: ``(1, S, D)`` the clips' own and wrong conditions.
         pad_index_pair: reflect-pad index of the layout repeated twice.
-        band_of_pair: level band in the pair layout, for ``critic_band="level"``.
     """
     S = real.shape[-1]
     twice = torch.cat([real, real], -1)
-    band = None if band_of_pair is None else band_of_pair(twice)
-    scores = critic(twice, pad_index_pair, torch.cat([cond_own, cond_wrong], 1), band)
+    scores = critic(twice, pad_index_pair, torch.cat([cond_own, cond_wrong], 1))
     return critic_loss(scores[:, :S], scores[:, S:], weights, weights)
 
 
@@ -215,10 +206,8 @@ def contact_consistency_loss(
     foot_velocity: torch.Tensor,
     contacts: torch.Tensor,
     weights: torch.Tensor,
-    norm: str = "squared",
 ) -> torch.Tensor:
-    """Paper Eq. 9: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``; with ``norm="speed"``,
-    ``||v_j^t||`` instead of its square.
+    """Paper Eq. 9: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``.
 
     Args:
         foot_velocity: ``(B, T, 6, 3)`` m/s of the contact vertices.
@@ -227,37 +216,8 @@ def contact_consistency_loss(
             frame) and on padding.
     """
     sq = foot_velocity.pow(2).sum(-1)  # (B, T, 6)
-    if norm == "speed":
-        sq = (sq + 1e-12).sqrt()  # the epsilon keeps the gradient finite at rest
-    elif norm != "squared":
-        raise ValueError(f"norm must be 'squared' or 'speed', got {norm!r}")
     cost = sq * contact_sigmoid(contacts)
     return weighted_mean(cost, weights)
-
-
-SLIDE_UNIT = 0.1  # m/s: foot_slide's unit, so a sliding foot reads ~1 like the other channels
-
-
-def foot_slide(
-    feet: torch.Tensor, contacts: torch.Tensor, fps: torch.Tensor | float, first: torch.Tensor
-) -> torch.Tensor:
-    """Per contact vertex, its ground-plane speed gated by its contact label,
-    ``|v_xz| * sig(c)`` in units of ``SLIDE_UNIT``: ~0 on a planted or lifted foot,
-    large where a foot labelled in contact moves. The extra critic channels of
-    ``ModelConfig.critic_contacts``.
-
-    Args:
-        feet: ``(B, T, 6, 3)`` foot-vertex positions (metres); contacts ``(B, T, 6)``.
-        fps: as in ``backward_velocity``.
-        first: ``(B, T)`` bool, True on frames without a predecessor (each packed
-            sample's first frame and the gaps); their slide is 0.
-    Returns:
-        ``(B, 6, T)``, channels first like the features.
-    """
-    v = backward_velocity(feet, fps)[..., [0, 2]]
-    speed = (v.pow(2).sum(-1) + 1e-12).sqrt()
-    slide = speed * contact_sigmoid(contacts) / SLIDE_UNIT
-    return slide.masked_fill(first[..., None], 0.0).transpose(1, 2)
 
 
 def smoothness_loss(joints: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:

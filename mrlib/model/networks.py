@@ -24,7 +24,7 @@ import torch.nn.functional as F
 from mrlib.model.config import ModelConfig
 from mrlib.model.pyramid import PackedLevels, resample_linear, resample_periodic
 from mrlib.representation.features import NUM_FEATURES, channel_joint
-from mrlib.representation.skeleton import CONTACT_JOINTS, NUM_JOINTS, PARENTS, graph_distances
+from mrlib.representation.skeleton import NUM_JOINTS, PARENTS, graph_distances
 
 __all__ = [
     "hidden_channel_joint",
@@ -251,15 +251,6 @@ class LevelGenerator(nn.Module):
         return self.body(self.modulate(x_up + z, cond), pad_index, circular) + x_up
 
 
-def critic_channel_joint(config: ModelConfig) -> np.ndarray:
-    """The joint of every critic input channel: the features' (``channel_joint``), then
-    with ``critic_contacts`` one foot-slide channel per contact vertex on its foot."""
-    owner = channel_joint()
-    if not config.critic_contacts:
-        return owner
-    return np.concatenate([owner, np.asarray(CONTACT_JOINTS)])
-
-
 class PatchCritic(nn.Module):
     """WGAN critic D_i: a small fully convolutional skeleton-aware net (receptive field
     ``n_layers * (K - 1) + 1`` frames) that scores every temporal patch; no sigmoid.
@@ -273,16 +264,14 @@ class PatchCritic(nn.Module):
     With ``ModelConfig.critic_band == "detail"`` the projection takes ``h`` from a branch
     of its own (the critic's layers less its last hidden one) fed with the detail band
     ``x - box_K(x)`` (a K-frame moving average, reflect-padded per sample), so the label
-    is judged on detail while ``w * h(x)`` still judges realism of the whole signal. With
-    ``"level"`` the branch reads the band the caller passes: the detail its level adds
-    over the level below (``PackedLevels.level_band``, ``x - up(down(x))``). A box of 5
-    frames keeps everything above about a tenth of the frame rate, where a walk's gait
-    still lies; the level band keeps what the coarser level cannot hold.
+    is judged on detail while ``w * h(x)`` still judges realism of the whole signal. A
+    box of 5 frames keeps everything above about a tenth of the frame rate, where a
+    walk's gait still lies.
     """
 
     def __init__(self, config: ModelConfig, cond_dim: int = 0):
         super().__init__()
-        joints = [critic_channel_joint(config)]
+        joints = [channel_joint()]
         joints += [hidden_channel_joint(w) for w in config.disc_hidden]
         joints.append(np.zeros(1, np.int64))
         self.body = ConvStack(
@@ -292,7 +281,7 @@ class PatchCritic(nn.Module):
         self.detail = None
         self.band = config.critic_band if self.cond_dim > 0 else "full"
         features = joints[-2]  # channels of the h that the projection reads
-        if self.band != "full":
+        if self.band == "detail":
             # the critic's layers less its last hidden one: cheaper, and the detail band
             # needs a short temporal reach only
             d_joints = joints[: max(2, len(joints) - 2)]
@@ -313,11 +302,9 @@ class PatchCritic(nn.Module):
         x: torch.Tensor,
         pad_index: torch.Tensor,
         cond: torch.Tensor | None = None,
-        band: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """``x (B, C, T)``, ``cond (B, T, D)`` (conditional critics only) -> per-frame
-        patch scores ``(B, T)``. ``band (B, C, T)``: the level band of ``x``, needed (and
-        only read) with ``critic_band="level"``."""
+        patch scores ``(B, T)``."""
         if self.project is None:
             if cond is not None:
                 raise ValueError("this critic is unconditional; do not pass a condition")
@@ -327,15 +314,13 @@ class PatchCritic(nn.Module):
             raise ValueError(
                 f"conditional critic needs cond (B, {x.shape[-1]}, {self.cond_dim}), got {got}"
             )
-        score, h = self.split(x, pad_index, band)
+        score, h = self.split(x, pad_index)
         return score + (self.project(cond).transpose(1, 2) * h).sum(1)
 
-    def split(
-        self, x: torch.Tensor, pad_index: torch.Tensor, band: torch.Tensor | None = None
-    ) -> tuple[torch.Tensor, torch.Tensor]:
+    def split(self, x: torch.Tensor, pad_index: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """A conditional critic's two terms before the condition: the realism score
         ``w * h(x)`` ``(B, T)`` and the features ``(B, F, T)`` the projection reads (of the
-        detail band, of ``band``, or ``h(x)`` itself, per ``critic_band``); ``forward`` is
+        detail band or ``h(x)`` itself, per ``critic_band``); ``forward`` is
         ``score + <P c_t, features_t>``. Each feature channel belongs to a joint
         (``hidden_channel_joint``), so the label term splits by body part."""
         layers = self.body.layers
@@ -343,14 +328,10 @@ class PatchCritic(nn.Module):
         for layer in layers[:-1]:
             h = F.leaky_relu(layer(h, pad_index), self.body.slope)
         score = layers[-1](h, pad_index)[:, 0]  # (B, T)
-        if self.band == "detail":
+        if self.detail is not None:
             B, C, _ = x.shape
             xp = x.gather(2, pad_index.expand(B, C, -1))  # reflect-padded per sample
             band = x - F.avg_pool1d(xp, self.body.pad * 2 + 1, stride=1)
-        elif self.band == "level" and (band is None or band.shape != x.shape):
-            got = None if band is None else tuple(band.shape)
-            raise ValueError(f"critic_band='level' needs band {tuple(x.shape)}, got {got}")
-        if self.detail is not None:
             h = F.leaky_relu(self.detail(band, pad_index), self.body.slope)
         return score, h
 

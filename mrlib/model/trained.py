@@ -65,7 +65,7 @@ class GenerativeModel:
     normalizer: FeatureNormalizer
     lengths: torch.Tensor  # (N, L) pyramid lengths of the training clips
     sigma: torch.Tensor  # (K, L) noise amplitude per label and level
-    zstar: list[torch.Tensor]  # N x (1 or C, T_1,k)
+    zstar: list[torch.Tensor]  # N x (1, T_1,k)
     features: list[torch.Tensor]  # N x (T_k, C) training clips, unnormalised
     trained_levels: int  # levels whose training finished (all of them for a done run)
     fine_noise: float = FINE_NOISE

@@ -4,8 +4,8 @@ signal into conditions.
 :class:`TrainerBase` holds one run's fixed parts: the data pyramid of every clip and its
 noise amplitudes, the reconstruction noise z*_1 (paper Sec. 3.4), the generator and the
 critics, the packed batch layouts (``mrlib.model.pyramid.PackedLevels``: clips of
-different lengths end to end; random generation b follows the pyramid of clip
-``b mod N``, so reals and fakes line up sample by sample) and each block's optimisers.
+different lengths end to end; random generation b follows the pyramid of clip b,
+so reals and fakes line up sample by sample) and each block's optimisers.
 Its condition hooks (``rec_conditions``, ``draw_random``, ``critic_keep``, ...) are the
 only place where labels become conditions; ``mrlib.speech.SpeechTrainer`` overrides them.
 
@@ -16,7 +16,6 @@ checkpoints and the loop (``mrlib.training.loop``).
 from __future__ import annotations
 
 import random
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,10 +25,10 @@ import torch.nn.functional as F
 
 from mrlib.errors import ClipTooShortError
 from mrlib.model.config import ConfigError, TrainConfig
-from mrlib.model.losses import body_kinematics, foot_slide
+from mrlib.model.losses import body_kinematics
 from mrlib.model.networks import MultiResGenerator, build_critics, build_generator
 from mrlib.model.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid_lengths
-from mrlib.representation.features import NUM_FEATURES, FeatureNormalizer, split_features
+from mrlib.representation.features import FeatureNormalizer
 from mrlib.training.data import TrainingSet
 
 __all__ = ["TrainerBase", "RandomDraw", "make_adam"]
@@ -115,7 +114,7 @@ class TrainerBase:
     def _build_levels(self) -> list[list[torch.Tensor]]:
         """Every clip's pyramid (returned), its noise amplitudes, and its fixed
         reconstruction noise z*_1."""
-        data, config, mc = self.data, self.config, self.config.model
+        data, mc = self.data, self.config.model
         L, pad = mc.num_levels, (mc.kernel_size - 1) // 2
         self.lengths = torch.tensor(
             [
@@ -130,14 +129,12 @@ class TrainerBase:
         self.sigma = torch.stack(
             [self.sigma_clip[lab == k].mean(0) for k in range(data.num_labels)]
         )
-        # Fixed reconstruction noise z*_1 of every clip (zero above level 1). "shared": a draw
-        # of the random noise itself, N(0, sigma_1) shared by all channels (paper Sec. 3.2-3.4);
-        # "full": N(0, 1) on every channel (GANimator's default, full_zstar=1).
-        k0 = NUM_FEATURES if config.zstar == "full" else 1
+        # Fixed reconstruction noise z*_1 of every clip (zero above level 1): a draw of the
+        # random noise itself, N(0, sigma_1) shared by all channels (paper Sec. 3.2-3.4).
         self.zstar = []
         for k in range(data.num_clips):
-            z = torch.randn(k0, int(self.lengths[k, 0]), generator=self.rng)
-            self.zstar.append(z if config.zstar == "full" else z * self.sigma_clip[k, 0])
+            z = torch.randn(1, int(self.lengths[k, 0]), generator=self.rng)
+            self.zstar.append(z * self.sigma_clip[k, 0])
         return pyramids
 
     def _build_networks(self) -> None:
@@ -165,8 +162,8 @@ class TrainerBase:
         L, pad = mc.num_levels, (mc.kernel_size - 1) // 2
         lab = torch.tensor(data.clip_labels)
         N = data.num_clips
-        self.N, self.B = N, N * config.samples_per_clip
-        self.rand_clip = torch.arange(self.B) % N  # clip whose pyramid random sample b follows
+        self.N, self.B = N, N  # one random generation per clip and step
+        self.rand_clip = torch.arange(self.B)  # clip whose pyramid random sample b follows
         dev, gap = self.device, 2 * pad
         rand_table = self.lengths[self.rand_clip]
         packed = lambda table: PackedLevels.from_table(table, gap, dev)  # noqa: E731
@@ -198,26 +195,7 @@ class TrainerBase:
         self.w_rand = [lay.weights(i) for i in range(L)]
         self.w_vel = [lay.weights(i, lay.trimmed(i, start=1)) for i in range(L)]
         self.w_smooth = [lay.weights(i, lay.trimmed(i, start=1, end=1)) for i in range(L)]
-        rl = self.rec_layout
-        self.rec_fps = [rl.per_sample(fps_table[:, i].float(), i)[None] for i in range(L)]
-        self.w_vel_rec = [rl.weights(i, rl.trimmed(i, start=1)) for i in range(L)]
-        # loss.con_on_rec: the clips' own contact labels per level, (1, S_i, 6)
-        self.real_contacts = (
-            [
-                split_features(self.data_normalizer.denormalize(r.transpose(1, 2)))[2]
-                for r in self.real
-            ]
-            if config.loss.con_on_rec
-            else None
-        )
-        # critic_contacts: frames without a predecessor, and the real clips as the critics
-        # see them (features + foot slides), fixed for the whole run
-        self.first_rand = [~lay.trimmed(i, start=1) for i in range(L)]
-        self.real_critic = self.real_rand
-        if mc.critic_contacts:
-            with torch.no_grad():
-                self.real_critic = [self.critic_input(r, i) for i, r in enumerate(self.real_rand)]
-        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, 1 or C, S_1)
+        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)  # (1, 1, S_1)
         self._rec_cache: tuple[int, torch.Tensor] | None = None
         # loss.detail only: per label and level, the per-channel RMS of the detail the level
         # adds (mean over the label's clips), the targets of the term, (K, C) per level
@@ -305,34 +283,11 @@ class TrainerBase:
         ``level`` adds, over the training clips of the label driving each sample there."""
         return self.detail_rms[level].to(self.device)[draw.labels[:, level]]
 
-    # -- what the critics read ---------------------------------------------------------------
-    def critic_input(self, x: torch.Tensor, level: int, kinematics=None) -> torch.Tensor:
-        """What a critic of ``level`` reads of ``x (1, C, S)`` in the random layout: ``x``,
-        and with ``ModelConfig.critic_contacts`` its foot slides (``losses.foot_slide``)
-        as 6 more channels. ``kinematics``: ``body_kinematics`` of ``x`` if at hand."""
-        if not self.config.model.critic_contacts:
-            return x
-        fps = self.rand_fps[level]
-        if kinematics is None:
-            kinematics = self.kinematics(x, fps)
-        _, feet, contacts = kinematics
-        return torch.cat([x, foot_slide(feet, contacts, fps, self.first_rand[level])], 1)
-
+    # -- body model ------------------------------------------------------------------------
     def kinematics(self, x: torch.Tensor, fps: torch.Tensor):
         """``losses.body_kinematics`` of ``x (1, C, S)`` with this run's body and shape:
         joints, foot vertices, contacts."""
         return body_kinematics(x, self.data_normalizer, fps, self.body, self.betas)
-
-    def band_of(self, layout, level: int) -> Callable[[torch.Tensor], torch.Tensor] | None:
-        """``x -> layout.level_band(x, level)`` for a critic that reads the level band."""
-        if self.critics[level].band != "level":
-            return None
-        return lambda x: layout.level_band(x, level)
-
-    def band(self, layout, level: int, x: torch.Tensor) -> torch.Tensor | None:
-        """The ``band`` argument of a critic call: None unless the critic reads it."""
-        f = self.band_of(layout, level)
-        return None if f is None else f(x)
 
     # -- blocks ------------------------------------------------------------------------------
     @property

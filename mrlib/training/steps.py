@@ -83,7 +83,7 @@ def critic_terms(
     the step's interpolation weights."""
     G, lay, pair = tr.generator, tr.rand_layout, tr.critic_layout
     S = lay.sizes[i]
-    fake = tr.critic_input(fakes[..., j * S : (j + 1) * S], i)  # j-th copy of the random layout
+    fake = fakes[..., j * S : (j + 1) * S]  # j-th copy of the random layout
     cond_real = cond_fake = None
     if conds is not None:
         # a real clip is shown without its condition where its fake partner (same sample
@@ -93,7 +93,7 @@ def critic_terms(
         cond_fake = conds[1][i][:, j * S : (j + 1) * S]
     d, gp = wgan_gp_critic_loss(
         tr.critics[i],
-        tr.real_critic[i],
+        tr.real_rand[i],
         fake,
         tr.w_rand[i],
         lay.per_sample(alpha, i)[None, None],  # (1, 1, S)
@@ -101,19 +101,16 @@ def critic_terms(
         pair.pad_index(i, G.pad),
         cond_real=cond_real,
         cond_fake=cond_fake,
-        band_of=tr.band_of(lay, i),
-        band_of_pair=tr.band_of(pair, i),
     )
     terms = {"D": d, "gp": gp}
     if tr.config.loss.mismatch:
         terms["mis"] = mismatch_critic_loss(
             tr.critics[i],
-            tr.real_critic[i],
+            tr.real_rand[i],
             cond_real,
             tr.mismatched_real_conditions(i) * keep,
             tr.w_rand[i],
             pair.pad_index(i, G.pad),
-            tr.band_of(pair, i),
         )
     return terms
 
@@ -127,8 +124,8 @@ def generator_step(tr: TrainerBase, losses: Losses) -> None:
 
     (``LossWeights`` adv / con / rec / smooth, the paper's 1 / 5 / 50 / 5), plus, beyond
     the paper, ``detail * L_detail`` (``LossWeights.detail``, 0 unless set). A term that
-    is off at a level (its weight 0, or the level below ``contact_from_level`` /
-    ``smooth_from_level``; adversarial with ``n_critic = 0``; detail at level 1) is not
+    is off at a level (its weight 0, or smoothness below ``TrainConfig.smooth_start``;
+    adversarial with ``n_critic = 0``; detail at level 1) is not
     computed and counts 0. Records each term computed in ``losses``."""
     w = tr.config.loss
     tr.opt_g.zero_grad(set_to_none=True)
@@ -169,7 +166,6 @@ def generator_outputs(tr: TrainerBase, draw: RandomDraw) -> list[tuple[torch.Ten
     noises, conds = [], []
     for i in range(hi + 1):
         zr, zn = rec_noises[i], draw.noises[i]
-        zn = zn.expand(-1, zr.shape[1], -1)  # level 1: a "full" z*_1 has every channel
         noises.append(torch.cat([zr, zn], -1))
         conds.append(torch.cat([rec_conds[i], draw.conds[i]], 1))
     outs = G.run(tr.g_layout, noises, conds, lo, hi + 1, x=x_in, keep=True)
@@ -187,38 +183,26 @@ def generator_terms(
 ) -> dict[str, torch.Tensor]:
     """The terms of Eq. 6 in use at level ``i``, each from ``mrlib.model.losses``:
     ``rec`` (Eq. 10) on the reconstructions; ``adv`` (the generator's side of Eq. 7),
-    ``con`` (Eq. 9; with ``LossWeights.con_on_rec`` also on the reconstructions, with the
-    clips' own contacts), ``smooth`` (Eq. 11) and ``detail`` on the random generations
+    ``con`` (Eq. 9), ``smooth`` (Eq. 11) and ``detail`` on the random generations
     ``out_rand`` of ``draw``, which a conditional critic sees with ``critic_cond``."""
     c, w, lay = tr.config, tr.config.loss, tr.rand_layout
-    need_con = w.con and i + 1 >= c.contact_from_level
+    need_con = w.con
     need_smooth = w.smooth and i + 1 >= c.smooth_start
     need_adv = c.n_critic > 0 and w.adv
-    fps, kin = tr.rand_fps[i], None  # kin: joints, foot vertices, contacts of out_rand
+    fps = tr.rand_fps[i]
     terms = {"rec": reconstruction_loss(out_rec, tr.real[i], tr.w_rec[i])}
     if need_adv:
-        if c.model.critic_contacts:
-            kin = tr.kinematics(out_rand, fps)
-        seen = tr.critic_input(out_rand, i, kin)
         pad = lay.pad_index(i, tr.generator.pad)
-        score = tr.critics[i](seen, pad, critic_cond, tr.band(lay, i, seen))
+        score = tr.critics[i](out_rand, pad, critic_cond)
         terms["adv"] = generator_adversarial_loss(score, tr.w_rand[i])
     if w.detail and i > 0:
         rms = lay.per_sample_rms(lay.level_band(out_rand, i), i)  # (B, C)
         terms["detail"] = detail_statistics_loss(rms, tr.detail_targets(draw, i))
     if need_con or need_smooth:
-        joints, feet, contacts = tr.kinematics(out_rand, fps) if kin is None else kin
+        joints, feet, contacts = tr.kinematics(out_rand, fps)
         if need_con:
             vel = backward_velocity(feet, fps)
-            terms["con"] = contact_consistency_loss(vel, contacts, tr.w_vel[i], w.con_norm)
-            if w.con_on_rec:  # the clip's own contacts on its reconstruction
-                _, feet_r, _ = tr.kinematics(out_rec, tr.rec_fps[i])
-                terms["con"] = terms["con"] + contact_consistency_loss(
-                    backward_velocity(feet_r, tr.rec_fps[i]),
-                    tr.real_contacts[i],
-                    tr.w_vel_rec[i],
-                    w.con_norm,
-                )
+            terms["con"] = contact_consistency_loss(vel, contacts, tr.w_vel[i])
         if need_smooth:
             terms["smooth"] = smoothness_loss(joints, tr.w_smooth[i])
     return terms
