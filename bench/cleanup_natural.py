@@ -119,12 +119,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import mrlib
     from mrlib.evaluation.calibration import play_twice
-    from mrlib.evaluation.evaluate import (
-        EvaluationSettings,
-        _ReferenceCache,
-        model_references,
-        score_motions,
-    )  # fmt: skip
+    from mrlib.evaluation.evaluate import _ReferenceCache, model_references, score_motions
+    from mrlib.evaluation.results import EvaluationSettings
     from mrlib.sampling.generation import generate, training_floor
 
     body = mrlib.load_body_model()

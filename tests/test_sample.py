@@ -211,7 +211,7 @@ def test_foot_contact_cleanup_reduces_skating(body, method, kw):
         # the root takes the planted feet's common correction: never more than the
         # farthest a contact vertex strays from its run's mean (+ the lift to the floor)
         from mrlib.metrics.plausibility import motion_kinematics
-        from mrlib.sampling.cleanup import contact_runs
+        from mrlib.sampling.leg_ik import contact_runs
 
         feet = motion_kinematics(bad, body)[1]
         stray = max(
@@ -234,7 +234,7 @@ def test_ik_cleanup_pins_a_lone_contact_vertex_and_keeps_bone_lengths(body):
     """``style="pin"``, one toe in contact over a run: after the clean-up it stands still
     on the ground plane where it was on average, and the leg's bones keep their lengths."""
     from mrlib.representation.contacts import foot_contacts
-    from mrlib.sampling.cleanup import BLEND_S, ROOT_SMOOTH_S, contact_runs
+    from mrlib.sampling.leg_ik import BLEND_S, ROOT_SMOOTH_S, contact_runs
 
     bad = _skating_walk()
     real = foot_contacts(synthetic_walk("walk_normal", seconds=2.0, fps=30.0), body)
@@ -289,7 +289,7 @@ def test_smooth_cleanup_plants_feet_without_adding_jerk(body):
     over 15 %; given the floor, no foot vertex sinks more than ``FLOOR_SLACK`` below it.
     """
     from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
-    from mrlib.sampling.cleanup import FLOOR_SLACK
+    from mrlib.sampling.planting import FLOOR_SLACK
 
     bad = _sliding_walk(body)
 
