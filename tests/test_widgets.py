@@ -213,3 +213,64 @@ def test_the_3d_player_follows_the_sample(model, body, monkeypatch):
     controls["3D player"].value = False
     controls["seed"].value = 3
     assert len(shown) == 2  # off: nothing drawn
+
+
+def _build(name, model, body, clips):
+    if name == "crossover":
+        return W.interactive_crossover(model, body, frames=2, window=10)
+    if name == "restyle":
+        return W.interactive_restyle(model, clips[0], body, frames=2, render=False)
+    if name == "path":
+        return CV.interactive_path(model, body, seconds=2.0)
+    if name == "parts":
+        return CV.interactive_parts(model, body=body, length=40)
+    return CV.interactive_inbetween(model, {c.label: c for c in clips}, body, seconds=2.0, steps=0)
+
+
+BUILDERS = ["crossover", "restyle", "path", "parts", "inbetween"]
+
+
+class TestInvalidValuesFromPython:
+    """Every view: a NaN in a numeric control, or a label option the model does not
+    have, shows its problem in the status line and keeps the last good picture; the
+    controls stay usable and a good value draws again."""
+
+    @pytest.fixture
+    def view(self, request, model, body, sad_wave_clips):
+        box, update = _build(request.param, model, body, sad_wave_clips)
+        update()
+        assert "mrlib-done" in status_of(box)
+        return box, status_of(box)
+
+    @pytest.mark.parametrize("view", BUILDERS, indirect=True)
+    def test_nan_in_each_float_control(self, view):
+        box, drawn = view
+        floats = [c for c in controls_of(box).values() if isinstance(c, ipywidgets.FloatSlider)]
+        for c in floats:
+            good = c.value
+            c.value = float("nan")
+            assert "mrlib-error" in status_of(box), c.description
+            shown = text_of(box)
+            assert f"{c.description} must be a number in" in shown and "got nan" in shown
+            assert "the picture still shows" in shown
+            assert not c.disabled
+            c.value = good
+            assert status_of(box) == drawn, c.description
+
+    @pytest.mark.parametrize("view", BUILDERS, indirect=True)
+    def test_an_added_label_option(self, view):
+        box, drawn = view
+        dropdowns = [
+            c
+            for c in controls_of(box).values()
+            if isinstance(c, ipywidgets.Dropdown) and "walk_sad" in c.options
+        ]
+        for c in dropdowns:
+            good = c.value
+            c.options = [*c.options, "no_such_label"]
+            c.value = good
+            c.value = "no_such_label"
+            assert "mrlib-error" in status_of(box), c.description
+            assert "the picture still shows" in text_of(box)
+            c.value = good
+            assert "mrlib-done" in status_of(box), c.description

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mrlib.io.outputs import write_text
 from mrlib.model.config import PRESET_FPS
 
 __all__ = ["run_demo", "DATA_SAMPLES", "DEMO_FPS"]
@@ -297,7 +298,7 @@ def run_demo(
     lines += [f"- {name}: {s:.1f} s" for name, s in stages.times.items()]
     lines.append(f"- total: {stages.total:.0f} s")
     summary = out / "summary.md"
-    summary.write_text("\n".join(lines) + "\n")
+    write_text(summary, "\n".join(lines) + "\n", overwrite=True)
     print()
     print(headline_table(result))
     print(f"\ndone in {stages.total:.0f} s: see {summary}")

@@ -210,40 +210,61 @@ class EvaluationResult:
             lines += ["", "Notes:", ""] + [f"- {n}" for n in self.notes]
         return "\n".join(lines) + "\n"
 
-    def to_csv(self, path: str | Path) -> Path:
+    def to_csv(self, path: str | Path, *, overwrite: bool = True) -> Path:
         """Per-sequence rows as CSV (columns ``CSV_COLUMNS``; NaN left empty)."""
-        return _write_csv(path, CSV_COLUMNS, self.rows)
+        return _write_csv(path, CSV_COLUMNS, self.rows, overwrite=overwrite)
 
-    def summary_to_csv(self, path: str | Path) -> Path:
+    def summary_to_csv(self, path: str | Path, *, overwrite: bool = True) -> Path:
         """Per-method mean/std as CSV."""
         summ = self.summary()
         cols = ["method", "kind", "sequences"] + [
             f"{k}_{s}" for k, _, _ in METRIC_COLUMNS for s in ("mean", "std")
         ]
-        return _write_csv(path, cols, summ)
+        return _write_csv(path, cols, summ, overwrite=overwrite)
 
-    def save(self, out_dir: str | Path) -> dict[str, Path]:
+    def save(self, out_dir: str | Path, *, overwrite: bool = True) -> dict[str, Path]:
         """Write ``evaluation.csv``, ``evaluation_summary.csv``, ``evaluation.md`` and the
         settings as ``evaluation_settings.json`` into ``out_dir`` (created). Returns the
-        paths by kind. The figure is ``mrlib.viz.plots.plot_evaluation(result, path)``."""
+        paths by kind. The figure is ``mrlib.viz.plots.plot_evaluation(result, path)``.
+
+        Each file is written atomically and never through a symbolic link
+        (``mrlib.io.outputs``); ``overwrite=False`` refuses, before writing any, files
+        already there."""
+        from mrlib.io.outputs import check_writable, write_text
+
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        paths = {
-            "csv": self.to_csv(out / "evaluation.csv"),
-            "summary_csv": self.summary_to_csv(out / "evaluation_summary.csv"),
-            "markdown": out / "evaluation.md",
+        names = {
+            "csv": "evaluation.csv",
+            "summary_csv": "evaluation_summary.csv",
+            "markdown": "evaluation.md",
+            "settings": "evaluation_settings.json",
         }
-        paths["markdown"].write_text("# Evaluation\n\n" + self.to_markdown(), encoding="utf-8")
-        paths["settings"] = out / "evaluation_settings.json"
-        paths["settings"].write_text(
-            json.dumps(asdict(self.settings), indent=2) + "\n", encoding="utf-8"
+        for name in names.values():
+            check_writable(out / name, overwrite=overwrite)
+        paths = {
+            "csv": self.to_csv(out / names["csv"], overwrite=overwrite),
+            "summary_csv": self.summary_to_csv(out / names["summary_csv"], overwrite=overwrite),
+        }
+        paths["markdown"] = write_text(
+            out / names["markdown"], "# Evaluation\n\n" + self.to_markdown(), overwrite=overwrite
+        )
+        paths["settings"] = write_text(
+            out / names["settings"],
+            json.dumps(asdict(self.settings), indent=2) + "\n",
+            overwrite=overwrite,
         )
         return paths
 
 
-def _write_csv(path: str | Path, columns: Any, rows: list[dict[str, Any]]) -> Path:
-    path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as f:
+def _write_csv(
+    path: str | Path, columns: Any, rows: list[dict[str, Any]], *, overwrite: bool = True
+) -> Path:
+    import io
+
+    from mrlib.io.outputs import write_text
+
+    with io.StringIO(newline="") as f:
         w = csv.writer(f)
         w.writerow(columns)
         for r in rows:
@@ -254,4 +275,5 @@ def _write_csv(path: str | Path, columns: Any, rows: list[dict[str, Any]]) -> Pa
                     v = "" if math.isnan(v) else f"{v:.6g}"
                 vals.append(v)
             w.writerow(vals)
-    return path
+        text = f.getvalue()
+    return write_text(Path(path), text, overwrite=overwrite)

@@ -609,8 +609,11 @@ def format_bvh(bvh: BVH, *, precision: int = 6) -> str:
     return text
 
 
-def write_bvh(path: str | Path, bvh: BVH, *, precision: int = 6) -> Path:
-    """Write ``bvh`` to ``path`` (see ``format_bvh``); returns the path."""
-    path = Path(path)
-    path.write_text(format_bvh(bvh, precision=precision), encoding="utf-8")
-    return path
+def write_bvh(path: str | Path, bvh: BVH, *, precision: int = 6, overwrite: bool = True) -> Path:
+    """Write ``bvh`` to ``path`` (see ``format_bvh``); returns the path.
+
+    Written atomically and never through a symbolic link (``mrlib.io.outputs``);
+    ``overwrite=False`` refuses an existing file (``OutputExistsError``)."""
+    from mrlib.io.outputs import write_text
+
+    return write_text(Path(path), format_bvh(bvh, precision=precision), overwrite=overwrite)

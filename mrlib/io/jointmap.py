@@ -73,18 +73,20 @@ class JointMap:
                 None, f"joint map '{self.name}': source joints {dup} are used twice"
             )
 
-    def to_json(self, path: str | Path) -> Path:
+    def to_json(self, path: str | Path, *, overwrite: bool = True) -> Path:
         """Write ``{"name", "description", "map"}`` (what ``joint_map_from_json`` and
-        ``load_motion(..., joint_map=path)`` read), in SMPL's joint order."""
+        ``load_motion(..., joint_map=path)`` read), in SMPL's joint order; atomically,
+        never through a symbolic link, and refusing an existing file unless
+        ``overwrite`` (``mrlib.io.outputs``)."""
+        from mrlib.io.outputs import write_text
+
         data = {
             "name": self.name,
             "description": self.description,
             **({"refit_torso": True} if self.refit_torso else {}),
             "map": {k: self.mapping[k] for k in JOINT_NAMES if k in self.mapping},
         }
-        path = Path(path)
-        path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
-        return path
+        return write_text(Path(path), json.dumps(data, indent=2) + "\n", overwrite=overwrite)
 
     def source_indices(self, names: tuple[str, ...] | list[str]) -> np.ndarray:
         """``(24,)`` source joint index per SMPL joint, -1 where unmapped."""

@@ -274,6 +274,7 @@ def training_floor(model: GenerativeModel, labels: Sequence[int] | None = None, 
     return cache[key]
 
 
+@with_policy
 def generate(
     model: GenerativeModel,
     condition: str | int | None = None,

@@ -30,7 +30,10 @@ __all__ = [
     "FEATURE_FPS",
     "FRAME_OFFSET_S",
     "MIN_INPUT_RATE",
+    "MAX_AUDIO_SECONDS",
     "AudioFileError",
+    "audio_duration",
+    "check_audio_seconds",
     "load_audio",
     "to_mono",
     "resample_audio",
@@ -53,6 +56,9 @@ FRAME_OFFSET_S = WINDOW / 2 / SAMPLE_RATE  # 0.0125 s: centre of frame 0
 # Below this rate speech loses the 4-8 kHz band that WavLM (trained on 16 kHz) expects;
 # upsampling cannot restore it, so such files are refused rather than silently degraded.
 MIN_INPUT_RATE = 8_000
+# One utterance: its features, conditions and the motion generated for it are held whole
+# (~1.5 GB for 10 minutes). Longer recordings are refused from their header, before reading.
+MAX_AUDIO_SECONDS = 600.0
 
 
 class AudioFileError(MotionFileError):
@@ -100,8 +106,56 @@ def check_waveform(wav, sr: int, *, min_samples: int = WINDOW, what: str = "audi
     return wav
 
 
+def _soundfile(path: Path):
+    try:
+        import soundfile
+    except ImportError:
+        raise AudioFileError(
+            path, "reading audio needs the soundfile package: pip install 'mrlib[speech]'"
+        ) from None
+    return soundfile
+
+
+def check_audio_seconds(seconds: float, what: object, max_seconds: float | None) -> None:
+    """Refuse ``seconds`` of audio over ``max_seconds`` (None: no limit), naming the
+    limit and the way around it."""
+    if max_seconds is not None and not seconds <= max_seconds:
+        msg = (
+            f"audio is {seconds:.0f} s long, more than the {max_seconds:.0f} s mrlib "
+            "conditions on at once (the whole utterance's features and motion are held in "
+            f"memory); cut it into pieces of at most {max_seconds:.0f} s (e.g. `sox in.wav "
+            f"part.wav trim 0 {max_seconds:.0f} : newfile : restart`) and use one per run"
+        )
+        if isinstance(what, Path):
+            raise AudioFileError(what, msg)
+        raise MotionValueError(f"{what}: {msg}")
+
+
+def audio_duration(path: str | Path) -> float:
+    """Seconds of audio in ``path``, from its header only (nothing is decoded).
+
+    Raises:
+        AudioFileError: no such file, or a header libsndfile cannot read.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise AudioFileError(path, "no such file")
+    soundfile = _soundfile(path)
+    try:
+        info = soundfile.info(str(path))
+    except Exception as e:  # soundfile raises its own LibsndfileError / RuntimeError
+        raise AudioFileError(path, f"cannot read audio: {e}") from None
+    if not info.samplerate or info.samplerate <= 0:
+        raise AudioFileError(path, "the header gives no sample rate")
+    return float(info.frames) / float(info.samplerate)
+
+
 def load_audio(
-    path: str | Path, sr: int = SAMPLE_RATE, *, min_seconds: float = 0.1
+    path: str | Path,
+    sr: int = SAMPLE_RATE,
+    *,
+    min_seconds: float = 0.1,
+    max_seconds: float | None = MAX_AUDIO_SECONDS,
 ) -> tuple[np.ndarray, int]:
     """Read an audio file (anything libsndfile reads: wav, flac, ogg), mix it down to
     mono and resample it to ``sr``.
@@ -110,17 +164,12 @@ def load_audio(
         ``(wav (N,) float32, sr)``.
     Raises:
         AudioFileError: no such file, unreadable, a rate below ``MIN_INPUT_RATE``, no
-            samples, or shorter than ``min_seconds``.
+            samples, shorter than ``min_seconds`` or (from the header, before anything
+            is decoded) longer than ``max_seconds`` (None: no limit).
     """
     path = Path(path)
-    if not path.is_file():
-        raise AudioFileError(path, "no such file")
-    try:
-        import soundfile
-    except ImportError:
-        raise AudioFileError(
-            path, "reading audio needs the soundfile package: pip install 'mrlib[speech]'"
-        ) from None
+    check_audio_seconds(audio_duration(path), path, max_seconds)
+    soundfile = _soundfile(path)
     try:
         data, sr_in = soundfile.read(str(path), dtype="float32", always_2d=True)
     except Exception as e:  # soundfile raises its own LibsndfileError / RuntimeError
@@ -136,6 +185,7 @@ def load_audio(
     wav = resample_audio(to_mono(data), sr_in, sr)
     if not np.isfinite(wav).all():
         raise AudioFileError(path, "audio has NaN or inf samples")
+    check_audio_seconds(len(wav) / sr, path, max_seconds)  # a header that undercounted
     if len(wav) < min_seconds * sr:
         raise AudioFileError(
             path, f"audio is {len(wav) / sr:.3f} s long; need at least {min_seconds:g} s"

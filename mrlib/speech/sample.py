@@ -31,7 +31,12 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.cleanup import cleanup_foot_contacts
 from mrlib.sampling.generation import noise_amplitude, sample_features
 from mrlib.speech.align import SpeechNormalizer, level_lengths, speech_conditions
-from mrlib.speech.audio import check_waveform, load_audio
+from mrlib.speech.audio import (
+    MAX_AUDIO_SECONDS,
+    check_audio_seconds,
+    check_waveform,
+    load_audio,
+)
 from mrlib.speech.data import SPEECH_LABEL
 from mrlib.speech.features import SpeechFeatureConfig, SpeechFeatureExtractor
 from mrlib.threads import with_policy
@@ -128,7 +133,9 @@ def _read_audio(audio, sr: int | None) -> tuple[np.ndarray, int]:
         return load_audio(audio)
     if sr is None:
         raise MotionValueError("pass sr= with an audio array (its sample rate in Hz)")
-    return check_waveform(audio, int(sr)), int(sr)
+    wav = check_waveform(audio, int(sr))
+    check_audio_seconds(len(wav) / int(sr), "the audio array", MAX_AUDIO_SECONDS)
+    return wav, int(sr)
 
 
 def audio_conditions(

@@ -53,6 +53,7 @@ import numpy as np
 
 from mrlib.errors import MotionValueError
 from mrlib.io import save_motion
+from mrlib.io.outputs import write_text
 from mrlib.representation.motion import Motion
 from mrlib.speech.audio import SAMPLE_RATE, resample_audio
 from mrlib.speech.espeak import espeak_backend, espeak_speak
@@ -335,5 +336,5 @@ def synthetic_corpus(
         "gesture_params": asdict(params),
         "files": entries,
     }
-    corpus.manifest.write_text(json.dumps(manifest, indent=1))
+    write_text(corpus.manifest, json.dumps(manifest, indent=1), overwrite=True)
     return corpus

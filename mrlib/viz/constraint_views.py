@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
+from mrlib.errors import MotionValueError
 from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion
 from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
@@ -208,7 +209,17 @@ def interactive_inbetween(
     out, status, player, runner = view_parts(w, controls, lambda: body)
     N = max(2, round(seconds * model.fps))
 
-    def clamp(slider: Any, clip: Motion) -> None:
+    def clip_of(choice: Any) -> Motion:
+        if choice.value not in clips:  # an option added from Python
+            raise MotionValueError(
+                f"{choice.description}: unknown clip {choice.value!r}; known: {names}"
+            )
+        return clips[choice.value]
+
+    def clamp(slider: Any, choice: Any) -> None:
+        if choice.value not in clips:
+            return  # the redraw reports it
+        clip = clips[choice.value]
         runner.hold += 1  # one redraw, by the clip's own observer, not two
         try:
             slider.max = clip.num_frames - 1
@@ -219,8 +230,8 @@ def interactive_inbetween(
     def draw() -> tuple[Motion, str]:
         i, j, s = int(checked(fa)), int(checked(fb)), int(checked(seed))
         kfs = [
-            Keyframe.from_motion(clips[a.value], i, 0),
-            Keyframe.from_motion(clips[b.value], j, N - 1, root=False),
+            Keyframe.from_motion(clip_of(a), i, 0),
+            Keyframe.from_motion(clip_of(b), j, N - 1, root=False),
         ]
         fit = {} if steps is None else {"steps": steps}
         m = generate_with_keyframes(model, kfs, N, lab.value, seed=s, body=body, **fit)
@@ -236,8 +247,8 @@ def interactive_inbetween(
     def update(*_: Any) -> Motion:
         return runner.run(draw, BUSY + " (fitting the noise to the keyframes)")
 
-    a.observe(lambda change: clamp(fa, clips[a.value]), names="value")
-    b.observe(lambda change: clamp(fb, clips[b.value]), names="value")
+    a.observe(lambda change: clamp(fa, a), names="value")
+    b.observe(lambda change: clamp(fb, b), names="value")
     wire(runner, player, controls, draw,
          lambda: BUSY + " (fitting the noise to the keyframes)")  # fmt: skip
     rows = [w.HBox([a, fa]), w.HBox([b, fb]), w.HBox([lab, seed, player.toggle]),

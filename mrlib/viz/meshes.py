@@ -301,22 +301,35 @@ def render_mesh_animation(
     return save_gif(images, path, fps=fps)
 
 
-def save_gif(frames_or_animation: Any, path: str | Path, fps: float = 15.0) -> Path:
-    """Write a GIF from a list of ``(H, W, 3)`` uint8 images or a matplotlib animation.
+def save_gif(
+    frames_or_animation: Any, path: str | Path, fps: float = 15.0, *, overwrite: bool = True
+) -> Path:
+    """Write a GIF from a list of ``(H, W, 3)`` uint8 images or a matplotlib animation,
+    atomically and never through a symbolic link (``mrlib.io.outputs``; ``overwrite=False``
+    refuses an existing file).
 
     Returns:
         The path written.
     """
+    from mrlib.io.outputs import check_writable, write_bytes
+
     path = Path(path)
     if not (np.isfinite(fps) and fps > 0):
         raise MotionValueError(f"fps must be positive, got {fps}")
+    check_writable(path, overwrite=overwrite)
     if hasattr(frames_or_animation, "save"):  # a matplotlib Animation
-        frames_or_animation.save(str(path), writer="pillow", fps=fps)
-        return path
-    import imageio.v2 as imageio
+        import tempfile
+
+        # the pillow writer wants a file name: render into a private folder, then publish
+        with tempfile.TemporaryDirectory(prefix="mrlib-gif-") as tmp:
+            scratch = Path(tmp) / "animation.gif"
+            frames_or_animation.save(str(scratch), writer="pillow", fps=fps)
+            data = scratch.read_bytes()
+        return write_bytes(path, data, overwrite=overwrite)
+    import imageio.v3 as iio
 
     images = [np.asarray(f) for f in frames_or_animation]
     if not images or any(im.ndim != 3 or im.shape[-1] not in (3, 4) for im in images):
         raise MotionValueError("save_gif needs a non-empty list of (H, W, 3) images")
-    imageio.mimsave(path, images, duration=1000.0 / fps, loop=0)
-    return path
+    data = iio.imwrite("<bytes>", images, extension=".gif", duration=1000.0 / fps, loop=0)
+    return write_bytes(path, data, overwrite=overwrite)

@@ -40,6 +40,7 @@ __all__ = [
     "plot_segmentation",
     "plot_coverage_strip",
     "plot_quality_curve",
+    "save_figure",
     "save_titled_image",
     "plot_contacts",
     "plot_evaluation",
@@ -291,6 +292,16 @@ def plot_quality_curve(
     return ax
 
 
+def save_figure(fig: Any, path: str | Path, *, overwrite: bool = True, **kwargs: Any) -> Path:
+    """``fig.savefig`` into ``path`` atomically and never through a symbolic link
+    (``mrlib.io.outputs``); the format follows the suffix (PNG without one)."""
+    from mrlib.io.outputs import atomic_write
+
+    path = Path(path)
+    fmt = path.suffix[1:].lower() or "png"
+    return atomic_write(path, lambda fh: fig.savefig(fh, format=fmt, **kwargs), overwrite=overwrite)
+
+
 def save_titled_image(img: np.ndarray, title: str, path: str | Path) -> Path:
     """Save an ``(H, W, 3)`` image (a render) as a PNG with ``title`` above it."""
     import matplotlib
@@ -307,8 +318,7 @@ def save_titled_image(img: np.ndarray, title: str, path: str | Path) -> Path:
     ax.imshow(img)
     ax.axis("off")
     fig.suptitle(title, fontsize=12, y=0.99)
-    fig.savefig(path)
-    return Path(path)
+    return save_figure(fig, path)
 
 
 def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: str | None = None):
@@ -392,5 +402,5 @@ def plot_evaluation(result: Any, path: str | Path | None = None):
     if any(kinds[m] == "calibration" for m in methods):
         fig.suptitle("Methods (colour) and calibration rows (grey); dots: sequences", fontsize=11)
     if path is not None:
-        fig.savefig(path, dpi=110)
+        save_figure(fig, path, dpi=110)
     return fig

@@ -78,11 +78,12 @@ class Runner:
         try:
             result, text = work()
         except ValueError as e:  # MotionValueError and the like: an invalid value
-            still = f" (the picture still shows: {self.text})" if self.text else ""
-            self.status.value = status_html(f"not drawn: {e}{still}", "error")
+            self.status.value = status_html(f"not drawn: {e}{self._still()}", "error")
             raise
         except Exception as e:
-            self.status.value = status_html(f"failed: {type(e).__name__}: {e}", "error")
+            self.status.value = status_html(
+                f"failed: {type(e).__name__}: {e}{self._still()}", "error"
+            )
             raise
         finally:
             for c, d in zip(self.controls, was, strict=True):
@@ -91,18 +92,22 @@ class Runner:
         self.status.value = status_html(text)
         return result
 
+    def _still(self) -> str:
+        return f" (the picture still shows: {self.text})" if self.text else ""
+
     def on_change(self, work: Callable[[], tuple[Any, str]],
                   busy: Callable[[], str] = lambda: BUSY) -> Callable[..., None]:  # fmt: skip
-        """An observer that redraws and leaves an invalid value's error in the status line
-        (a notebook shows no traceback for it)."""
+        """An observer that redraws and leaves any error in the status line, the last
+        good picture in place (a notebook would show an observer's traceback only in the
+        kernel log, the page none)."""
 
         def changed(change: Any = None) -> None:
             if self.hold:
                 return
             try:
                 self.run(work, busy())
-            except ValueError:
-                pass  # reported in the status line
+            except Exception:  # noqa: BLE001 - reported in the status line by run()
+                pass
 
         return changed
 

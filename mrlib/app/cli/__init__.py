@@ -73,7 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run one command. Errors print one line (``error: ...``) and exit 1 (usage errors
-    exit 2); ``--debug`` shows the full traceback instead."""
+    exit 2); ``--debug`` shows the full traceback instead. mrlib's own errors name the
+    file or flag; any other exception (a bug, a library's error) is one line
+    ``error: <command>: <ExceptionClass>: <message> (run with --debug for the traceback)``."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
@@ -91,4 +93,14 @@ def main(argv: list[str] | None = None) -> int:
         if args.debug:
             raise
         print(f"error: {describe(e)}", file=sys.stderr)
+        return 1
+    except Exception as e:  # a bug or a library's own error: one line, not a traceback
+        if args.debug:
+            raise
+        message = " ".join(str(e).split()) or "(no message)"
+        print(
+            f"error: {args.command}: {type(e).__name__}: {message} "
+            "(run with --debug for the traceback)",
+            file=sys.stderr,
+        )
         return 1

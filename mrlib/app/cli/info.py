@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import joint_map_option
+from mrlib.app.cli.common import joint_map_option, overwrite_option
 from mrlib.errors import MrlibError
 
 
@@ -31,12 +31,17 @@ def add_info(sub) -> argparse.ArgumentParser:
         help="BVH only: write the joint map used to this file, to edit and pass back with "
         "--joint-map",
     )
+    overwrite_option(p, "replace the --write-map file if it exists (refused otherwise)")
     return p
 
 
 def cmd_info(args) -> int:
     from mrlib.io import JointMap, load_motion
 
+    if args.write_map is not None:  # before reading anything
+        from mrlib.io.outputs import check_writable
+
+        check_writable(args.write_map, overwrite=args.overwrite)
     m = load_motion(args.path, fps=args.fps, joint_map=args.joint_map)
     print(m)
     print(f"  duration     {m.duration:.2f} s")
@@ -75,6 +80,6 @@ def cmd_info(args) -> int:
         print(f"  {name:<15} {src or '- (follows its parent)':<28} {err}")
     if args.write_map is not None:
         desc = f"written by `mrlib info` for {Path(args.path).name} ({m.meta['joint_map']} map)"
-        JointMap("custom", pairs, desc).to_json(args.write_map)
+        JointMap("custom", pairs, desc).to_json(args.write_map, overwrite=args.overwrite)
         print(f"wrote {args.write_map}: edit it and pass it back with --joint-map")
     return 0

@@ -22,15 +22,20 @@ MAX_SAMPLES = 1000  # --num: each sample is generated, cleaned up and written (2
 MAX_SAMPLE_FRAMES = 200_000  # all samples of one command (~0.5 GB while generating)
 
 
-def _check_sample_frames(frames: int, fps: float, args) -> None:
+def _check_sample_frames(frames: int, fps: float, args, what: str | None = None) -> None:
     """Refuse, before generating, samples longer than ``MAX_SAMPLE_SECONDS`` or more
     frames in all than ``MAX_SAMPLE_FRAMES``."""
-    what = "--continue: the clip plus --seconds" if args.prefix is not None else "--seconds"
+    if what is None:
+        what = "--continue: the clip plus --seconds" if args.prefix is not None else "--seconds"
     if frames > MAX_SAMPLE_SECONDS * fps + 1:
+        way = (
+            "pass a shorter --seconds (the path is then walked that long) or a shorter path"
+            if what.startswith("--path")
+            else "generate shorter pieces and join them with --continue"
+        )
         raise MrlibError(
             f"{what}: {frames / fps:.0f} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s mrlib "
-            "generates in one sample (a longer walk leaves the 1000 m a motion may span); "
-            "generate shorter pieces and join them with --continue"
+            f"generates in one sample (a longer walk leaves the 1000 m a motion may span); {way}"
         )
     if frames * args.num > MAX_SAMPLE_FRAMES:
         raise MrlibError(
@@ -218,11 +223,16 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
 
     fit = {} if args.fit_steps is None else {"steps": args.fit_steps}
     fit["progress"] = not args.no_progress
+    seconds = args.seconds
+    if args.path is not None and seconds is None:  # the path's length: bounded up front
+        seconds, _ = C.path_seconds(model, args.path, **kw)
+        what = f"--path {args.path} (without --seconds: its times, or its length at the pace)"
+        _check_sample_frames(max(2, round(seconds * model.fps)), model.fps, args, what)
     out = []
     for b in range(args.num):
         seed = args.seed + b
         if args.path is not None:
-            m = C.generate_on_path(model, args.path, seconds=args.seconds, seed=seed,
+            m = C.generate_on_path(model, args.path, seconds=seconds, seed=seed,
                                    clean=not args.raw, **kw)  # fmt: skip
         elif args.keyframes is not None:
             if length is None:
@@ -332,7 +342,18 @@ def _audio_samples(args):
         raise MrlibError(
             "--seconds does not apply to --audio: the motion lasts as long as the audio"
         )
+    from mrlib.speech.audio import MAX_AUDIO_SECONDS, audio_duration, check_audio_seconds
+
+    seconds = audio_duration(args.audio)  # the header only: refused before any work
+    check_audio_seconds(seconds, args.audio, MAX_AUDIO_SECONDS)
     model = load_speech_model(args.checkpoint, device=args.device)
+    frames = round(seconds * model.fps)
+    if frames * args.num > MAX_SAMPLE_FRAMES:
+        raise MrlibError(
+            f"--num: {args.num} samples of {args.audio} ({frames} frames each) are "
+            f"{frames * args.num} frames, more than the {MAX_SAMPLE_FRAMES} one command "
+            "generates; use fewer --num, and run again with another --seed"
+        )
     with_sampler(model.model, args)
     motions = generate_from_audio(
         model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=not args.raw

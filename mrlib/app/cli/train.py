@@ -20,6 +20,30 @@ from mrlib.app.cli.common import (
 )
 from mrlib.errors import MrlibError
 
+# frames of one training clip at the training rate: 10 minutes at 30 fps. Every level of
+# the pyramid, its features and the discriminator's windows scale with it, and a clip this
+# long is already minutes per iteration; more is a wrong --fps or a whole session.
+MAX_TRAIN_CLIP_FRAMES = 18_000
+
+
+def check_training_clips(motions, paths, fps: float | None) -> None:
+    """Refuse, before resampling anything, a clip longer than ``MAX_TRAIN_CLIP_FRAMES``
+    at the training rate ``fps`` (None: the first clip's, as ``TrainingSet``), naming the
+    file, the limit and the way around it."""
+    if fps is None and motions:
+        fps = motions[0].fps
+    if fps is None or not math.isfinite(fps) or fps <= 0:
+        return  # a bad --fps or clip rate is reported where it is checked, in its own words
+    for m, path in zip(motions, paths, strict=True):
+        frames = m.duration * fps
+        if not frames <= MAX_TRAIN_CLIP_FRAMES:
+            raise MrlibError(
+                f"{path}: {m.duration:.0f} s at {fps:g} fps is {frames:.0f} frames, more than "
+                f"the {MAX_TRAIN_CLIP_FRAMES} a training clip may have "
+                f"({MAX_TRAIN_CLIP_FRAMES / fps:.0f} s at this rate); cut it into shorter "
+                "clips, or train at a lower --fps"
+            )
+
 
 def _level_count(text: str) -> int:
     from mrlib.model.config import MAX_LEVELS
@@ -223,10 +247,13 @@ def cmd_train(args) -> int:
         )
         return _report_training(res)
     fps = args.fps if args.fps is not None else _preset_fps(args.preset or "tutorial")
+    from mrlib.io import load_motion
+
     with _retarget_check(args.accept_retarget_error):
-        data = TrainingSet.from_files(
-            args.clips, labels=args.labels, fps=fps, joint_map=args.joint_map
-        )
+        # TrainingSet.from_files, with the clips' lengths checked before they are resampled
+        motions = [load_motion(p, joint_map=args.joint_map) for p in args.clips]
+        check_training_clips(motions, args.clips, fps)
+        data = TrainingSet.from_motions(motions, args.labels, fps)
     print(
         f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
         f"lengths {data.lengths}"

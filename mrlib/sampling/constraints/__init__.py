@@ -26,16 +26,14 @@ from mrlib.sampling.constraints.compose import (
     phase_align,
     splice_parts,
 )
+from mrlib.sampling.constraints.keyframe_files import Keyframe, load_keyframes, save_keyframes
 from mrlib.sampling.constraints.keyframes import (
-    Keyframe,
     align_to_keyframes,
     apply_keyframes,
     continue_motion,
     generate_with_keyframes,
     keyframe_errors,
     keyframe_objective,
-    load_keyframes,
-    save_keyframes,
 )
 from mrlib.sampling.constraints.loop import generate_loop, loop_seam, roll_loop, tile_loop
 from mrlib.sampling.constraints.path import (
@@ -46,6 +44,7 @@ from mrlib.sampling.constraints.path import (
     natural_pace,
     parse_path,
     path_error,
+    path_seconds,
 )
 from mrlib.sampling.constraints.sharpen import (
     MARGIN,
@@ -60,6 +59,7 @@ __all__ = [
     "follow_path",
     "generate_on_path",
     "natural_pace",
+    "path_seconds",
     "ground_track",
     "path_error",
     "Keyframe",

@@ -24,27 +24,29 @@ position) at one frame. :func:`generate_with_keyframes` meets keyframes in three
 :func:`continue_motion` extends a given prefix: the noise is fitted to the prefix, the
 prefix is kept as it is, and the generated rest takes the prefix's last pose and
 velocity with a cubic Hermite ease over ``blend_s`` seconds.
+
+The module is long because it also reads and writes keyframe files
+(:func:`save_keyframes`, :func:`load_keyframes`): every array's header is checked
+(shape, type, size) before its data is read, and every value (whole, in-range frames;
+finite, bounded poses and translations) before a :class:`Keyframe` is made, so that a
+damaged file is one ``MotionFileError`` naming it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import torch
 
-from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.errors import MotionValueError
 from mrlib.representation.features import ROOT_SLICE
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import NUM_JOINTS
-from mrlib.sampling.constraints.common import fitted_motion, joint_ids, label_setup, pelvis_rest
+from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis_rest
+from mrlib.sampling.constraints.keyframe_files import Keyframe
 
 __all__ = [
-    "Keyframe",
-    "save_keyframes",
-    "load_keyframes",
     "align_to_keyframes",
     "apply_keyframes",
     "keyframe_errors",
@@ -65,101 +67,6 @@ JOINT_JERK = 2e-3
 FIT_STEPS = 300
 
 
-@dataclass(frozen=True)
-class Keyframe:
-    """A pose constraint at one frame.
-
-    Attributes:
-        frame: the output frame it holds at (0-based).
-        poses: ``(24, 3)`` axis-angle (joint 0 the global orientation), or None.
-        joints: which joints of ``poses`` are constrained (names or indices); None means
-            all 24 when ``poses`` is given.
-        trans: ``(3,)`` SMPL root translation in metres (Y up), or None: the root is free.
-    """
-
-    frame: int
-    poses: np.ndarray | None = None
-    joints: tuple[int, ...] | None = None
-    trans: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        if int(self.frame) < 0:
-            raise MotionValueError(f"keyframe frame must be >= 0, got {self.frame}")
-        object.__setattr__(self, "frame", int(self.frame))
-        if self.poses is None and self.trans is None:
-            raise MotionValueError(f"keyframe at frame {self.frame} constrains nothing")
-        if self.poses is not None:
-            p = np.asarray(self.poses, np.float64).reshape(-1, 3)
-            if p.shape != (NUM_JOINTS, 3) or not np.isfinite(p).all():
-                raise MotionValueError(f"keyframe poses must be finite (24, 3), got {p.shape}")
-            object.__setattr__(self, "poses", p)
-            joints = range(NUM_JOINTS) if self.joints is None else self.joints
-            object.__setattr__(self, "joints", joint_ids(joints))
-        elif self.joints is not None:
-            raise MotionValueError("keyframe joints given without poses")
-        if self.trans is not None:
-            t = np.asarray(self.trans, np.float64).reshape(-1)
-            if t.shape != (3,) or not np.isfinite(t).all():
-                raise MotionValueError(f"keyframe trans must be finite (3,), got {t.shape}")
-            object.__setattr__(self, "trans", t)
-
-    @classmethod
-    def from_motion(
-        cls, motion: Motion, index: int, frame: int, joints=None, root: bool = True
-    ) -> Keyframe:
-        """Frame ``index`` of ``motion`` as a keyframe at output ``frame`` (``joints``:
-        a subset; ``root``: also its translation)."""
-        if not -motion.num_frames <= index < motion.num_frames:
-            raise MotionValueError(f"frame {index} is outside {motion!r}")
-        return cls(frame, motion.poses[index], joints, motion.trans[index] if root else None)
-
-
-def save_keyframes(path: str | Path, keyframes: Sequence[Keyframe]) -> Path:
-    """Write keyframes as ``.npz``: ``frames (K,)``, ``poses (K, 24, 3)``, ``joint_mask
-    (K, 24)``, ``trans (K, 3)``, ``trans_mask (K,)`` (what ``mrlib sample --keyframes``
-    reads)."""
-    K = len(keyframes)
-    poses, jm = np.zeros((K, NUM_JOINTS, 3)), np.zeros((K, NUM_JOINTS), bool)
-    trans, tm = np.zeros((K, 3)), np.zeros(K, bool)
-    for k, kf in enumerate(keyframes):
-        if kf.poses is not None:
-            poses[k], jm[k, list(kf.joints)] = kf.poses, True
-        if kf.trans is not None:
-            trans[k], tm[k] = kf.trans, True
-    path = Path(path)
-    np.savez(path, frames=np.array([kf.frame for kf in keyframes]), poses=poses,
-             joint_mask=jm, trans=trans, trans_mask=tm)  # fmt: skip
-    return path
-
-
-def load_keyframes(path: str | Path) -> list[Keyframe]:
-    """Keyframes written by :func:`save_keyframes` (no pickles are loaded)."""
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            d = {k: z[k] for k in ("frames", "poses", "joint_mask", "trans", "trans_mask")}
-    except (OSError, ValueError, KeyError) as e:
-        raise MotionFileError(
-            path, f"not a keyframe file (frames, poses, joint_mask, trans, trans_mask): {e}"
-        ) from None
-    out = []
-    try:
-        for k, f in enumerate(d["frames"]):
-            joints = np.flatnonzero(d["joint_mask"][k])
-            out.append(
-                Keyframe(
-                    int(f),
-                    d["poses"][k] if len(joints) else None,
-                    tuple(joints.tolist()) if len(joints) else None,
-                    d["trans"][k] if d["trans_mask"][k] else None,
-                )
-            )
-    except (MotionValueError, IndexError) as e:
-        raise MotionFileError(path, str(e)) from None
-    return out
-
-
-# -- rotations (numpy, float64) ------------------------------------------------------------
 def _mat(aa: np.ndarray) -> np.ndarray:
     from mrlib.representation.rotations import axis_angle_to_matrix
 

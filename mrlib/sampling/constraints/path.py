@@ -16,6 +16,11 @@ from its noise alone (``method="optimise"`` measures that alternative). The defa
 
 Headings are angles about +Y with 0 along +Z and +90 degrees along +X (SMPL: facing +Z,
 left at +X), so a path that turns left curves towards +X.
+
+The module is long because it also reads path files (:meth:`GroundPath.from_csv`) with
+every check a hand-written or damaged CSV needs (size, encoding, header, row widths,
+bounded values: one ``MotionFileError`` naming the file) and bounds the length of a walk
+before generating it (:func:`path_seconds`, ``MAX_PATH_SECONDS``).
 """
 
 from __future__ import annotations
@@ -35,6 +40,8 @@ from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis
 __all__ = [
     "GroundPath",
     "parse_path",
+    "path_seconds",
+    "MAX_PATH_SECONDS",
     "follow_path",
     "path_error",
     "ground_track",
@@ -43,6 +50,14 @@ __all__ = [
 ]
 
 MIN_TRAVEL_SPEED = 0.1  # m/s: slower than this, the direction of travel is not defined
+# the longest motion generate_on_path makes in one piece: a 10-minute walk stays within
+# the 1000 m a motion may span (mrlib.representation.motion.MAX_TRANSLATION_M)
+MAX_PATH_SECONDS = 600.0
+# what a path file may hold: its size, points, coordinates (metres) and times (seconds)
+MAX_PATH_FILE_BYTES = 8 * 2**20
+MAX_PATH_POINTS = 100_000
+MAX_PATH_COORD = 1e6
+MAX_PATH_TIME = 1e7
 PACE_WARNING = 1.3  # warn when a timed path asks for this times the motion's pace (or 1/x)
 
 
@@ -86,6 +101,11 @@ class GroundPath:
             raise MotionValueError(
                 f"a path needs (N >= 2, 2) finite (x, z) points in metres, got shape {p.shape}"
             )
+        if np.abs(p).max() > MAX_PATH_COORD:
+            raise MotionValueError(
+                f"path points must lie within {MAX_PATH_COORD:g} m of the origin, got "
+                f"{np.abs(p).max():.3g} (another unit?)"
+            )
         if self.closed and np.linalg.norm(p[-1] - p[0]) < 1e-9:
             p = p[:-1]  # the closing segment is implicit
         object.__setattr__(self, "points", p)
@@ -109,6 +129,10 @@ class GroundPath:
             if len(t) != len(self.points) or not np.isfinite(t).all() or (np.diff(t) <= 0).any():
                 raise MotionValueError(
                     f"path times must be {len(self.points)} strictly increasing seconds"
+                )
+            if np.abs(t).max() > MAX_PATH_TIME:
+                raise MotionValueError(
+                    f"path times must lie within {MAX_PATH_TIME:g} s, got {np.abs(t).max():.3g}"
                 )
             object.__setattr__(self, "times", t)
 
@@ -192,35 +216,86 @@ class GroundPath:
     @classmethod
     def from_csv(cls, path: str | Path, closed: bool = False) -> GroundPath:
         """Columns ``x, z`` (metres) and optionally ``t`` (seconds), with or without a
-        header row; ``#`` starts a comment."""
+        header row; ``#`` starts a comment.
+
+        Raises:
+            MotionFileError: naming ``path``: not a regular file, larger than
+                ``MAX_PATH_FILE_BYTES``, not UTF-8, rows of differing widths, a header that
+                does not match the rows, more than ``MAX_PATH_POINTS`` points, or values
+                that no path has (non-finite, beyond ``MAX_PATH_COORD`` / ``MAX_PATH_TIME``).
+        """
         path = Path(path)
         try:
-            rows = [
-                ln.split("#")[0].strip() for ln in path.read_text(encoding="utf-8").splitlines()
-            ]
+            if not path.is_file():
+                raise MotionFileError(
+                    path, "no such file" if not path.exists() else "not a regular file"
+                )
+            size = path.stat().st_size
+            if size > MAX_PATH_FILE_BYTES:
+                raise MotionFileError(
+                    path,
+                    f"{size / 2**20:.0f} MB is more than the {MAX_PATH_FILE_BYTES // 2**20} MB a "
+                    f"path file may have (at most {MAX_PATH_POINTS} points); thin the path out",
+                )
+            raw = path.read_bytes()
         except OSError as e:
             raise MotionFileError(path, f"cannot read: {e.strerror or e}") from None
-        rows = [r for r in rows if r]
-        header = None
-        if rows and not _is_number(rows[0].replace(",", " ").split()[0]):
-            header = [h.strip().lower() for h in rows[0].replace(",", " ").split()]
-            rows = rows[1:]
         try:
-            data = np.array([[float(v) for v in r.replace(",", " ").split()] for r in rows])
-        except ValueError:
-            raise MotionFileError(path, "expected numbers in columns x, z[, t]") from None
-        if data.ndim != 2 or data.shape[1] not in (2, 3) or len(data) < 2:
-            raise MotionFileError(path, "expected at least 2 rows of x, z[, t] (metres, seconds)")
-        cols = header or (["x", "z", "t"][: data.shape[1]])
+            text = raw.decode("utf-8-sig")
+        except UnicodeDecodeError as e:
+            raise MotionFileError(path, f"not UTF-8 text (byte {e.start})") from None
         try:
-            x, z = data[:, cols.index("x")], data[:, cols.index("z")]
-        except ValueError:
-            raise MotionFileError(path, f"the header needs columns x and z, got {cols}") from None
-        t = data[:, cols.index("t")] if "t" in cols else None
-        try:
-            return cls(np.stack([x, z], -1), t, closed, name=path.stem)
+            return cls._from_rows(path, text, closed)
+        except MotionFileError:
+            raise
         except MotionValueError as e:
             raise MotionFileError(path, str(e)) from None
+        except (ValueError, ArithmeticError, LookupError) as e:  # anything the checks missed
+            raise MotionFileError(path, f"cannot read ({type(e).__name__}: {e})") from None
+
+    @classmethod
+    def _from_rows(cls, path: Path, text: str, closed: bool) -> GroundPath:
+        rows = []
+        for no, line in enumerate(text.splitlines(), 1):
+            line = line.split("#")[0].strip()
+            if line:
+                rows.append((no, [v for v in line.replace(",", " ").split()]))
+        header = None
+        if rows and not all(_is_number(v) for v in rows[0][1]):
+            header_line, header = rows[0][0], [h.strip().lower() for h in rows[0][1]]
+            rows = rows[1:]
+            bad = [h for h in header if h not in ("x", "z", "t")]
+            if bad or len(set(header)) != len(header) or not {"x", "z"} <= set(header):
+                raise MotionFileError(
+                    path,
+                    f"line {header_line}: the header needs columns x and z (and t), got {header}",
+                )
+        if len(rows) > MAX_PATH_POINTS:
+            raise MotionFileError(
+                path, f"{len(rows)} points, more than the {MAX_PATH_POINTS} a path may have"
+            )
+        width = len(header) if header else (len(rows[0][1]) if rows else 2)
+        if width not in (2, 3):
+            raise MotionFileError(path, f"expected 2 or 3 columns (x, z[, t]), got {width}")
+        values = []
+        for no, vals in rows:
+            if len(vals) != width:
+                raise MotionFileError(
+                    path, f"line {no}: {len(vals)} values, expected {width} (x, z[, t])"
+                )
+            try:
+                values.append([float(v) for v in vals])
+            except ValueError:
+                raise MotionFileError(
+                    path, f"line {no}: expected numbers in columns x, z[, t], got {vals}"
+                ) from None
+        if len(values) < 2:
+            raise MotionFileError(path, "expected at least 2 rows of x, z[, t] (metres, seconds)")
+        data = np.array(values, np.float64)
+        cols = header or ["x", "z", "t"][:width]
+        x, z = data[:, cols.index("x")], data[:, cols.index("z")]
+        t = data[:, cols.index("t")] if "t" in cols else None
+        return cls(np.stack([x, z], -1), t, closed, name=path.stem)
 
 
 def _is_number(text: str) -> bool:
@@ -255,7 +330,10 @@ def parse_path(spec: str | Path | GroundPath) -> GroundPath:
             value = float(arg) if arg else (10.0 if kind == "line" else 2.0)
         except ValueError:
             raise MotionValueError(f"path {text!r}: '{arg}' is not a number of metres") from None
-        return presets[kind](value)
+        try:
+            return presets[kind](value)
+        except MotionValueError as e:
+            raise MotionValueError(f"path {text!r}: {e}") from None
     if Path(text).suffix.lower() in (".csv", ".txt") or Path(text).is_file():
         return GroundPath.from_csv(text)
     raise MotionValueError(
@@ -386,6 +464,19 @@ def natural_pace(model, condition=None, *, conditions=None, blend=None, seed: in
     return float(ground_track(m)["arc"][-1] / m.duration)
 
 
+def path_seconds(
+    model, path: GroundPath | str, condition=None, *, conditions=None, blend=None
+) -> tuple[float, float | None]:
+    """How long a walk of ``path`` lasts without an explicit length: the path's times,
+    else its length at the condition's own pace (:func:`natural_pace`, returned too;
+    None for a timed path)."""
+    path = parse_path(path)
+    if path.times is not None:
+        return float(path.duration), None
+    pace = natural_pace(model, condition, conditions=conditions, blend=blend)
+    return float(path.length / max(pace, MIN_TRAVEL_SPEED)), pace
+
+
 def generate_on_path(
     model,
     path: GroundPath | str,
@@ -400,6 +491,7 @@ def generate_on_path(
     clean: bool = True,
     body=None,
     progress: bool = False,
+    max_seconds: float | None = MAX_PATH_SECONDS,
 ) -> Motion:
     """A motion of a label model that walks ``path``.
 
@@ -412,6 +504,8 @@ def generate_on_path(
             follows the path at the condition's pace, no bending; ``steps`` Adam steps),
             the alternative measured in ``docs/results.md``.
         clean: plant the feet (``mrlib.sampling.cleanup``).
+        max_seconds: refuse (before generating) a walk longer than this, given or
+            implied by the path (None: no limit).
     """
     from mrlib.sampling.generation import generate
 
@@ -419,14 +513,23 @@ def generate_on_path(
         raise MotionValueError(f"method must be 'bend' or 'optimise', got {method!r}")
     path = parse_path(path)
     pace = None
-    if seconds is None:
-        if path.times is not None:
-            seconds = path.duration
-        else:
-            pace = natural_pace(model, condition, conditions=conditions, blend=blend)
-            seconds = path.length / max(pace, MIN_TRAVEL_SPEED)
+    implied = seconds is None
+    if implied:
+        seconds, pace = path_seconds(model, path, condition, conditions=conditions, blend=blend)
     if not (np.isfinite(seconds) and seconds > 0):
         raise MotionValueError(f"seconds must be a positive number, got {seconds}")
+    if max_seconds is not None and seconds > max_seconds:
+        if not implied:
+            how = "as asked"
+        elif path.times is not None:
+            how = "from its times"
+        else:
+            how = f"{path.length:.0f} m at the condition's pace"
+        raise MotionValueError(
+            f"path {path.name!r}: {seconds:.0f} s of motion ({how}) is longer than the "
+            f"{max_seconds:.0f} s generated in one piece; give a shorter length (seconds=, "
+            "--seconds) or a shorter path, and join pieces with continue_motion (--continue)"
+        )
     length = max(2, round(seconds * model.fps))
     if method == "bend":
         m = generate(model, condition, length=length, seed=seed, conditions=conditions,
