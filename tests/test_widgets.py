@@ -258,6 +258,27 @@ class TestInvalidValuesFromPython:
             assert status_of(box) == drawn, c.description
 
     @pytest.mark.parametrize("view", BUILDERS, indirect=True)
+    def test_out_of_range_from_python_is_refused_not_clamped(self, view):
+        """ipywidgets would clamp ``slider.value = 5`` to the maximum without a word; the
+        views' controls refuse it (a TraitError naming the control and its range), keep
+        their value and say so in the status line."""
+        from traitlets import TraitError
+
+        box, drawn = view
+        numeric = [c for c in controls_of(box).values() if hasattr(c, "on_refused")]
+        assert numeric
+        for c in numeric:
+            good = c.value
+            with pytest.raises(TraitError, match=re.escape(f"{c.description} must be a number in")):
+                c.value = c.max + 1
+            assert c.value == good, c.description
+            shown = text_of(box)
+            assert "mrlib-error" in status_of(box) and "the picture still shows" in shown
+            c.value = c.min if good != c.min else c.max
+            c.value = good
+            assert status_of(box) == drawn, c.description
+
+    @pytest.mark.parametrize("view", BUILDERS, indirect=True)
     def test_an_added_label_option(self, view):
         box, drawn = view
         dropdowns = [

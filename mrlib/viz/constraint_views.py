@@ -22,6 +22,7 @@ from mrlib.viz.widget_kit import (
     checked,
     mesh_figure,
     show_figure,
+    strict,
     view_parts,
     wire,
 )
@@ -49,11 +50,11 @@ def interactive_path(
     body = resolve_body(body, shared=True)
     kind = w.Dropdown(options=["circle", "circle-right", "eight", "line"], value="circle",
                       description="path", style=WIDE)  # fmt: skip
-    size = w.FloatSlider(value=2.0, min=0.5, max=10.0, step=0.5, description="size (m)",
+    size = strict(w.FloatSlider)(value=2.0, min=0.5, max=10.0, step=0.5, description="size (m)",
                          continuous_update=False, style=WIDE)  # fmt: skip
     lab = w.Dropdown(options=list(model.labels), value=label or model.labels[0],
                      description="label", style=WIDE)  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
+    seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
     method = w.ToggleButtons(
         options=["bend", "optimise"], value="bend", description="method", style=WIDE,
         tooltips=["bend the model's own walk onto the path (fast)",
@@ -132,8 +133,8 @@ def interactive_parts(
         tooltip=f"fit each part's noise ({SHARPEN_STEPS} steps, seconds per redraw) so that "
         "its windows are nearer its own label's training clips than any other label's",
     )  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    guidance = w.FloatSlider(
+    seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
+    guidance = strict(w.FloatSlider)(
         value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
         description="guidance", continuous_update=False, style=WIDE,
     )  # fmt: skip
@@ -196,15 +197,15 @@ def interactive_inbetween(
     body = resolve_body(body, shared=True)
     names = list(clips)
     a = w.Dropdown(options=names, value=names[0], description="from clip", style=WIDE)
-    fa = w.IntSlider(value=0, min=0, max=clips[names[0]].num_frames - 1, description="frame",
+    fa = strict(w.IntSlider)(value=0, min=0, max=clips[names[0]].num_frames - 1, description="frame",
                      continuous_update=False, style=WIDE)  # fmt: skip
     b = w.Dropdown(options=names, value=names[-1], description="to clip", style=WIDE)
-    fb = w.IntSlider(value=clips[names[-1]].num_frames - 1, min=0,
+    fb = strict(w.IntSlider)(value=clips[names[-1]].num_frames - 1, min=0,
                      max=clips[names[-1]].num_frames - 1, description="frame",
                      continuous_update=False, style=WIDE)  # fmt: skip
     lab = w.Dropdown(options=list(model.labels), value=model.labels[0], description="between",
                      style=WIDE)  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
+    seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
     controls = [a, fa, b, fb, lab, seed]
     out, status, player, runner = view_parts(w, controls, lambda: body)
     N = max(2, round(seconds * model.fps))

@@ -26,6 +26,7 @@ __all__ = [
     "WIDE",
     "status_html",
     "checked",
+    "strict",
     "Runner",
     "Player3D",
     "wire",
@@ -57,6 +58,34 @@ def checked(control: Any) -> float:
             f"{control.description} must be a number in [{lo:g}, {hi:g}], got {value}"
         )
     return value
+
+
+def strict(cls: type) -> type:
+    """``cls`` (an ipywidgets bounded numeric control: ``FloatSlider``, ``IntSlider``,
+    ``BoundedIntText``) refusing, instead of clamping, a value outside ``[min, max]`` set
+    from Python: a ``TraitError`` naming the control and its range, the value left as it
+    was, and the message in the view's status line (``on_refused``, set by :func:`wire`).
+    NaN passes, for :func:`checked` to report when the view redraws."""
+    from traitlets import TraitError, validate
+
+    class Strict(cls):
+        on_refused: Callable[[str], None] | None = None
+
+        @validate("value")
+        def _validate_value(self, proposal: Any) -> Any:
+            value = proposal["value"]
+            if value == value and not self.min <= value <= self.max:  # NaN != NaN
+                message = (
+                    f"{self.description} must be a number in [{self.min:g}, {self.max:g}], "
+                    f"got {value}"
+                )
+                if self.on_refused is not None:
+                    self.on_refused(message)
+                raise TraitError(message)
+            return value
+
+    Strict.__name__ = Strict.__qualname__ = cls.__name__
+    return Strict
 
 
 class Runner:
@@ -91,6 +120,10 @@ class Runner:
         self.text = text
         self.status.value = status_html(text)
         return result
+
+    def refused(self, message: str) -> None:
+        """Report a value a control refused (see :func:`strict`); the picture stays."""
+        self.status.value = status_html(f"not drawn: {message}{self._still()}", "error")
 
     def _still(self) -> str:
         return f" (the picture still shows: {self.text})" if self.text else ""
@@ -159,6 +192,8 @@ def wire(runner: Runner, player: Player3D, controls: list[Any],
     or close the 3D player when its toggle changes."""
     for c in controls:
         c.observe(runner.on_change(draw, busy), names="value")
+        if hasattr(c, "on_refused"):
+            c.on_refused = runner.refused
     player.toggle.observe(
         runner.on_change(
             lambda: (player.show(), runner.text or "not drawn yet"),

@@ -37,7 +37,7 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.generation import generate, label_weights
 from mrlib.viz.control_plots import plot_nearest_sequence
 from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
-from mrlib.viz.widget_kit import BUSY, WIDE, checked, show_figure, view_parts, wire
+from mrlib.viz.widget_kit import BUSY, WIDE, checked, show_figure, strict, view_parts, wire
 
 __all__ = [
     "CrossoverView",
@@ -137,16 +137,16 @@ def interactive_crossover(
     level = max(1, L // 2) if level is None else check_crossover_level(model, level)
     coarse = w.Dropdown(options=labels, value=first[0], description="coarse", style=WIDE)
     fine = w.Dropdown(options=labels, value=first[1], description="fine", style=WIDE)
-    level = w.IntSlider(value=level, min=1, max=L - 1, description="crossover i",
+    level = strict(w.IntSlider)(value=level, min=1, max=L - 1, description="crossover i",
                         continuous_update=False, style=WIDE)  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    weight = w.FloatSlider(value=1.0, min=0.0, max=1.0, step=0.05, description="fine weight",
+    seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
+    weight = strict(w.FloatSlider)(value=1.0, min=0.0, max=1.0, step=0.05, description="fine weight",
                            continuous_update=False, style=WIDE)  # fmt: skip
-    noise = w.FloatSlider(
+    noise = strict(w.FloatSlider)(
         value=float(model.fine_noise), min=0.0, max=max(1.0, float(model.fine_noise)), step=0.1,
         description="fine noise", continuous_update=False, style=WIDE,
     )  # fmt: skip
-    guidance = w.FloatSlider(
+    guidance = strict(w.FloatSlider)(
         value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
         description="guidance", continuous_update=False, style=WIDE,
     )  # fmt: skip
@@ -250,14 +250,14 @@ def interactive_restyle(
     L = model.num_levels
     first = model.labels[model.label_index(label or labels[0])]
     lab = w.Dropdown(options=labels, value=first, description="label", style=WIDE)
-    lvl = w.IntSlider(value=restyle_level(model, level), min=1, max=L - 1, description="level k",
+    lvl = strict(w.IntSlider)(value=restyle_level(model, level), min=1, max=L - 1, description="level k",
                       continuous_update=False, style=WIDE)  # fmt: skip
     keep = w.ToggleButtons(
         options=list(KEEP), value="coarse", description="keep", style=WIDE,
         tooltips=["the clip's levels 1..k, the label's detail on top",
                   "the label's levels 1..k, the clip's detail on top"],
     )  # fmt: skip
-    seed = w.BoundedIntText(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
+    seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
     invert = w.Checkbox(
         value=False, description="invert (fit the coarse noise; seconds)", indent=False,
         layout=w.Layout(width="auto"), style=WIDE,
