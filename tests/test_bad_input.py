@@ -311,6 +311,15 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
             "--fine-noise", "0.5", "--guidance", "0.25", "--out", str(tmp_path / "eval")]  # fmt: skip
     assert main(argv) == 0
     assert "sampler: fine_noise=0.5, guidance=0.25" in capsys.readouterr().out
+    # a second evaluation into the same folder replaces nothing without --overwrite, and
+    # is refused before it samples
+    table = (tmp_path / "eval" / "evaluation.csv").read_bytes()
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "evaluation" in err and "--overwrite" in err, err
+    assert len(err.strip().splitlines()) == 1
+    assert (tmp_path / "eval" / "evaluation.csv").read_bytes() == table
+    assert main([*argv, "--overwrite"]) == 0
 
 
 def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):

@@ -356,10 +356,11 @@ def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: st
     return ax
 
 
-def plot_evaluation(result: Any, path: str | Path | None = None):
+def plot_evaluation(result: Any, path: str | Path | None = None, *, overwrite: bool = True):
     """Bars (mean over sequences) and dots (sequences) per method for the main metrics of
     a ``mrlib.evaluation.results.EvaluationResult``; calibration rows in grey. Returns the
-    matplotlib Figure; saved to ``path`` when given."""
+    matplotlib Figure; saved to ``path`` when given (an existing file is replaced only
+    with ``overwrite``)."""
     from matplotlib import colormaps
     from matplotlib.figure import Figure  # no pyplot: works headless, no global state
 
@@ -402,5 +403,5 @@ def plot_evaluation(result: Any, path: str | Path | None = None):
     if any(kinds[m] == "calibration" for m in methods):
         fig.suptitle("Methods (colour) and calibration rows (grey); dots: sequences", fontsize=11)
     if path is not None:
-        save_figure(fig, path, dpi=110)
+        save_figure(fig, path, dpi=110, overwrite=overwrite)
     return fig

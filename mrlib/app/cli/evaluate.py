@@ -5,7 +5,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import device_option, parse_seed, sampler_options, with_sampler
+from mrlib.app.cli.common import (
+    device_option,
+    overwrite_option,
+    parse_seed,
+    sampler_options,
+    with_sampler,
+)
 from mrlib.errors import MrlibError
 
 
@@ -44,14 +50,27 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
     )
     device_option(p)
     p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
+    overwrite_option(p, "replace evaluation files already in --out")
     return p
+
+
+EVALUATION_FILES = (
+    "evaluation.csv",
+    "evaluation_summary.csv",
+    "evaluation.md",
+    "evaluation_settings.json",
+    "evaluation.png",
+)
 
 
 def cmd_evaluate(args) -> int:
     from mrlib.evaluation.evaluate import evaluate_model, model_references
+    from mrlib.io.outputs import check_writable
     from mrlib.model.trained import load_model
     from mrlib.viz.plots import plot_evaluation
 
+    for name in EVALUATION_FILES:  # refused before the samples are drawn
+        check_writable(Path(args.out) / name, overwrite=args.overwrite)
     model = with_sampler(load_model(args.checkpoint, device=args.device), args)
     baselines = None
     if args.baseline is not None:
@@ -77,8 +96,8 @@ def cmd_evaluate(args) -> int:
         calibration=not args.no_calibration,
         contacts="raw" if args.raw else "both",
     )
-    result.save(args.out)
-    plot_evaluation(result, Path(args.out) / "evaluation.png")
+    result.save(args.out, overwrite=args.overwrite)
+    plot_evaluation(result, Path(args.out) / "evaluation.png", overwrite=args.overwrite)
     print(f"sampler: fine_noise={model.fine_noise:g}, guidance={model.guidance:g}\n")
     print(result.to_markdown())
     print(f"\nwrote {args.out}/")
