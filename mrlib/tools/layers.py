@@ -64,6 +64,7 @@ OPTIONAL = frozenset(
         "scipy",
         "platformdirs",  # through pooch
         "huggingface_hub",  # through transformers
+        "traitlets",  # through ipywidgets
     }
 )
 DRAWING = frozenset({"matplotlib", "pyvista", "vtk", "ipywidgets", "IPython", "trame"})
