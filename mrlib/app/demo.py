@@ -122,8 +122,8 @@ def run_demo(
         seed: training and sampling seed.
     """
     import mrlib
+    from mrlib.datasets.bandai import bandai_dir
     from mrlib.evaluation.evaluate import evaluate_model
-    from mrlib.io.paths import default_data_dir
     from mrlib.model.config import get_preset
     from mrlib.model.trained import load_model
     from mrlib.sampling.generation import generate
@@ -165,8 +165,9 @@ def run_demo(
         for c in clips
     ]
 
-    # 2. retargeting a real capture, when the Bandai Namco clips are there
-    bvh = Path(default_data_dir()) / "data" / "dataset-1_walk_happy_001.bvh"
+    # 2. retargeting a real capture, when a Bandai Namco clip is on disk (a local copy, or
+    # mrlib's cache after `mrlib data fetch bandai`); the demo itself downloads nothing
+    bvh = bandai_dir() / "data" / "dataset-1_walk_happy_001.bvh"
     if bvh.exists():
         stages.start("retarget", f"{bvh.name} onto SMPL")
         t = time.perf_counter()
@@ -188,7 +189,9 @@ def run_demo(
         )
     else:
         stages.start(
-            "retarget", f"skipped: no Bandai Namco clips at {bvh.parent} (set MRLIB_DATA_DIR)"
+            "retarget",
+            f"skipped: no Bandai Namco clip at {bvh.parent} (`mrlib data fetch bandai` "
+            "fetches the clips, or set MRLIB_DATA_DIR to a copy)",
         )
 
     # 3. training
