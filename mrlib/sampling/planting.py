@@ -37,6 +37,23 @@ __all__ = [
 ]
 
 
+def _leg_arrays(name: str, R, joints, feet, contacts):
+    """The planting functions' inputs as float64 arrays and boolean contacts, or a
+    ``MotionValueError`` naming ``name`` and the shapes it got."""
+    R = np.asarray(R, np.float64)
+    J = np.asarray(joints, np.float64)
+    F = np.asarray(feet, np.float64)
+    c = np.asarray(contacts) > 0.5
+    T = len(R)
+    shapes = (R.shape, J.shape, F.shape, c.shape)
+    if shapes != ((T, NUM_JOINTS, 3, 3), (T, NUM_JOINTS, 3), (T, 6, 3), (T, 6)):
+        raise MotionValueError(
+            f"{name} needs R (T, 24, 3, 3), joints (T, 24, 3), feet (T, 6, 3) and "
+            f"contacts (T, 6), got {shapes}"
+        )
+    return R, J, F, c
+
+
 def plant_feet(
     R: np.ndarray,
     joints: np.ndarray,
@@ -72,17 +89,8 @@ def plant_feet(
         The new rotations, the root offset (add it to the translation), and
         ``{"runs": number of vertex contact runs planted}``.
     """
-    R = np.asarray(R, np.float64)
-    J = np.asarray(joints, np.float64)
-    F = np.asarray(feet, np.float64)
-    c = np.asarray(contacts) > 0.5
+    R, J, F, c = _leg_arrays("plant_feet", R, joints, feet, contacts)
     T = len(R)
-    shapes = (R.shape, J.shape, F.shape, c.shape)
-    if shapes != ((T, NUM_JOINTS, 3, 3), (T, NUM_JOINTS, 3), (T, 6, 3), (T, 6)):
-        raise MotionValueError(
-            "plant_feet needs R (T, 24, 3, 3), joints (T, 24, 3), feet (T, 6, 3) and "
-            f"contacts (T, 6), got {shapes}"
-        )
     G = global_rotations(R)
     out = R.copy()
     runs = 0
@@ -352,17 +360,7 @@ def plant_feet_smooth(
     """:func:`plant_feet` with the corrections of :func:`smooth_foot_offsets`: the root
     moves by its offset and two-bone IK takes each ankle by its leg's offset, the foot
     keeping its global orientation (so its vertices move with the ankle)."""
-    R = np.asarray(R, np.float64)
-    J = np.asarray(joints, np.float64)
-    F = np.asarray(feet, np.float64)
-    c = np.asarray(contacts) > 0.5
-    T = len(R)
-    shapes = (R.shape, J.shape, F.shape, c.shape)
-    if shapes != ((T, NUM_JOINTS, 3, 3), (T, NUM_JOINTS, 3), (T, 6, 3), (T, 6)):
-        raise MotionValueError(
-            "plant_feet_smooth needs R (T, 24, 3, 3), joints (T, 24, 3), feet (T, 6, 3) and "
-            f"contacts (T, 6), got {shapes}"
-        )
+    R, J, F, c = _leg_arrays("plant_feet_smooth", R, joints, feet, contacts)
     offset, legs = smooth_foot_offsets(F, c, fps, floor=floor, move_root=move_root, **kw)
     G = global_rotations(R)
     out = R.copy()
