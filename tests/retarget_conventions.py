@@ -27,7 +27,7 @@ motion, the motion is written onto the rig by mrlib's BVH writer and loaded back
     python tests/retarget_conventions.py --clips walk_happy_001 --seconds 4
 
 A script beside the rigs it writes (``tests/rigs.py``, which the retargeting tests use),
-not a test (pytest collects ``test_*.py`` only); formerly ``bench/retarget_conventions.py``.
+not a test (pytest collects ``test_*.py`` only); formerly ``tests/retarget_conventions.py``.
 """
 
 from __future__ import annotations
