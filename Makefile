@@ -24,9 +24,9 @@ $(READY): pyproject.toml constraints.txt
 
 env: $(READY)
 
-## End-to-end demo on data that ships with the repo; writes to outputs/.
+## End-to-end demo on data that ships with the repo; writes to outputs/ (replacing its last run).
 demo: $(READY)
-	$(BIN)/mrlib demo --out outputs
+	$(BIN)/mrlib demo --out outputs --overwrite
 
 ## Lint, unit and real-data tests, and every notebook executed headless
 ## (smoke budget, models shared between notebooks through a fresh cache folder), on every

@@ -9,9 +9,6 @@ memory and time; the issue's acceptance is < 1 GB and < 30 s before the error.""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
-import textwrap
 import time
 import zipfile
 from pathlib import Path
@@ -19,16 +16,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from capped import PEAK_MB, SECONDS, run_capped, sparse_file  # noqa: E402
 
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.io import save_motion
 from mrlib.model.config import ModelConfig, TrainConfig
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train
-
-CAP_BYTES = 3 * 2**30  # the child's data segment (torch alone takes ~0.4 GB)
-PEAK_MB = 1024
-SECONDS = 30
 
 TINY = TrainConfig(
     model=ModelConfig(num_levels=2, gen_hidden=(24,), disc_hidden=(24,)),
@@ -80,39 +74,6 @@ def _forged_header(path: Path, clip: Path) -> Path:
     return path
 
 
-def _run_capped(cases: list[list[str]]) -> list[dict]:
-    """Run ``mrlib.app.cli.main`` on every argv in a child under ``CAP_BYTES``; per case its
-    exit code, stderr and seconds, and the child's peak resident memory (MB) so far
-    (``VmHWM``: ``ru_maxrss`` carries the parent's peak over fork + exec, and the parent
-    may be a test worker that has trained models)."""
-    script = textwrap.dedent(
-        f"""
-        import contextlib, io, json, resource, sys, time
-        def vm_hwm_mb():
-            with open("/proc/self/status") as fh:
-                line = next(l for l in fh if l.startswith("VmHWM:"))
-            return int(line.split()[1]) / 1024
-        resource.setrlimit(resource.RLIMIT_DATA, ({CAP_BYTES}, {CAP_BYTES}))
-        from mrlib.app.cli import main
-        for argv in json.loads(sys.argv[1]):
-            err, t = io.StringIO(), time.perf_counter()
-            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-                try:
-                    code = main(argv)
-                except SystemExit as e:
-                    code = e.code
-            peak = vm_hwm_mb()
-            print(json.dumps({{"code": code, "err": err.getvalue(),
-                               "s": time.perf_counter() - t, "peak_mb": peak}}))
-        """
-    )
-    res = subprocess.run(
-        [sys.executable, "-c", script, json.dumps(cases)], capture_output=True, text=True
-    )
-    assert res.returncode == 0, res.stderr[-2000:]
-    return [json.loads(line) for line in res.stdout.splitlines()]
-
-
 def _cases(tmp: Path, ckpt: Path) -> dict[str, tuple[list[str], int, str]]:
     """name -> (argv, exit code, text the error must hold)."""
     clip = save_motion(synthetic_walk("walk_sad", seconds=2.4, fps=10.0), tmp / "clip.npz")
@@ -126,9 +87,27 @@ def _cases(tmp: Path, ckpt: Path) -> dict[str, tuple[list[str], int, str]]:
         "levels 1000": {"num_levels": 1000},
     }
     ckpts = {k: _with_config(ckpt, tmp / f"{k.replace(' ', '_')}.pt", **v) for k, v in big.items()}
+    big_bvh = sparse_file(tmp / "take.bvh", b"HIERARCHY\nROOT Hips\n{\n", 2 * 2**30)
+    frames = tmp / "easymocap"
+    frames.mkdir()
+    sparse_file(frames / "000000.json", b'[{"id": 0, "poses": [[', 2 * 2**30)
+    sidecar = tmp / "labelled"
+    sidecar.mkdir()
+    save_motion(synthetic_walk("walk_sad", seconds=1.0, fps=10.0), sidecar / "clip.bvh")
+    sparse_file(sidecar / "clip.json", b'{"content": 0, ', 2 * 2**30)
+    joint_map = sparse_file(tmp / "map.json", b'{"pelvis": "Hips", ', 2 * 2**30)
     sample = ["sample", str(ckpt), "--out", str(tmp / "o")]
     train_ = ["train", str(clip), "--no-progress", "--out", str(tmp / "t")]
     return {
+        "info of a 2 GB BVH": (["info", str(big_bvh)], 1, "more than the 256 MB"),
+        "export of a 2 GB EasyMocap frame": (
+            ["export", str(frames), str(tmp / "e.npz"), "--fps", "30"],
+            1,
+            "more than the 16 MB",
+        ),
+        "a 2 GB joint map": (["info", str(big_bvh), "--joint-map", str(joint_map)], 1, "MB"),
+        # an optional sidecar that cannot be read gives no label; never read whole
+        "a 2 GB label sidecar": (["info", str(sidecar / "clip.bvh")], 0, ""),
         "sample --num 0": ([*sample, "--num", "0"], 2, "--num: must be at least 1"),
         "sample --num -3": ([*sample, "--num", "-3"], 2, "--num: must be at least 1"),
         "sample --num 10**9": ([*sample, "--num", "1000000000"], 2, "--num: must be at most"),
@@ -166,7 +145,7 @@ def _cases(tmp: Path, ckpt: Path) -> dict[str, tuple[list[str], int, str]]:
 
 def test_bounded_before_it_starts(checkpoint, tmp_path):
     cases = _cases(tmp_path, checkpoint)
-    results = _run_capped([argv for argv, _, _ in cases.values()])
+    results = run_capped([argv for argv, _, _ in cases.values()])
     assert len(results) == len(cases)
     for (name, (_, code, message)), r in zip(cases.items(), results, strict=True):
         err = r["err"]

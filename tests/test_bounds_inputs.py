@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from capped import PEAK_MB, run_capped  # noqa: E402
 
-from mrlib.app.cli import main
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MrlibError
 from mrlib.io import save_motion
@@ -83,27 +83,19 @@ def _cases(tmp: Path, ckpt: Path) -> dict[str, tuple[list[str], str]]:
     }
 
 
-@pytest.mark.parametrize(
-    "name",
-    [
-        "sample --audio of 11 minutes",
-        "sample --path CSV with times to 1e5 s",
-        "sample --path line:1e6 (its length at the pace)",
-        "sample --path eight:1e9",
-        "train on a 6.7-hour clip",
-    ],
-)
-def test_refused_up_front(name, checkpoint, tmp_path, capsys):
-    argv, message = _cases(tmp_path, checkpoint)[name]
-    capsys.readouterr()
-    t = time.perf_counter()
-    code = main(argv)
-    took = time.perf_counter() - t
-    err = capsys.readouterr().err
-    assert code == 1, err
-    assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, err
-    assert message in err and "Traceback" not in err, err
-    assert took < SECONDS, f"{name}: {took:.2f} s"
+def test_refused_up_front(checkpoint, tmp_path):
+    """Every case in one child under the memory cap of ``capped``: one line, the limit
+    named, nothing written, < 1 s and < 1 GB peak before the error."""
+    cases = _cases(tmp_path, checkpoint)
+    results = run_capped([argv for argv, _ in cases.values()])
+    assert len(results) == len(cases)
+    for (name, (_, message)), r in zip(cases.items(), results, strict=True):
+        err = r["err"]
+        assert r["code"] == 1, f"{name}: exit {r['code']}, {err!r}"
+        assert err.startswith("error: ") and len(err.strip().splitlines()) == 1, f"{name}: {err!r}"
+        assert message in err and "Traceback" not in err, f"{name}: {err!r}"
+        assert r["s"] < SECONDS, f"{name}: {r['s']:.2f} s"
+        assert r["peak_mb"] < PEAK_MB, f"{name}: peak {r['peak_mb']:.0f} MB"
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
     assert not (tmp_path / "t" / "checkpoint.pt").exists()
 

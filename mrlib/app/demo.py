@@ -110,6 +110,7 @@ def run_demo(
     iterations: int | None = None,
     samples: int = 10,
     seed: int = 0,
+    overwrite: bool = False,
 ) -> Path:
     """Run the demo, writing into ``out``; returns the path of ``summary.md``.
 
@@ -120,6 +121,8 @@ def run_demo(
         iterations: per-block iteration count, overriding the preset's.
         samples: evaluation samples per label.
         seed: training and sampling seed.
+        overwrite: replace the files of an earlier demo run in ``out``; without it such
+            a folder is refused before any work (``OutputExistsError``).
     """
     import mrlib
     from mrlib.datasets.bandai import bandai_dir
@@ -140,6 +143,7 @@ def run_demo(
     n_eval = 2 if quick else samples
 
     out = Path(out)
+    check_demo_folder(out, overwrite=overwrite)
     out.mkdir(parents=True, exist_ok=True)
     stages = _Stages()
     lines = ["# mrlib demo", ""]
@@ -306,6 +310,31 @@ def run_demo(
     print(headline_table(result))
     print(f"\ndone in {stages.total:.0f} s: see {summary}")
     return summary
+
+
+# what a demo run writes at the top of its folder (file names, folders, patterns)
+DEMO_OUTPUTS = ("summary.md", "model", "samples", "evaluation", "sample.gif", "crossover.gif",
+                "crossover.png", "retargeted_bvh.png", "train_*.png", "sample_*.png")  # fmt: skip
+
+
+def check_demo_folder(out: Path, *, overwrite: bool) -> None:
+    """Refuse ``out`` when it holds an earlier demo run's files and ``overwrite`` is off:
+    the demo replaces a whole run, so it asks before it starts, not at its first write.
+    Other files in ``out`` are left alone either way."""
+    from mrlib.io.outputs import OutputError, OutputExistsError
+
+    if out.exists() and not out.is_dir():
+        raise OutputError(out, "is not a folder; --out takes a folder")
+    if overwrite or not out.is_dir():
+        return
+    for pattern in DEMO_OUTPUTS:
+        found = sorted(out.glob(pattern))
+        if found:
+            raise OutputExistsError(
+                found[0],
+                "an earlier demo run's output; pass --overwrite to replace that run, "
+                "or choose another --out",
+            )
 
 
 def headline_table(result) -> str:

@@ -28,7 +28,7 @@ from mrlib.io.export import smpl_to_bvh
 from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, shipped_joint_maps
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
 from mrlib.io.outputs import check_writable, write_text
-from mrlib.io.paths import default_data_dir
+from mrlib.io.paths import default_data_dir, read_text_bounded
 from mrlib.io.retarget import calibrate_retarget, retarget_bvh
 from mrlib.io.retarget_report import RetargetResult
 from mrlib.representation.motion import Motion
@@ -83,8 +83,8 @@ def load_label(path: str | Path, *, cfg_dir: str | Path | None = None) -> str:
     """
     path = Path(path).with_suffix(".json")
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
+        meta = json.loads(read_text_bounded(path, 2**20, "a label sidecar", MotionFileError))
+    except json.JSONDecodeError as e:
         raise MotionFileError(path, f"cannot read label metadata: {e}") from None
     if not isinstance(meta, dict) or not all(
         isinstance(meta.get(k), int) for k in ("content", "style")

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from mrlib.errors import JointMapError
+from mrlib.io.paths import read_text_bounded
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = [
@@ -104,8 +105,8 @@ def joint_map_from_json(path: Path) -> JointMap:
     """A map from ``{"name", "description", "map": {smpl: source}}`` (and optionally
     ``"refit_torso": true``) or a flat ``{smpl: source}`` JSON object."""
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as e:
+        data = json.loads(read_text_bounded(path, 2**20, "a joint map", JointMapError))
+    except json.JSONDecodeError as e:
         raise JointMapError(path, f"cannot read joint map: {e}") from None
     if isinstance(data, dict) and isinstance(data.get("map"), dict):
         return JointMap(

@@ -41,6 +41,7 @@ from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.io.axes import change_up_axis, detect_up_axis, up_axis_rotation
 from mrlib.io.bodyfit import default_body, rest_pelvis
 from mrlib.io.outputs import atomic_write
+from mrlib.io.paths import read_text_bounded
 from mrlib.representation.motion import NUM_BETAS, Motion
 from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from mrlib.representation.skeleton import NUM_CONTACTS, NUM_JOINTS
@@ -57,6 +58,7 @@ _USED_KEYS = frozenset(
 # in float64. Checked before the array is read, from the zip's record and the array's own
 # header, so a small file that inflates to gigabytes (a zip bomb) is refused, not read.
 MAX_ARRAY_BYTES = 256 * 2**20
+MAX_FRAME_JSON_BYTES = 16 * 2**20  # one EasyMocap frame (a few KB per person)
 
 
 def _read_used_keys(path: Path, z) -> dict[str, Any]:
@@ -340,8 +342,10 @@ def load_easymocap(
     Rh, Th, poses, shapes = [], [], [], []
     for f in files:
         try:
-            data = json.loads(f.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as e:
+            data = json.loads(
+                read_text_bounded(f, MAX_FRAME_JSON_BYTES, "one frame's JSON", MotionFileError)
+            )
+        except json.JSONDecodeError as e:
             raise MotionFileError(f, f"cannot read JSON: {e}") from None
         people = data.get("annots", data) if isinstance(data, dict) else data
         if isinstance(people, dict):

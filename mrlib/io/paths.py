@@ -31,6 +31,7 @@ __all__ = [
     "safe_component",
     "unique_components",
     "inside",
+    "read_text_bounded",
 ]
 
 DATA_DIR_ENV = "MRLIB_DATA_DIR"
@@ -120,3 +121,23 @@ def inside(root: str | Path, path: str | Path) -> Path:
     if path_r != root_r and root_r not in path_r.parents:
         raise UnsafePathError(f"{path}: refusing to write outside the output folder {root}")
     return Path(path)
+
+
+def read_text_bounded(path: str | Path, max_bytes: int, what: str, error, **kw) -> str:
+    """The text of ``path`` (UTF-8; ``kw`` passes ``errors=``), refused from its size
+    before a byte is read when it is over ``max_bytes``: a multi-GB file where a few MB
+    are expected costs a ``stat``, not the file. ``error(path, problem)`` builds the
+    exception (the reader's own ``MrlibError`` subclass); ``what`` names the file kind
+    in the message."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise error(
+                path,
+                f"{size / 2**20:.0f} MB is more than the {max_bytes / 2**20:g} MB mrlib reads "
+                f"from {what}; cut it into shorter files",
+            )
+        return path.read_text(encoding="utf-8", **kw)
+    except OSError as e:
+        raise error(path, f"cannot read file: {e.strerror or e}") from None

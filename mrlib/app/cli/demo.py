@@ -36,6 +36,11 @@ def add_demo(sub) -> argparse.ArgumentParser:
         "--samples", type=int, default=10, help="evaluation samples per label [default: 10]"
     )
     p.add_argument("--seed", type=parse_seed, default=0)
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an earlier demo run in --out (refused without it)",
+    )
     return p
 
 
@@ -49,5 +54,6 @@ def cmd_demo(args) -> int:
         iterations=args.iterations,
         samples=args.samples,
         seed=args.seed,
+        overwrite=args.overwrite,
     )
     return 0
