@@ -13,6 +13,9 @@ from typing import Any
 
 __all__ = [
     "check_count",
+    "check_seed",
+    "check_path",
+    "MAX_SEED",
     "MrlibError",
     "MotionFileError",
     "BVHFormatError",
@@ -67,3 +70,31 @@ def check_count(name: str, value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, Integral) or value < 1:
         raise MotionValueError(f"{name} must be a positive integer, got {value!r}")
     return int(value)
+
+
+MAX_SEED = 2**32 - 1  # numpy's and torch's seeds are 32/64-bit unsigned
+
+
+def check_seed(name: str, value: Any) -> int | None:
+    """``value`` as an int if it is None or an integer in ``[0, MAX_SEED]``, else a
+    ``MotionValueError`` (``1.5`` is refused, not run as 1; ``"7"`` is not a seed)."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, Integral) or not 0 <= value <= MAX_SEED:
+        raise MotionValueError(
+            f"{name} must be an integer in [0, {MAX_SEED}] or None, got {value!r}"
+        )
+    return int(value)
+
+
+def check_path(name: str, value: Any) -> Path:
+    """``value`` as a ``Path``: a ``str``, ``os.PathLike`` or ``bytes`` (decoded as the
+    file system does), else a ``MotionValueError`` naming what was given."""
+    import os
+
+    if not isinstance(value, (str, bytes, os.PathLike)):
+        raise MotionValueError(f"{name} must be a file path (str or os.PathLike), got {value!r}")
+    text = os.fsdecode(os.fspath(value))
+    if not text:
+        raise MotionValueError(f"{name} must be a file path, got an empty one")
+    return Path(text)

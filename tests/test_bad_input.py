@@ -21,6 +21,8 @@ from mrlib.io import load_motion, save_motion
 from mrlib.model.checkpoint import CheckpointError, load_checkpoint
 from mrlib.model.config import ModelConfig, TrainConfig
 from mrlib.model.trained import load_model
+from mrlib.sampling.constraints.path import parse_path
+from mrlib.sampling.generation import generate
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import Trainer, train
 
@@ -336,3 +338,53 @@ def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
     argv = ["sample", str(checkpoint), "--raw", "--guidance", "0.5", "--out", str(tmp_path / "b")]
     assert main(argv) == 0
     assert seen == [mrlib.model.trained.GUIDANCE, 0.5]
+
+
+API_CASES = {
+    "length=10**9": (lambda m: generate(m, "walk_sad", length=10**9), "longer than the 600 s"),
+    "length=0": (lambda m: generate(m, "walk_sad", length=0), "length must be a positive"),
+    "length=2.5": (lambda m: generate(m, "walk_sad", length=2.5), "length must be a positive"),
+    "seed='abc'": (lambda m: generate(m, "walk_sad", seed="abc"), "seed must be an integer"),
+    "seed=1.5": (lambda m: generate(m, "walk_sad", seed=1.5), "seed must be an integer"),
+    "seed=-1": (lambda m: generate(m, "walk_sad", seed=-1), "seed must be an integer"),
+    "num_samples=2.5": (lambda m: generate(m, "walk_sad", num_samples=2.5), "num_samples"),
+    "num_samples=0": (lambda m: generate(m, "walk_sad", num_samples=0), "num_samples"),
+    "num_samples x length": (
+        lambda m: generate(m, "walk_sad", length=5000, num_samples=100),
+        "generate them in smaller batches",
+    ),
+    "condition=True": (lambda m: generate(m, True), "a label is one of"),
+    "condition=a dict": (lambda m: generate(m, {"walk_sad": 1}), "a label is one of"),
+    "blend weight 50": (
+        lambda m: generate(m, blend=("walk_sad", "walk_sad", 50.0)),
+        r"blend weights must be in \[0, 1\]",
+    ),
+    "path line:-5": (lambda m: parse_path("line:-5"), "length must be a positive"),
+    "save_motion(None, ...)": (
+        lambda m: save_motion(None, "never.npz"),
+        "save_motion wants a Motion, got NoneType",
+    ),
+    "load_motion(None)": (lambda m: load_motion(None), "must be a file path"),
+    "save_motion(motion, None)": (
+        lambda m: save_motion(synthetic_walk("walk_sad", seconds=1.0, fps=10.0), None),
+        "must be a file path",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(API_CASES))
+def test_api_refuses_nonsense_with_an_mrlib_error(case, checkpoint, tmp_path, monkeypatch):
+    """The API cases of the bad-input sweep: each an MrlibError naming the argument, before
+    any work (nothing written, nothing allocated for a 10**9-frame request)."""
+    monkeypatch.chdir(tmp_path)
+    call, message = API_CASES[case]
+    model = load_model(checkpoint)
+    with pytest.raises(MrlibError, match=message):
+        call(model)
+    assert not any(tmp_path.iterdir())
+
+
+def test_bytes_paths_are_read_like_str_paths(tmp_path):
+    clip = save_motion(synthetic_walk("walk_sad", seconds=1.0, fps=10.0), tmp_path / "a.npz")
+    back = load_motion(bytes(clip))
+    assert back.num_frames == 10 and back.label == "walk_sad"

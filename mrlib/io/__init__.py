@@ -22,7 +22,13 @@ import os
 import re
 from pathlib import Path
 
-from mrlib.errors import MotionFileError, MotionValueError, MrlibError, UnsupportedFormatError
+from mrlib.errors import (
+    MotionFileError,
+    MotionValueError,
+    MrlibError,
+    UnsupportedFormatError,
+    check_path,
+)
 from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, parse_bvh, read_bvh, write_bvh
 from mrlib.io.export import smpl_to_bvh
 from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, shipped_joint_maps
@@ -225,7 +231,7 @@ def load_motion(
         MotionFileError: missing or malformed file (``BVHFormatError``,
             ``JointMapError`` for BVH problems), with the path and the problem.
     """
-    path = Path(path)
+    path = check_path("path", path)
     if path.is_dir():
         return load_easymocap(path, fps, person=person, up_axis=up_axis or "auto", body=body)
     ext = path.suffix.lower()
@@ -284,7 +290,9 @@ def save_motion(
         OutputError: ``path`` is a symbolic link or not a regular file.
         MotionFileError: the write failed (a missing folder, a full disk).
     """
-    path = Path(path)
+    path = check_path("path", path)
+    if not isinstance(motion, Motion):
+        raise MotionValueError(f"save_motion wants a Motion, got {type(motion).__name__}")
     ext = path.suffix.lower()
     if ext not in (".npz", ".bvh", ".glb"):
         raise UnsupportedFormatError(

@@ -80,6 +80,8 @@ class GenerativeModel:
         return next(self.generator.parameters()).device
 
     def label_index(self, label: str | int) -> int:
+        if isinstance(label, bool) or not isinstance(label, (str, int, np.integer)):
+            raise MotionValueError(f"a label is one of {self.labels} or its index, got {label!r}")
         if isinstance(label, (int, np.integer)):
             if not 0 <= int(label) < len(self.labels):
                 raise MotionValueError(f"label index {label} out of range [0, {len(self.labels)})")

@@ -14,13 +14,17 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_count, check_seed
 from mrlib.model.pyramid import PackedLevels, level_fps, pyramid_lengths
 from mrlib.model.trained import GenerativeModel
 from mrlib.representation.features import features_to_motion, features_to_motions
 from mrlib.representation.motion import Motion
 from mrlib.sampling.cleanup import cleanup_foot_contacts
 from mrlib.threads import with_policy
+
+# one sample: a 10-minute walk stays within mrlib.representation.motion's 1000 m
+MAX_SAMPLE_SECONDS = 600.0
+MAX_SAMPLE_FRAMES = 200_000  # all samples of one call or command (~0.5 GB while generating)
 
 __all__ = [
     "label_weights",
@@ -76,6 +80,11 @@ def label_weights(
             w = w.expand(L)
         if w.numel() != L:
             raise MotionValueError(f"blend weights need 1 or {L} values, got {w.numel()}")
+        if not bool(((w >= 0) & (w <= 1)).all()):
+            raise MotionValueError(
+                f"blend weights must be in [0, 1], got {w.tolist()}; to exaggerate a label "
+                "beyond its clips use the model's guidance"
+            )
         W[:, model.label_index(a)] += 1 - w
         W[:, model.label_index(b)] += w
     return W
@@ -136,11 +145,32 @@ def sample_features(
         raise MotionValueError(
             f"need {L} lengths and {L} conditions, got {len(lengths)} and {len(conds)}"
         )
+    num_samples = check_count("num_samples", num_samples)
+    seed = check_seed("seed", seed)
+    check_sample_length(model, int(lengths[-1]), num_samples)
     noises = draw_noise(lengths, noise_amplitude, seed, num_samples, model.device)
     cs = check_conditions(model, conds, lengths, num_samples)
     with torch.inference_mode():
         outs = model.generator.run_batch(noises, cs, keep=True, circular=circular)
     return outs if keep else outs[-1]
+
+
+def check_sample_length(model: GenerativeModel, frames: int, num_samples: int = 1) -> None:
+    """Refuse, before anything is allocated, a sample longer than ``MAX_SAMPLE_SECONDS``
+    or a batch of more than ``MAX_SAMPLE_FRAMES`` frames in all, with the way around."""
+    fps = float(model.fps)
+    if frames > MAX_SAMPLE_SECONDS * fps + 1:
+        raise MotionValueError(
+            f"length: {frames} frames ({frames / fps:.0f} s at {fps:g} fps) is longer than the "
+            f"{MAX_SAMPLE_SECONDS:.0f} s mrlib generates in one sample (a longer walk leaves "
+            "the 1000 m a motion may span); generate shorter pieces and join them with "
+            "mrlib.sampling.constraints.keyframes.continue_motion"
+        )
+    if frames * num_samples > MAX_SAMPLE_FRAMES:
+        raise MotionValueError(
+            f"num_samples: {num_samples} samples of {frames} frames are more than the "
+            f"{MAX_SAMPLE_FRAMES} frames generated in one call; generate them in smaller batches"
+        )
 
 
 def draw_noise(
@@ -233,6 +263,8 @@ def label_inputs(
             if main in model.clip_labels
             else int(model.lengths[0, -1])
         )
+    length = check_count("length", length)
+    check_sample_length(model, length)
     pad = (model.config.model.kernel_size - 1) // 2
     lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
     amp = noise_amplitude(model, W)
@@ -308,8 +340,8 @@ def generate(
         ``meta["sampler"]`` records what made it (seed, index in the batch, fine_noise,
         guidance, the per-level label weights); ``save_motion`` keeps it in the .npz.
     """
-    if num_samples < 1:
-        raise MotionValueError(f"num_samples must be >= 1, got {num_samples}")
+    num_samples = check_count("num_samples", num_samples)
+    seed = check_seed("seed", seed)
     W = label_weights(model, condition, conditions, blend)  # (L, K)
     L = model.num_levels
     lengths, amp, conds = label_inputs(model, W, length)

@@ -11,12 +11,7 @@ import argparse
 import math
 from pathlib import Path
 
-from mrlib.errors import MrlibError
-
-MAX_SEED = 2**32 - 1  # numpy's and torch's seeds are 32/64-bit unsigned
-MAX_SAMPLE_SECONDS = (
-    600.0  # one sample: a 10-minute walk stays within mrlib.representation.motion's 1000 m
-)
+from mrlib.errors import MAX_SEED, MrlibError
 
 
 # -- argument types ------------------------------------------------------------------------

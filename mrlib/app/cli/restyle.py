@@ -7,7 +7,6 @@ import argparse
 from pathlib import Path
 
 from mrlib.app.cli.common import (
-    MAX_SAMPLE_SECONDS,
     joint_map_option,
     parse_seed,
     parse_steps,
@@ -16,6 +15,7 @@ from mrlib.app.cli.common import (
     write_samples,
 )
 from mrlib.errors import MrlibError
+from mrlib.sampling.generation import MAX_SAMPLE_SECONDS
 
 
 def add_restyle(sub) -> argparse.ArgumentParser:

@@ -8,18 +8,16 @@ import math
 from pathlib import Path
 
 from mrlib.app.cli.common import (
-    MAX_SAMPLE_SECONDS,
-    MAX_SEED,
     parse_seed,
     parse_steps,
     sample_output_options,
     with_sampler,
     write_samples,
 )
-from mrlib.errors import MrlibError
+from mrlib.errors import MAX_SEED, MrlibError
+from mrlib.sampling.generation import MAX_SAMPLE_FRAMES, MAX_SAMPLE_SECONDS
 
 MAX_SAMPLES = 1000  # --num: each sample is generated, cleaned up and written (2-4 files)
-MAX_SAMPLE_FRAMES = 200_000  # all samples of one command (~0.5 GB while generating)
 
 
 def _check_sample_frames(frames: int, fps: float, args, what: str | None = None) -> None:

@@ -190,6 +190,7 @@ class GroundPath:
     @classmethod
     def line(cls, length: float = 10.0, heading_deg: float = 0.0) -> GroundPath:
         """A straight line from the origin, ``heading_deg`` from +Z towards +X."""
+        _check_size("length", length)
         h = np.radians(heading_deg)
         end = length * np.array([np.sin(h), np.cos(h)])
         return cls(np.stack([np.zeros(2), end]), name=f"line {length:g} m")
@@ -308,7 +309,7 @@ def _is_number(text: str) -> bool:
 
 def _check_size(name: str, value: float) -> None:
     if not (np.isfinite(value) and value > 0):
-        raise MotionValueError(f"{name} must be a positive number of metres, got {value}")
+        raise MotionValueError(f"{name} must be a positive number of metres, got {value:g}")
 
 
 def parse_path(spec: str | Path | GroundPath) -> GroundPath:
