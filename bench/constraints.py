@@ -315,9 +315,8 @@ def run_parts(model, body, a, seeds, results) -> None:
         row = {"upper": up, "lower": low}
         cells = []
         for key, (method, align) in methods.items():
-            ms = C.generate_parts(model, parts, length, seed=0, num_samples=a.samples,
-                                  method=method, align_gait=align, body=body)  # fmt: skip
-            ms = ms if isinstance(ms, list) else [ms]
+            ms = C.generate_many_parts(model, parts, length, seed=0, num_samples=a.samples,
+                                       method=method, align_gait=align, body=body)  # fmt: skip
             row[key] = C.part_fidelity(ms, model, parts)
             row[key]["coordination"] = float(np.mean([C.arm_leg_coordination(m, body) for m in ms]))
             f = row[key]

@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     from mrlib.model.config import demo
     from mrlib.model.trained import load_model
     from mrlib.sampling.cleanup import cleanup_foot_contacts
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate, generate_many
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train
 
@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         for n in (1, 8, 64):
             reps = args.repeats if n < 64 else max(1, args.repeats - 1)
             new = _best(
-                lambda n=n: generate(
+                lambda n=n: generate_many(
                     model, label, length=T, seed=0, num_samples=n, fix_contacts=False
                 ),
                 reps,

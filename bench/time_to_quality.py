@@ -161,7 +161,7 @@ def score_checkpoint(
     """Metrics of the current generator on every clip, and whether each meets the target
     (samples cleaned up by foot-contact IK when ``fix_contacts``)."""
     from mrlib.evaluation.evaluate import score_motions
-    from mrlib.sampling.generation import generate, reconstruct
+    from mrlib.sampling.generation import generate_many, reconstruct
 
     names = list(refs)
     multi = refs if len(refs) > 1 else None
@@ -170,11 +170,10 @@ def score_checkpoint(
         ref, th = refs[name], thresholds[name]
         label = model.labels[model.clip_labels[k]]
         length = round(settings.length_factor * ref.num_frames)
-        gen = generate(
+        gen = generate_many(
             model, label, length=length, seed=settings.seed, num_samples=settings.num_samples,
             fix_contacts=fix_contacts, body=body,
         )  # fmt: skip
-        gen = gen if isinstance(gen, list) else [gen]
         row = score_motions(
             gen, ref, settings=settings, body=body, label=name, all_references=multi,
             reconstruction=reconstruct(model, k),

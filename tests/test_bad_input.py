@@ -22,7 +22,7 @@ from mrlib.model.checkpoint import CheckpointError, load_checkpoint
 from mrlib.model.config import ModelConfig, TrainConfig
 from mrlib.model.trained import load_model
 from mrlib.sampling.constraints.path import parse_path
-from mrlib.sampling.generation import generate
+from mrlib.sampling.generation import generate, generate_many
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import Trainer, train
 
@@ -347,10 +347,10 @@ API_CASES = {
     "seed='abc'": (lambda m: generate(m, "walk_sad", seed="abc"), "seed must be an integer"),
     "seed=1.5": (lambda m: generate(m, "walk_sad", seed=1.5), "seed must be an integer"),
     "seed=-1": (lambda m: generate(m, "walk_sad", seed=-1), "seed must be an integer"),
-    "num_samples=2.5": (lambda m: generate(m, "walk_sad", num_samples=2.5), "num_samples"),
-    "num_samples=0": (lambda m: generate(m, "walk_sad", num_samples=0), "num_samples"),
+    "num_samples=2.5": (lambda m: generate_many(m, "walk_sad", num_samples=2.5), "num_samples"),
+    "num_samples=0": (lambda m: generate_many(m, "walk_sad", num_samples=0), "num_samples"),
     "num_samples x length": (
-        lambda m: generate(m, "walk_sad", length=5000, num_samples=100),
+        lambda m: generate_many(m, "walk_sad", length=5000, num_samples=100),
         "generate them in smaller batches",
     ),
     "condition=True": (lambda m: generate(m, True), "a label is one of"),

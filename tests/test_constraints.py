@@ -17,7 +17,13 @@ from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.sampling import constraints as C
 from mrlib.sampling.cleanup import contact_skating
-from mrlib.sampling.generation import generate, label_inputs, label_weights, sample_features
+from mrlib.sampling.generation import (
+    generate,
+    generate_many,
+    label_inputs,
+    label_weights,
+    sample_features,
+)
 
 
 @pytest.fixture(scope="module")
@@ -403,7 +409,7 @@ def test_sharpened_parts_are_pulled_to_their_label_and_spliced_as_drawn(model):
     kw = dict(seed=2, num_samples=2)
     plain = C.generate_sharpened(model, "walk_sad", ("upper",), 40, steps=0, **kw)
     sharp = C.generate_sharpened(model, "walk_sad", ("upper",), 40, steps=15, **kw)
-    drawn = generate(model, "walk_sad", length=40, fix_contacts=False, **kw)
+    drawn = generate_many(model, "walk_sad", length=40, fix_contacts=False, **kw)
     for a, b in zip(plain, drawn, strict=True):  # no steps: the sampler's own draw
         assert np.array_equal(a.poses, b.poses)
     for a, b in zip(plain, sharp, strict=True):

@@ -33,7 +33,7 @@ from mrlib.metrics.paper import (
     model_references,
 )
 from mrlib.model.pyramid import level_fps, pyramid_lengths
-from mrlib.sampling.generation import generate, label_weights
+from mrlib.sampling.generation import generate, generate_many, label_weights
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train_or_reuse
 from mrlib.viz.control_plots import (
@@ -239,7 +239,7 @@ def test_condition_fidelity_of_model_matches_the_metric(model):
     # the same number straight from mrlib.metrics.paper
     refs = model_references(model)
     references = dict(zip(refs[1], refs[2], strict=True))
-    samples = generate(model, "wave", length=36, seed=1, num_samples=2)
+    samples = generate_many(model, "wave", length=36, seed=1, num_samples=2)
     assert f.per_label["wave"] == pytest.approx(condition_fidelity(samples, references, window=10))
     assert "**all**" in f.to_markdown()
     # the confusion matrix, from the nearest-sequence strips, agrees with the metric
@@ -313,7 +313,7 @@ def test_coverage_per_sequence_matches_the_metric(model):
     cov = coverage_per_sequence(model, num_samples=2, length_factor=1.5, seed=4, window=10)
     assert list(cov) == model.clip_names and all(0 <= v <= 1 for v in cov.values())
     refs = model_references(model)[2]
-    samples = generate(model, "wave", length=round(1.5 * len(refs[1])), seed=4, num_samples=2)
+    samples = generate_many(model, "wave", length=round(1.5 * len(refs[1])), seed=4, num_samples=2)
     assert cov[model.clip_names[1]] == pytest.approx(coverage(samples, refs[1], window=10))
     with pytest.raises(MotionValueError, match="length_factor"):
         coverage_per_sequence(model, length_factor=0.0)

@@ -10,10 +10,13 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.cleanup import cleanup_foot_contacts, contact_skating
 from mrlib.sampling.generation import (
     generate,
+    generate_levels,
+    generate_many,
     label_inputs,
     label_weights,
     noise_amplitude,
     reconstruct,
+    reconstruct_levels,
     reconstruction_error,
     sample_features,
 )
@@ -49,11 +52,12 @@ def test_generate_by_label_name_and_index(model):
 
 
 def test_any_length_and_batches(model):
-    ms = generate(model, "walk_normal", length=95, num_samples=3, seed=2)
+    ms = generate_many(model, "walk_normal", length=95, num_samples=3, seed=2)
     assert isinstance(ms, list) and len(ms) == 3
     assert all(m.num_frames == 95 for m in ms)  # longer than any training clip
     assert not np.allclose(ms[0].poses, ms[1].poses)
-    one = generate(model, "walk_normal", length=95, num_samples=1, seed=2)
+    one = generate(model, "walk_normal", length=95, seed=2)
+    assert isinstance(one, Motion)  # one type whatever the arguments
     # batching does not change a sample: the same up to float rounding, which convolution
     # kernels chosen per batch size (and the foot IK after them) make ~1e-5 rad on some CPUs
     assert np.abs(one.poses - ms[0].poses).max() < 1e-3
@@ -80,19 +84,18 @@ def test_condition_per_level_range_and_blend(model):
     assert np.allclose(b0.poses, pure.poses, atol=1e-6)
 
 
-def test_return_levels(model):
-    kw = dict(length=40, seed=0, return_levels=True)
-    m, levels = generate(model, "walk_normal", fix_contacts=False, **kw)
+def test_generate_levels(model):
+    kw = dict(length=40, seed=0)
+    m, levels = generate_levels(model, "walk_normal", fix_contacts=False, **kw)
     assert len(levels) == 4 and levels[-1].num_frames == 40
     assert [lv.num_frames for lv in levels] == sorted(lv.num_frames for lv in levels)
     assert levels[0].fps == pytest.approx(10.0 * levels[0].num_frames / 40)
     assert np.allclose(levels[-1].poses, m.poses)
     # by default the feet are planted; the levels stay the generator's raw output
-    clean, raw_levels = generate(model, "walk_normal", **kw)
+    clean, raw_levels = generate_levels(model, "walk_normal", **kw)
     assert "contact_cleanup" in clean.meta and "contact_cleanup" not in m.meta
     assert np.array_equal(raw_levels[-1].poses, levels[-1].poses)
-    ms, lv2 = generate(model, "walk_normal", seed=0, num_samples=2, return_levels=True)
-    assert len(ms) == 2 and len(lv2) == 2 and len(lv2[0]) == 4
+    assert np.array_equal(clean.poses, generate(model, "walk_normal", **kw).poses)
 
 
 def test_fine_noise_scales_only_the_finest_levels_noise(model):
@@ -156,7 +159,7 @@ def test_samples_record_the_sampler_settings_and_keep_them_in_npz(model, tmp_pat
 
     try:
         model.guidance = 0.25
-        ms = generate(model, blend=("walk_normal", "walk_sad", 0.5), seed=7, num_samples=2)
+        ms = generate_many(model, blend=("walk_normal", "walk_sad", 0.5), seed=7, num_samples=2)
     finally:
         model.guidance = GUIDANCE
     rec = ms[1].meta["sampler"]
@@ -168,7 +171,7 @@ def test_samples_record_the_sampler_settings_and_keep_them_in_npz(model, tmp_pat
 
 
 def test_reconstruct_uses_the_fixed_noise(model):
-    r1, levels = reconstruct(model, 1, return_levels=True)
+    r1, levels = reconstruct_levels(model, 1)
     r2 = reconstruct(model, 1)
     assert r1.num_frames == 36 and r1.label == "walk_sad" and len(levels) == 4
     assert np.array_equal(r1.poses, r2.poses)  # deterministic

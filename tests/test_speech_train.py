@@ -29,6 +29,8 @@ from mrlib.speech import (
     downsample_levels,
     evaluate_speech_sync,
     generate_from_audio,
+    generate_levels_from_audio,
+    generate_many_from_audio,
     levels_to_residuals,
     load_speech_model,
     phrase_loudness,
@@ -403,11 +405,12 @@ def test_generate_from_audio_has_the_audio_duration(trained, tmp_path):
     # a sample does not depend on the batch (the raw output: the foot clean-up turns on
     # contact labels thresholded at 0.5, which float rounding can tip)
     raw = generate_from_audio(model, path, seed=3, fix_contacts=False)
-    many, levels = generate_from_audio(
-        model, path, seed=3, num_samples=2, return_levels=True, fix_contacts=False
-    )
+    many = generate_many_from_audio(model, path, seed=3, num_samples=2, fix_contacts=False)
+    assert isinstance(many, list) and len(many) == 2
     assert np.allclose(many[0].poses, raw.poses, atol=1e-5)
-    assert [lv.num_frames for lv in levels[0]] == pyramid_lengths(38, 3, 4 / 3)
+    one, levels = generate_levels_from_audio(model, path, seed=3, fix_contacts=False)
+    assert np.array_equal(one.poses, raw.poses)
+    assert [lv.num_frames for lv in levels] == pyramid_lengths(38, 3, 4 / 3)
     with pytest.raises(ClipTooShortError):
         generate_from_audio(model, bursts(0.3, 1), sr=SR)  # 4 frames: too few for 3 levels
     with pytest.raises(MotionValueError, match="sr="):

@@ -25,7 +25,7 @@ from common import add_checkpoint_arg, checkpoint_model
 
 from mrlib.sampling.cleanup import cleanup_foot_contacts
 from mrlib.sampling.constraints import part_fidelity
-from mrlib.sampling.generation import generate
+from mrlib.sampling.generation import generate_many
 
 
 def main() -> int:
@@ -49,8 +49,8 @@ def main() -> int:
                 continue
             kw = {"condition": lab} if ref == "mean" else {"blend": (ref, lab, 1 + a.guidance)}
             model.guidance = a.guidance if ref == "mean" else 0.0
-            ms = generate(model, length=length, seed=0, num_samples=a.samples,
-                          fix_contacts=False, **kw)  # fmt: skip
+            ms = generate_many(model, length=length, seed=0, num_samples=a.samples,
+                               fix_contacts=False, **kw)  # fmt: skip
             ms = [cleanup_foot_contacts(m, body) for m in ms]
             f = part_fidelity(ms, model, {a.part: lab})[a.part]
             cells.append(f"{100 * f:.1f} %")

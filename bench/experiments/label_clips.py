@@ -18,7 +18,7 @@ from mrlib.representation.features import features_to_motion
 from mrlib.representation.motion import Motion
 from mrlib.sampling.cleanup import cleanup_foot_contacts
 from mrlib.sampling.constraints import part_fidelity
-from mrlib.sampling.generation import generate
+from mrlib.sampling.generation import generate_many
 
 
 class LabelClips:
@@ -50,8 +50,8 @@ class LabelClips:
         against the label's clip, but ``*_raw``."""
         rows = []
         for lab, clip in self.clips.items():
-            raw = generate(model, lab, length=2 * clip.num_frames, seed=0,
-                           num_samples=samples, fix_contacts=False)  # fmt: skip
+            raw = generate_many(model, lab, length=2 * clip.num_frames, seed=0,
+                                num_samples=samples, fix_contacts=False)  # fmt: skip
             clean = [cleanup_foot_contacts(m, self.body) for m in raw]
             f = [metric_features(m) for m in clean]
             ref = self.refs[lab]

@@ -42,7 +42,7 @@ from mrlib.representation.rotations import (
     axis_angle_to_matrix,
     sixd_to_axis_angle,
 )
-from mrlib.sampling.generation import generate, reconstruct
+from mrlib.sampling.generation import generate, reconstruct_levels
 
 LEGS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
 LEGS_AND_PELVIS = (0, *LEGS)
@@ -67,7 +67,7 @@ def main() -> int:
         print(f"| {name} | {v[0]:.1f} | {v[1]:.3f} |")
 
     train = [features_to_motion(x, fps, betas=model.betas) for x in model.features]
-    recs = [reconstruct(model, k, return_levels=True) for k in range(len(train))]
+    recs = [reconstruct_levels(model, k) for k in range(len(train))]
     print(f"{a.checkpoint}: {len(train)} clips at {fps:g} fps, {L} levels\n")
 
     print("## 1. Per level: training pyramid and reconstructions\n")

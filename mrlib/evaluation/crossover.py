@@ -64,7 +64,6 @@ import numpy as np
 from mrlib.errors import MotionValueError, check_count
 from mrlib.metrics.bands import check_cutoff, rms_profile, split_bands
 from mrlib.metrics.paper import metric_features, model_references, nearest_windows
-from mrlib.representation.motion import Motion
 
 __all__ = [
     "band_distances",
@@ -325,7 +324,7 @@ def crossover_evidence(
     Returns:
         :class:`CrossoverEvidence`.
     """
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate_many
 
     num_samples = check_count("num_samples", num_samples)
     window = check_count("window", window)
@@ -344,12 +343,10 @@ def crossover_evidence(
     check_cutoff(model.fps, cutoff)
 
     def samples(seed_: int, **cond: Any) -> list[np.ndarray]:
-        ms = generate(
+        ms = generate_many(
             model, length=length, seed=seed_, num_samples=num_samples, fix_contacts=False, **cond
         )
-        return [
-            metric_features(m, contacts=False) for m in ([ms] if isinstance(ms, Motion) else ms)
-        ]
+        return [metric_features(m, contacts=False) for m in ms]
 
     if reference == "samples":
         refs = {k: samples(seed + REFERENCE_SEED_OFFSET, condition=k) for k in (a, b)}

@@ -193,7 +193,7 @@ def condition_fidelity_of_model(
         frames are joined into one reference per label (``condition_fidelity`` takes
         one reference per label), so a few windows straddle two clips.
     """
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate_many
 
     num_samples = check_count("num_samples", num_samples)
     _, labels, feats = model_references(model)
@@ -206,10 +206,9 @@ def condition_fidelity_of_model(
     per_label, names = {}, list(refs)
     confusion = np.zeros((len(names), len(names)))
     for k, lab in enumerate(names):
-        ms = generate(
+        ms = generate_many(
             model, lab, length=int(length), seed=seed, num_samples=num_samples, fix_contacts=False
         )
-        ms = [ms] if isinstance(ms, Motion) else ms
         per_label[lab] = condition_fidelity(ms, refs, window=window)
         for m in ms:
             shares = nearest_sequence_strip(m, refs, window).shares()
@@ -246,7 +245,7 @@ def coverage_per_sequence(
         clip name -> coverage in [0, 1]; for several thresholds, eps -> that dict.
     """
     from mrlib.metrics.paper import coverage_profile
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate_many
 
     num_samples = check_count("num_samples", num_samples)
     if not (np.isfinite(length_factor) and length_factor > 0):
@@ -259,14 +258,12 @@ def coverage_per_sequence(
     out: dict[float, dict[str, float]] = {e: {} for e in epss}
     for name, lab, ref in zip(names, labels, feats, strict=True):
         length = max(window, round(length_factor * len(ref)))
-        ms = generate(
+        ms = generate_many(
             model, lab, length=length, seed=seed, num_samples=num_samples, fix_contacts=False
         )
         # coverage = mean over samples of the share of reference windows closer than eps
         # (mrlib.metrics.paper.coverage); the profiles are computed once for all thresholds
-        prof = np.stack(
-            [coverage_profile(m, ref, window) for m in ([ms] if isinstance(ms, Motion) else ms)]
-        )
+        prof = np.stack([coverage_profile(m, ref, window) for m in ms])
         for e in epss:
             out[e][name] = float((prof < e).mean(1).mean())
     return out if many else out[epss[0]]

@@ -147,7 +147,7 @@ def restyle_references(
     length (``reference="samples"``, as ``mrlib.evaluation.crossover.crossover_evidence``) or its
     training clips (``"clips"``)."""
     from mrlib.metrics.paper import model_references
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate_many
 
     model = check_label_model(model)
     k = restyle_level(model, level)
@@ -160,9 +160,9 @@ def restyle_references(
     profiles = {}
     for lab in model.labels:
         if reference == "samples":
-            ms = generate(model, lab, length=int(length), seed=seed, num_samples=num_samples,
-                          fix_contacts=False)  # fmt: skip
-            refs = [metric_features(m, contacts=False) for m in ([ms] if num_samples == 1 else ms)]
+            ms = generate_many(model, lab, length=int(length), seed=seed,
+                               num_samples=num_samples, fix_contacts=False)  # fmt: skip
+            refs = [metric_features(m, contacts=False) for m in ms]
         else:
             refs = [f for f, cl in zip(feats, clip_labels, strict=True) if cl == lab]
         profiles[lab] = np.mean(

@@ -32,7 +32,10 @@ __all__ = [
     "noise_amplitude",
     "sample_features",
     "generate",
+    "generate_many",
+    "generate_levels",
     "reconstruct",
+    "reconstruct_levels",
     "reconstruct_features",
     "training_floor",
     "reconstruction_error",
@@ -306,40 +309,20 @@ def training_floor(model: GenerativeModel, labels: Sequence[int] | None = None, 
     return cache[key]
 
 
-@with_policy
-def generate(
+def _label_samples(
     model: GenerativeModel,
-    condition: str | int | None = None,
-    length: int | None = None,
-    seed: int | None = None,
-    num_samples: int = 1,
-    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
-    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
-    return_levels: bool = False,
-    fix_contacts: bool | str = True,
-    body=None,
-):
-    """Random motion under label conditions.
-
-    Args:
-        condition: a label name (``"walk_happy"``) or index for every level; or use
-            ``conditions`` / ``blend`` (see :func:`label_weights`).
-        length: frames of the output (any length, also longer than the training clips);
-            default: the first training clip of the coarsest level's main label.
-        seed: for reproducible noise.
-        num_samples: batch size; returns a list when > 1.
-        return_levels: also return every level's output as Motions at the level's frame
-            rate (``fps * T_i / T_L``): ``(motion, [level 1, ..., level L])`` (lists per
-            sample when ``num_samples > 1``).
-        fix_contacts: plant the feet with :func:`cleanup_foot_contacts` (default: its
-            ``"ik"`` method, milliseconds per clip); a method name (``"ik"``,
-            ``"optimise"``), or False for the generator's raw output. Levels returned
-            with ``return_levels`` are always raw.
-    Returns:
-        ``Motion`` or ``list[Motion]`` (SMPL parameters at the training fps). Each one's
-        ``meta["sampler"]`` records what made it (seed, index in the batch, fine_noise,
-        guidance, the per-level label weights); ``save_motion`` keeps it in the .npz.
-    """
+    num_samples: int,
+    condition,
+    length: int | None,
+    seed: int | None,
+    conditions,
+    blend,
+    fix_contacts: bool | str,
+    body,
+    levels: bool,
+) -> tuple[list[Motion], list[list[Motion]] | None]:
+    """What :func:`generate`, :func:`generate_many` and :func:`generate_levels` share:
+    ``num_samples`` samples and, with ``levels``, each one's per-level Motions."""
     num_samples = check_count("num_samples", num_samples)
     seed = check_seed("seed", seed)
     W = label_weights(model, condition, conditions, blend)  # (L, K)
@@ -362,15 +345,94 @@ def generate(
         method = fix_contacts if isinstance(fix_contacts, str) else "ik"
         floor = training_floor(model, [int(k) for k in W.argmax(1).unique()], body)
         motions = [cleanup_foot_contacts(m, body, method=method, floor=floor) for m in motions]
-    single = num_samples == 1
-    if not return_levels:
-        return motions[0] if single else motions
+    if not levels:
+        return motions, None
     fps_i = level_fps(model.fps, lengths)
-    levels = [
+    per_level = [
         [_to_motion(model, outs[i][b], fps_i[i], label, f"{label}_level{i + 1}") for i in range(L)]
         for b in range(num_samples)
     ]
-    return (motions[0], levels[0]) if single else (motions, levels)
+    return motions, per_level
+
+
+@with_policy
+def generate(
+    model: GenerativeModel,
+    condition: str | int | None = None,
+    length: int | None = None,
+    seed: int | None = None,
+    *,
+    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
+    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
+    fix_contacts: bool | str = True,
+    body=None,
+) -> Motion:
+    """One random motion under label conditions (several: :func:`generate_many`; every
+    level's output too: :func:`generate_levels`).
+
+    Args:
+        condition: a label name (``"walk_happy"``) or index for every level; or use
+            ``conditions`` / ``blend`` (see :func:`label_weights`).
+        length: frames of the output (any length, also longer than the training clips,
+            up to ``MAX_SAMPLE_SECONDS``); default: the first training clip of the
+            coarsest level's main label.
+        seed: for reproducible noise (the sample is stream ``(seed, 0)``, the first of
+            ``generate_many`` with the same seed).
+        fix_contacts: plant the feet with :func:`cleanup_foot_contacts` (default: its
+            ``"ik"`` method, milliseconds per clip); a method name (``"ik"``,
+            ``"optimise"``), or False for the generator's raw output.
+    Returns:
+        a ``Motion`` (SMPL parameters at the training fps); ``meta["sampler"]`` records
+        what made it (seed, index in the batch, fine_noise, guidance, the per-level label
+        weights), and ``save_motion`` keeps it in the .npz.
+    """
+    motions, _ = _label_samples(
+        model, 1, condition, length, seed, conditions, blend, fix_contacts, body, False
+    )
+    return motions[0]
+
+
+@with_policy
+def generate_many(
+    model: GenerativeModel,
+    condition: str | int | None = None,
+    length: int | None = None,
+    seed: int | None = None,
+    *,
+    num_samples: int,
+    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
+    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
+    fix_contacts: bool | str = True,
+    body=None,
+) -> list[Motion]:
+    """``num_samples`` motions of :func:`generate`'s kind in one batch: always a list.
+    Sample ``b`` is noise stream ``(seed, b)``, so it does not depend on the batch size
+    (sample 0 is ``generate(..., seed=seed)``)."""
+    motions, _ = _label_samples(
+        model, num_samples, condition, length, seed, conditions, blend, fix_contacts, body, False
+    )
+    return motions
+
+
+@with_policy
+def generate_levels(
+    model: GenerativeModel,
+    condition: str | int | None = None,
+    length: int | None = None,
+    seed: int | None = None,
+    *,
+    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
+    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
+    fix_contacts: bool | str = True,
+    body=None,
+) -> tuple[Motion, list[Motion]]:
+    """:func:`generate`'s motion and every level's output ``[level 1, ..., level L]`` as
+    Motions at the level's frame rate (``fps * T_i / T_L``), always raw: the pyramid
+    coarse to fine, for plots such as notebook 02's."""
+    motions, levels = _label_samples(
+        model, 1, condition, length, seed, conditions, blend, fix_contacts, body, True
+    )
+    return motions[0], levels[0]
 
 
 def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.Tensor]:
@@ -393,15 +455,22 @@ def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.
     return [layout.unpack(o, i)[0][None] for i, o in enumerate(outs)]
 
 
-def reconstruct(model: GenerativeModel, clip_index: int, return_levels: bool = False):
-    """Training clip ``clip_index`` regenerated from z* and its label: a Motion, plus
-    the per-level Motions when ``return_levels``."""
+def reconstruct(model: GenerativeModel, clip_index: int) -> Motion:
+    """Training clip ``clip_index`` regenerated from z* and its label (with every level:
+    :func:`reconstruct_levels`)."""
+    outs = reconstruct_features(model, clip_index)
+    label = model.labels[model.clip_labels[clip_index]]
+    name = f"{model.clip_names[clip_index]}_reconstruction"
+    return _to_motion(model, outs[-1][0], model.fps, label, name)
+
+
+def reconstruct_levels(model: GenerativeModel, clip_index: int) -> tuple[Motion, list[Motion]]:
+    """:func:`reconstruct`'s motion and every level's output as Motions at the level's
+    frame rate (``fps * T_i / T_L``)."""
     outs = reconstruct_features(model, clip_index)
     label = model.labels[model.clip_labels[clip_index]]
     name = f"{model.clip_names[clip_index]}_reconstruction"
     motion = _to_motion(model, outs[-1][0], model.fps, label, name)
-    if not return_levels:
-        return motion
     fps_i = level_fps(model.fps, [o.shape[-1] for o in outs])
     levels = [
         _to_motion(model, o[0], f, label, f"{name}_level{i + 1}")

@@ -89,6 +89,8 @@ from mrlib.speech.sample import (
     SpeechModel,
     audio_conditions,
     generate_from_audio,
+    generate_levels_from_audio,
+    generate_many_from_audio,
     is_speech_checkpoint,
     load_speech_model,
     speech_model_from_trainer,
@@ -163,6 +165,8 @@ __all__ = [
     "is_speech_checkpoint",
     "audio_conditions",
     "generate_from_audio",
+    "generate_many_from_audio",
+    "generate_levels_from_audio",
     # evaluation
     "hand_speed",
     "motion_beats",

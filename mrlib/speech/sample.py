@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_count
 from mrlib.model.checkpoint import CheckpointError, load_checkpoint, reading
 from mrlib.model.pyramid import level_fps
 from mrlib.model.trained import GenerativeModel, model_from_state
@@ -48,6 +48,8 @@ __all__ = [
     "is_speech_checkpoint",
     "audio_conditions",
     "generate_from_audio",
+    "generate_many_from_audio",
+    "generate_levels_from_audio",
 ]
 
 
@@ -174,36 +176,14 @@ def audio_conditions(
     return conds, lengths, wav, rate
 
 
-@with_policy
-def generate_from_audio(
-    model: SpeechModel | str | Path,
-    audio,
-    seed: int | None = None,
-    *,
-    sr: int | None = None,
-    num_samples: int = 1,
-    return_levels: bool = False,
-    fix_contacts: bool = True,
-    body=None,
-):
-    """Gestures for an utterance: one motion frame per ``1 / fps`` s of audio.
-
-    Args:
-        model: a :class:`SpeechModel` (or a checkpoint path, loaded on CPU).
-        audio: a file path (any rate, mixed to mono, resampled to 16 kHz), or a waveform
-            ``(N,)`` with ``sr``.
-        seed: noise seed (sample b uses stream ``(seed, b)``, as ``mrlib.sampling.generation``).
-        num_samples: a list of Motions when > 1.
-        return_levels: also return every level's output (at ``fps * T_i / T_L``).
-        fix_contacts: foot-contact clean-up (``mrlib.sampling.generation.cleanup_foot_contacts``).
-    Returns:
-        ``Motion`` of ``round(duration * fps)`` frames (label ``"speech"``), or a list;
-        with ``return_levels`` a ``(motion, levels)`` pair as ``mrlib.sampling.generation.generate``.
-    """
+def _audio_samples(
+    model, audio, seed, num_samples: int, sr, fix_contacts: bool, body, levels: bool
+) -> tuple[list[Motion], list[list[Motion]] | None]:
+    """What the three audio samplers share: ``num_samples`` Motions and, with
+    ``levels``, each one's per-level Motions."""
     if not isinstance(model, SpeechModel):
         model = load_speech_model(model)
-    if num_samples < 1:
-        raise MotionValueError(f"num_samples must be >= 1, got {num_samples}")
+    num_samples = check_count("num_samples", num_samples)
     name = Path(audio).stem if isinstance(audio, (str, Path)) else "audio"
     conds, lengths, wav, rate = audio_conditions(model, audio, sr)
     gm = model.model
@@ -222,12 +202,69 @@ def generate_from_audio(
     motions = [to_motion(outs[-1][b], gm.fps, f"{name}_seed{seed}_{b}") for b in range(num_samples)]
     if fix_contacts:
         motions = [cleanup_foot_contacts(m, body) for m in motions]
-    single = num_samples == 1
-    if not return_levels:
-        return motions[0] if single else motions
+    if not levels:
+        return motions, None
     fps_i = level_fps(gm.fps, lengths)
-    levels = [
+    per_level = [
         [to_motion(outs[i][b], fps_i[i], f"{name}_level{i + 1}") for i in range(len(lengths))]
         for b in range(num_samples)
     ]
-    return (motions[0], levels[0]) if single else (motions, levels)
+    return motions, per_level
+
+
+@with_policy
+def generate_from_audio(
+    model: SpeechModel | str | Path,
+    audio,
+    seed: int | None = None,
+    *,
+    sr: int | None = None,
+    fix_contacts: bool = True,
+    body=None,
+) -> Motion:
+    """Gestures for an utterance: one motion frame per ``1 / fps`` s of audio (several:
+    :func:`generate_many_from_audio`; every level too: :func:`generate_levels_from_audio`).
+
+    Args:
+        model: a :class:`SpeechModel` (or a checkpoint path, loaded on CPU).
+        audio: a file path (any rate, mixed to mono, resampled to 16 kHz), or a waveform
+            ``(N,)`` with ``sr``.
+        seed: noise seed (sample b of a batch uses stream ``(seed, b)``, as
+            ``mrlib.sampling.generation``; this one is b = 0).
+        fix_contacts: foot-contact clean-up (``mrlib.sampling.generation.cleanup_foot_contacts``).
+    Returns:
+        a ``Motion`` of ``round(duration * fps)`` frames (label ``"speech"``).
+    """
+    return _audio_samples(model, audio, seed, 1, sr, fix_contacts, body, False)[0][0]
+
+
+@with_policy
+def generate_many_from_audio(
+    model: SpeechModel | str | Path,
+    audio,
+    seed: int | None = None,
+    *,
+    num_samples: int,
+    sr: int | None = None,
+    fix_contacts: bool = True,
+    body=None,
+) -> list[Motion]:
+    """``num_samples`` motions of :func:`generate_from_audio`'s kind in one batch: always
+    a list; sample b is noise stream ``(seed, b)``, whatever the batch size."""
+    return _audio_samples(model, audio, seed, num_samples, sr, fix_contacts, body, False)[0]
+
+
+@with_policy
+def generate_levels_from_audio(
+    model: SpeechModel | str | Path,
+    audio,
+    seed: int | None = None,
+    *,
+    sr: int | None = None,
+    fix_contacts: bool = True,
+    body=None,
+) -> tuple[Motion, list[Motion]]:
+    """:func:`generate_from_audio`'s motion and every level's raw output as Motions at
+    the level's frame rate (``fps * T_i / T_L``)."""
+    motions, levels = _audio_samples(model, audio, seed, 1, sr, fix_contacts, body, True)
+    return motions[0], levels[0]

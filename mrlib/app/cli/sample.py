@@ -257,7 +257,7 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
 
 def cmd_sample(args) -> int:
     from mrlib.model.trained import load_model
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate_many
 
     constrained = args.path or args.keyframes or args.loop or args.prefix
     if args.seed + args.num - 1 > MAX_SEED:
@@ -287,12 +287,13 @@ def cmd_sample(args) -> int:
     if args.parts:
         if constrained:
             raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
-        from mrlib.sampling.constraints import SHARPEN_STEPS, generate_parts
+        from mrlib.sampling.constraints import SHARPEN_STEPS, generate_many_parts
 
         sharpen = SHARPEN_STEPS if args.sharpen is None else args.sharpen
-        motions = generate_parts(model, args.parts, length, seed=args.seed, num_samples=args.num,
-                                 fix_contacts=not args.raw, align_gait=args.in_step,
-                                 sharpen=sharpen, progress=not args.no_progress)  # fmt: skip
+        motions = generate_many_parts(model, args.parts, length, seed=args.seed,
+                                      num_samples=args.num, fix_contacts=not args.raw,
+                                      align_gait=args.in_step, sharpen=sharpen,
+                                      progress=not args.no_progress)  # fmt: skip
         return write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
     kw = {}
     if args.crossover:
@@ -322,7 +323,7 @@ def cmd_sample(args) -> int:
             else "continued"
         )
         return write_samples(_constrained(model, kw, length, args), f"{tag}_{what}", args)
-    motions = generate(
+    motions = generate_many(
         model,
         length=length,
         seed=args.seed,
@@ -334,7 +335,7 @@ def cmd_sample(args) -> int:
 
 
 def _audio_samples(args):
-    from mrlib.speech import generate_from_audio, load_speech_model
+    from mrlib.speech import generate_many_from_audio, load_speech_model
 
     if args.seconds is not None:
         raise MrlibError(
@@ -353,7 +354,7 @@ def _audio_samples(args):
             "generates; use fewer --num, and run again with another --seed"
         )
     with_sampler(model.model, args)
-    motions = generate_from_audio(
+    motions = generate_many_from_audio(
         model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=not args.raw
     )
     return motions, args.audio.stem

@@ -8,7 +8,7 @@ usable the same way for label and speech models wherever it works on the output:
   feet planted.
 * :func:`generate_with_keyframes` / :func:`apply_keyframes` (``keyframes``): hold full
   or partial poses at given frames; :func:`continue_motion` extends a prefix.
-* :func:`generate_parts` / :func:`splice_parts` (``compose``): a condition per body part;
+* :func:`generate_parts` (one) / :func:`generate_many_parts` (a list) / :func:`splice_parts` (``compose``): a condition per body part;
   :func:`generate_sharpened` (``sharpen``) fits a sample's noise so that each part shows
   its label.
 * :func:`generate_loop` (``loop``): a loop whose end joins its start.
@@ -21,6 +21,7 @@ from mrlib.sampling.constraints.common import PARTS, parse_parts, part_joints
 from mrlib.sampling.constraints.compose import (
     arm_leg_coordination,
     gait_phase,
+    generate_many_parts,
     generate_parts,
     part_fidelity,
     phase_align,
@@ -75,6 +76,7 @@ __all__ = [
     "part_joints",
     "parse_parts",
     "generate_parts",
+    "generate_many_parts",
     "splice_parts",
     "gait_phase",
     "phase_align",

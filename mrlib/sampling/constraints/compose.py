@@ -68,13 +68,13 @@ def _channel_masks(groups) -> list[torch.Tensor]:
     return [torch.from_numpy(np.isin(owner, js).astype(np.float32)) for js, _ in groups]
 
 
-def generate_parts(
+def generate_many_parts(
     model,
     parts: Mapping[str, str],
     length: int | None = None,
     *,
     seed: int | None = None,
-    num_samples: int = 1,
+    num_samples: int,
     method: str = "splice",
     fix_contacts: bool = True,
     align_gait: bool = False,
@@ -94,7 +94,8 @@ def generate_parts(
     (``docs/results.md``, "Body parts").
 
     Returns:
-        ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``) or a list.
+        ``num_samples`` Motions (label ``"upper=walk_happy,lower=walk_sad"``), always a
+        list; one: :func:`generate_parts`.
     """
     from mrlib.representation.features import features_to_motions
     from mrlib.sampling.cleanup import cleanup_foot_contacts
@@ -159,7 +160,27 @@ def generate_parts(
     for m in out:
         m.label = tag
         m.meta["parts"] = {p: c for p, c in parts.items()}
-    return out[0] if num_samples == 1 else out
+    return out
+
+
+def generate_parts(
+    model,
+    parts: Mapping[str, str],
+    length: int | None = None,
+    *,
+    seed: int | None = None,
+    method: str = "splice",
+    fix_contacts: bool = True,
+    align_gait: bool = False,
+    sharpen: int = 0,
+    body=None,
+    progress: bool = False,
+) -> Motion:
+    """One motion with each body part under its own label: :func:`generate_many_parts`
+    with one sample (its arguments and methods)."""
+    return generate_many_parts(model, parts, length, seed=seed, num_samples=1, method=method,
+                               fix_contacts=fix_contacts, align_gait=align_gait,
+                               sharpen=sharpen, body=body, progress=progress)[0]  # fmt: skip
 
 
 # Gait phase (gait_phase): the legs' stride signal is the difference of the two ankles'

@@ -186,14 +186,13 @@ def generate_sharpened(
     planted)."""
     from mrlib.representation.features import features_to_motions
     from mrlib.sampling.constraints.common import part_joints
-    from mrlib.sampling.generation import generate, label_inputs, label_weights, sampler_record
+    from mrlib.sampling.generation import generate_many, label_inputs, label_weights, sampler_record
 
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
         raise MotionValueError(f"steps must be an integer >= 0, got {steps!r}")
     if steps == 0:
-        out = generate(model, condition, length=length, seed=seed, num_samples=num_samples,
-                       fix_contacts=False)  # fmt: skip
-        return [out] if num_samples == 1 else out
+        return generate_many(model, condition, length=length, seed=seed,
+                             num_samples=num_samples, fix_contacts=False)  # fmt: skip
     W = label_weights(model, condition)
     lengths, amp, conds = label_inputs(model, W, length)
     x = sharpened_features(model, conds, lengths, amp, {p: condition for p in parts},
