@@ -7,14 +7,15 @@ them raw, after the clean-up with its defaults and after each ``--method`` with
 ``mrlib.evaluation.evaluate.score_motions`` (the evaluation's own code: coverage at
 ``--eps``, skating share above 0.15 m/s of the generator's contact labels, mean joint
 jerk over the training clip's, mean depth of the lowest foot vertex below the training
-clip's ground). The training clip played twice is the last row, the real-capture level.
+clip's ground, condition fidelity: the share of windows whose nearest training window
+is the label's). The training clip played twice is the last row, the real-capture level.
 
     python bench/cleanup_natural.py [--seed 0] [--samples 5] [--method old,new,'smooth_s=0.2;pin_weight=100']
 
 Methods (``methods()``): ``raw``, ``old`` (the previous default clean-up:
 ``style="pin"``, pinned runs blended over ``BLEND_S``, the root low-passed over
 ``ROOT_SMOOTH_S``), ``new`` (``cleanup_foot_contacts()``'s default, ``style="smooth"``)
-and two ablations of it; any other name ``key=value;key=value`` is the clean-up with
+and ablations of it; any other name ``key=value;key=value`` is the clean-up with
 those options. Prints a Markdown table per walk and the
 mean, and appends the means as a JSON row to ``bench/results/cleanup_natural.jsonl``.
 """
@@ -28,9 +29,11 @@ import time
 from common import ROOT, TUTORIAL_CLIPS, bandai_clips, describe, set_threads, write_json
 
 RUNS = ROOT / "outputs" / "cleanup_natural"
-COLUMNS = (("coverage_pct", "cov ε=1 %", "{:.1f}"), ("skate_pct", "skating %", "{:.1f}"),
+COLUMNS = (("coverage_pct", "cov ε=1 %", "{:.1f}"), ("global_div", "global div.", "{:.2f}"),
+           ("skate_pct", "skating %", "{:.1f}"),
            ("jerk_ratio", "jerk ratio", "{:.2f}"), ("penetration_cm", "pen. cm", "{:.2f}"),
-           ("float_cm", "float cm", "{:.2f}"), ("ms_per_sample", "ms/sample", "{:.0f}"))  # fmt: skip
+           ("float_cm", "float cm", "{:.2f}"), ("cond_fidelity_pct", "fid. %", "{:.1f}"),
+           ("ms_per_sample", "ms/sample", "{:.0f}"))  # fmt: skip
 
 
 def float_cm(motions, ref_feet, body) -> float:
@@ -62,6 +65,7 @@ def methods():
         "new, floor from the sample": lambda m, body, floor: clean(m, body),
         "new, no floor clamp": lambda m, body, floor: clean(m, body, floor_clamp=False),
         "new, root kept": lambda m, body, floor: clean(m, body, floor=floor, move_root=False),
+        "new, no jitter filter": lambda m, body, floor: clean(m, body, floor=floor, jitter=0),
     }
 
 
@@ -112,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--train-only", action="store_true")
+    ap.add_argument("--checkpoint", default=None, help="score this model instead of the preset's")
     ap.add_argument("--per-walk", action="store_true", help="also print every walk's row")
     a = ap.parse_args(argv)
     set_threads(a.threads)
@@ -124,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     from mrlib.sampling.generation import generate, training_floor
 
     body = mrlib.load_body_model()
-    model = train_model(a.seed, body)
+    model = train_model(a.seed, body) if a.checkpoint is None else mrlib.load_model(a.checkpoint)
     if a.train_only:
         return 0
     table = methods()
@@ -151,11 +156,13 @@ def main(argv: list[str] | None = None) -> int:
             t0 = time.perf_counter()
             ms = raw if fn is None else [fn(m, body, floor) for m in raw]
             dt = (time.perf_counter() - t0) / len(raw)
-            r = score_motions(ms, ref, settings=settings, body=body, _cache=cache)
+            r = score_motions(ms, ref, settings=settings, body=body, _cache=cache, label=label,
+                              all_references=refs)  # fmt: skip
             r["ms_per_sample"] = 1000 * dt if fn is not None else 0.0
             r["float_cm"] = float_cm(ms, cache(ref).kinematics[1], body)
             rows[name][label] = r
-        r = score_motions([play_twice(ref)], ref, settings=settings, body=body, _cache=cache)
+        r = score_motions([play_twice(ref)], ref, settings=settings, body=body, _cache=cache,
+                          label=label, all_references=refs)  # fmt: skip
         r["ms_per_sample"] = 0.0
         r["float_cm"] = float_cm([cache(ref).motion], cache(ref).kinematics[1], body)
         rows["training clip x2"][label] = r
@@ -169,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
                 lines.append(f"| {name} | {label.removeprefix('walk_')} | {vals} |")
         mean = {k: float(np.mean([r[k] for r in per.values()])) for k, _, _ in COLUMNS}
         jr = [per[lab]["jerk_ratio"] for lab in per]
-        means[name] = {**mean, "jerk_min": min(jr), "jerk_max": max(jr)}
+        fid = [per[lab]["cond_fidelity_pct"] for lab in per]
+        means[name] = {**mean, "jerk_min": min(jr), "jerk_max": max(jr), "fid_min": min(fid)}
         vals = " | ".join(f.format(mean[k]) for k, _, f in COLUMNS)
         lines.append(f"| **{name}** | mean | {vals} |")
     print("\n".join(lines))
@@ -180,9 +188,11 @@ def main(argv: list[str] | None = None) -> int:
     for name in names[1:]:
         m = means[name]
         ok = {"skating": m["skate_pct"] <= train_skate + 2, "jerk": m["jerk_ratio"] <= 1.2,
-              "pen": m["penetration_cm"] <= 0.1, "coverage": m["coverage_pct"] >= raw_cov - 2}  # fmt: skip
+              "pen": m["penetration_cm"] <= 0.1, "coverage": m["coverage_pct"] >= raw_cov - 2,
+              "fidelity (every walk >= 90 %)": m["fid_min"] >= 90}  # fmt: skip
         print(f"  {name}: " + ", ".join(f"{k} {'ok' if v else 'MISS'}" for k, v in ok.items())
-              + f"  (jerk per walk {m['jerk_min']:.2f}-{m['jerk_max']:.2f})")  # fmt: skip
+              + f"  (jerk per walk {m['jerk_min']:.2f}-{m['jerk_max']:.2f}, "
+              f"lowest fidelity {m['fid_min']:.1f} %)")  # fmt: skip
     write_json("cleanup_natural", {"seed": a.seed, "samples": a.samples, "eps": a.eps,
                                    "means": means}, append=True)  # fmt: skip
     return 0
