@@ -176,7 +176,8 @@ class LossWeights:
     # Conditional critics only (beyond the paper): weight of a mismatch term in the critic
     # loss, E[D(real, wrong condition)] - E[D(real, own condition)] (the "real data, wrong
     # text" negatives of Reed et al., ICML 2016). It teaches the critic whether motion and
-    # condition go together, not only whether each looks real. 0: off.
+    # condition go together, not only whether each looks real. 0: off; left out of a
+    # label run with one label (no wrong label to show).
     mismatch: float = 0.0
     # Labels only (beyond the paper): weight of a detail-statistics term on random
     # generations. At every level from 2 on, the per-channel RMS of the detail the level

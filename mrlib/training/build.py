@@ -24,7 +24,7 @@ import torch
 import torch.nn.functional as F
 
 from mrlib.errors import ClipTooShortError
-from mrlib.model.config import ConfigError, TrainConfig
+from mrlib.model.config import TrainConfig
 from mrlib.model.losses import body_kinematics
 from mrlib.model.networks import MultiResGenerator, build_critics, build_generator
 from mrlib.model.pyramid import PackedLevels, build_pyramid, noise_amplitudes, pyramid_lengths
@@ -147,8 +147,11 @@ class TrainerBase:
         labels_mismatch = (
             type(self).mismatched_real_conditions is TrainerBase.mismatched_real_conditions
         )
-        if self.config.loss.mismatch and labels_mismatch and self.data.num_labels < 2:
-            raise ConfigError("loss.mismatch needs at least two labels (a wrong one to show)")
+        # the mismatch term shows real clips under a wrong label: with one label there is
+        # none, and the term is left out (the config keeps its weight)
+        self.use_mismatch = bool(self.config.loss.mismatch) and (
+            not labels_mismatch or self.data.num_labels >= 2
+        )
         self.block = 0
         self.iteration = 0
         self.done = False

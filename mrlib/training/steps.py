@@ -103,7 +103,7 @@ def critic_terms(
         cond_fake=cond_fake,
     )
     terms = {"D": d, "gp": gp}
-    if tr.config.loss.mismatch:
+    if tr.use_mismatch:
         terms["mis"] = mismatch_critic_loss(
             tr.critics[i],
             tr.real_rand[i],
