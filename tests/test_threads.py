@@ -154,3 +154,97 @@ def test_a_bad_threads_value_is_a_one_line_usage_error(capsys, value):
     assert "Traceback" not in err
     errors = [line for line in err.splitlines() if "error:" in line]
     assert len(errors) == 1 and "--threads" in errors[0], err
+
+
+# -- following the load during training -----------------------------------------------------
+class _Scripted:
+    """A clock, the machine's busy CPU seconds and this process's CPU seconds, advanced
+    by hand: ``others`` CPUs kept busy by other processes over each step of ``dt``."""
+
+    def __init__(self):
+        self.t = self.busy = self.own = 0.0
+
+    def advance(self, dt: float, others: float, own: float = 1.0) -> None:
+        self.t += dt
+        self.own += own * dt
+        self.busy += (others + own) * dt
+
+
+def _follower(
+    monkeypatch, cpus: int, start_others: float
+) -> tuple[threads.LoadFollower, _Scripted]:
+    s = _Scripted()
+    monkeypatch.setattr(threads, "usable_cpus", lambda: cpus)
+    monkeypatch.setattr(threads, "_busy_cpu_seconds", lambda: s.busy)
+    monkeypatch.setattr("time.monotonic", lambda: s.t)
+    monkeypatch.setattr("time.process_time", lambda: s.own)
+    monkeypatch.setattr("time.sleep", lambda dt: s.advance(dt, start_others, own=0.0))
+    return threads.LoadFollower(interval=2.0, patience=2), s
+
+
+def test_the_follower_starts_from_what_other_processes_leave(monkeypatch):
+    idle, _ = _follower(monkeypatch, cpus=2, start_others=0.05)
+    assert idle.threads == 2 and torch.get_num_threads() == 2
+    busy, _ = _follower(monkeypatch, cpus=2, start_others=1.0)
+    assert busy.threads == 1 and torch.get_num_threads() == 1
+    assert threads.user_threads() is None  # its own count is not taken for the user's
+
+
+def test_the_follower_steps_down_at_once_and_up_after_calm_checks(monkeypatch):
+    f, s = _follower(monkeypatch, cpus=2, start_others=0.0)
+    assert f.threads == 2
+    s.advance(1.0, others=1.0)
+    assert f.tick() == 2  # within the interval: nothing read
+    s.advance(1.5, others=1.0, own=1.0)
+    assert f.tick() == 1 and torch.get_num_threads() == 1  # a busy neighbour: down at once
+    s.advance(2.5, others=1.0)
+    assert f.tick() == 1
+    s.advance(2.5, others=0.1)
+    assert f.tick() == 1  # one calm check is not enough
+    s.advance(2.5, others=0.1)
+    assert f.tick() == 2 and torch.get_num_threads() == 2
+    s.advance(2.5, others=0.4)  # background noise under half a core keeps the count
+    assert f.tick() == 2
+    assert [n for _, _, n in f.history] == [1, 1, 1, 2, 2]
+
+
+def test_no_follower_where_the_user_chose_the_count(monkeypatch):
+    monkeypatch.setattr(threads, "usable_cpus", lambda: 2)
+    threads.apply_policy(2)  # --threads 2
+    assert threads.load_follower() is None
+    monkeypatch.setattr(threads, "_state", threads._State())
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert threads.load_follower() is None
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    monkeypatch.setattr(threads, "usable_cpus", lambda: 1)
+    assert threads.load_follower() is None  # one CPU: nothing to follow
+
+
+def test_training_does_not_depend_on_the_thread_count_here(tmp_path):
+    """What lets the follower change the count mid-run: on this build, training at one
+    thread, at two and alternating gives the same weights (if a build breaks this, runs
+    depend on the load, and ``--threads N`` is the way to fixed results)."""
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.model.config import ModelConfig, TrainConfig
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import Trainer
+
+    data = TrainingSet.from_motions(
+        [synthetic_walk(lab, seconds=2.0, fps=15.0) for lab in ("walk_sad", "walk_happy")]
+    )
+    cfg = TrainConfig(model=ModelConfig(num_levels=4, gen_hidden=(32, 64), disc_hidden=(32,)),
+                      block_iterations=(3, 3), n_critic=1, checkpoint_every=0)  # fmt: skip
+
+    def run(schedule: list[int]) -> dict[str, torch.Tensor]:
+        tr, k = Trainer(data, cfg, tmp_path / "-".join(map(str, schedule))), 0
+        for b in range(2):
+            tr.block = b
+            tr.start_block()
+            for _ in range(3):
+                torch.set_num_threads(schedule[k % len(schedule)])
+                k += 1
+                tr.step()
+        return {n: p.detach().clone() for n, p in tr.generator.named_parameters()}
+
+    one, two, mixed = run([1]), run([2]), run([1, 2, 2])
+    assert all(torch.equal(one[k], two[k]) and torch.equal(one[k], mixed[k]) for k in one)

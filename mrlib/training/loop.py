@@ -22,6 +22,7 @@ import torch
 
 from mrlib.errors import MrlibError
 from mrlib.io.outputs import open_for_append, write_text
+from mrlib.threads import load_follower
 from mrlib.training.run import TrainResult
 
 __all__ = [
@@ -48,6 +49,7 @@ def run_blocks(trainer, progress: bool, callback: Callable[..., None] | None) ->
     from tqdm.auto import tqdm
 
     tr, c = trainer, trainer.config
+    follower = load_follower()  # None where the user chose the thread count
     tr.out_dir.mkdir(parents=True, exist_ok=True)
     log_path = tr.out_dir / "losses.csv"
     prepare_log(log_path, tr.resumed_from, tr.block, tr.iteration)
@@ -86,6 +88,8 @@ def run_blocks(trainer, progress: bool, callback: Callable[..., None] | None) ->
                     while tr.iteration < n_iter:
                         stop["in_step"] = True
                         losses = tr.step()
+                        if follower is not None:
+                            follower.tick()
                         check_finite(losses, tr.block, tr.iteration, tr.out_dir)
                         tr.iteration += 1
                         stop["in_step"] = False
