@@ -417,7 +417,7 @@ def test_detail_term_pulls_each_level_to_its_labels_detail_statistics(data, body
 
 
 def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
-    from mrlib.model.config import ganimator_mode
+    from mrlib.model.config import demo, ganimator_mode
 
     t = tutorial()
     g = ganimator_mode(t)
@@ -425,6 +425,8 @@ def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
     assert not g.model.critic_condition and g.mix_prob == 0.0
     assert dataclasses.replace(g.model, critic_condition=True) == t.model
     assert g.replace(mix_prob=0.9, model=t.model) == t
+    d = ganimator_mode(demo())  # a preset with the mismatch term: off with the critics' label
+    assert d.loss.mismatch == 0.0 and not d.model.critic_condition
 
 
 def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(

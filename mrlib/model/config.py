@@ -379,9 +379,11 @@ def speech_demo() -> TrainConfig:
 
 def ganimator_mode(config: TrainConfig) -> TrainConfig:
     """``config`` for a GANimator-style baseline (one model per clip, Li et al. 2022): no
-    style mixing (one label, nothing to mix) and unconditional critics."""
+    style mixing (one label, nothing to mix) and unconditional critics (so no mismatch
+    term either: no wrong label to show)."""
     model = dataclasses.replace(config.model, critic_condition=False)
-    return config.replace(mix_prob=0.0, model=model)
+    loss = dataclasses.replace(config.loss, mismatch=0.0)
+    return config.replace(mix_prob=0.0, model=model, loss=loss)
 
 
 PRESETS = {

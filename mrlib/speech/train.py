@@ -60,8 +60,8 @@ from pathlib import Path
 import torch
 
 from mrlib.errors import MotionValueError
-from mrlib.model.checkpoint import CheckpointError, load_checkpoint
-from mrlib.model.config import ConfigError, TrainConfig, config_from_json
+from mrlib.model.checkpoint import CheckpointError
+from mrlib.model.config import ConfigError, TrainConfig
 from mrlib.model.networks import build_critics, build_generator
 from mrlib.model.pyramid import PackedLevels
 from mrlib.speech.align import downsample_levels, levels_to_residuals, speech_conditions
@@ -370,33 +370,17 @@ class SpeechTrainer(Trainer):
         return state
 
     @classmethod
-    def from_checkpoint(
-        cls,
-        path: str | Path,
-        out_dir: str | Path | None = None,
-        body=None,
-        device: str | None = None,
-    ) -> SpeechTrainer:
-        """Rebuild a speech trainer (data included) from a checkpoint to continue training."""
-        state = load_checkpoint(path)
+    def _check_state(cls, path: Path, state: dict) -> None:
         if "speech" not in state:
-            raise CheckpointError(
-                Path(path), "not a speech-conditioned checkpoint (no 'speech' key)"
-            )
-        config = config_from_json(state["config"])
-        if device is not None:
-            config = config.replace(device=device)
-        data = SpeechTrainingSet.from_state(state)
-        trainer = cls(
-            data,
-            config,
-            Path(path).parent if out_dir is None else out_dir,
-            body=body,
-            random_audio=str(state["speech"]["random_audio"]),
-        )
-        trainer.load_state_dict(state)
-        trainer.resumed_from = Path(path)
-        return trainer
+            raise CheckpointError(path, "not a speech-conditioned checkpoint (no 'speech' key)")
+
+    @classmethod
+    def _data_from_state(cls, state: dict) -> SpeechTrainingSet:
+        return SpeechTrainingSet.from_state(state)
+
+    @classmethod
+    def _init_from_state(cls, state: dict) -> dict:
+        return {"random_audio": str(state["speech"]["random_audio"])}
 
 
 def speech_train(

@@ -118,18 +118,34 @@ class Trainer(TrainerBase):
         body=None,
         device: str | None = None,
     ) -> Trainer:
-        """Rebuild a trainer (data included) from a checkpoint to continue training."""
+        """Rebuild a trainer (data included) from a checkpoint to continue training.
+        A subclass with state of its own (``mrlib.speech.SpeechTrainer``) supplies it
+        through :meth:`_check_state`, :meth:`_data_from_state` and :meth:`_init_from_state`."""
         state = load_checkpoint(path)
         with reading(path):
+            cls._check_state(Path(path), state)
             config = config_from_json(state["config"])
             if device is not None:
                 config = config.replace(device=device)
-            data = TrainingSet.from_state(state)
+            data = cls._data_from_state(state)
             out = Path(path).parent if out_dir is None else out_dir
-            trainer = cls(data, config, out, body=body)
+            trainer = cls(data, config, out, body=body, **cls._init_from_state(state))
             trainer.load_state_dict(state)
             trainer.resumed_from = Path(path)
         return trainer
+
+    @classmethod
+    def _check_state(cls, path: Path, state: dict) -> None:
+        """Refuse a checkpoint of another kind (a label checkpoint: any)."""
+
+    @classmethod
+    def _data_from_state(cls, state: dict) -> TrainingSet:
+        return TrainingSet.from_state(state)
+
+    @classmethod
+    def _init_from_state(cls, state: dict) -> dict:
+        """Keyword arguments of the constructor that the checkpoint holds."""
+        return {}
 
     def load_state_dict(self, state: dict) -> None:
         if state["lengths"].shape != self.lengths.shape or not torch.equal(
