@@ -50,6 +50,7 @@ import contextlib
 import functools
 import os
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import TypeVar
 
 import torch
@@ -187,8 +188,8 @@ def _busy_cpu_seconds() -> float | None:
     system, irq, softirq and steal, the last being time the hypervisor gave away), or
     None where there is no ``/proc/stat``."""
     try:
-        with open("/proc/stat") as fh:
-            v = [int(x) for x in fh.readline().split()[1:]]
+        first = Path("/proc/stat").read_text().split("\n", 1)[0]  # the "cpu" line
+        v = [int(x) for x in first.split()[1:]]
         return (v[0] + v[1] + v[2] + v[5] + v[6] + (v[7] if len(v) > 7 else 0)) / _HZ
     except (OSError, ValueError, IndexError):
         return None
