@@ -60,6 +60,7 @@ from mrlib.errors import MrlibError
 __all__ = [
     "ENV_VARS",
     "LoadFollower",
+    "MIN_FOLLOW_ITERATIONS",
     "load_follower",
     "apply_policy",
     "default_threads",
@@ -201,6 +202,10 @@ except (AttributeError, ValueError, OSError):
     _HZ = 100
 
 
+MAX_PATIENCE = 16  # calm checks (of 2 s) a raise may have to wait for after raises taken back
+MIN_FOLLOW_ITERATIONS = 200  # shorter runs keep the policy's count (no probe, no checks)
+
+
 class LoadFollower:
     """Torch's thread count during a long run (training), following the machine's load.
 
@@ -213,7 +218,10 @@ class LoadFollower:
     * lowers the count at once to the CPUs left, rounded to the nearest (others busy on
       half a core or more take that core);
     * raises it by one when a whole further CPU has been left free (others below a
-      quarter of it) at ``patience`` checks in a row.
+      quarter of it) at ``patience`` checks in a row; a raise that the next two checks
+      take back doubles the patience (up to ``MAX_PATIENCE``), so a neighbour that
+      works in bursts (a test runner, a notebook) does not make it switch back and
+      forth, and a raise that lasts ten checks restores it.
 
     It starts from a short sample taken before the run's own work. Between 1 and
     ``max_threads`` (the usable CPUs). Where the counts give the same numbers, as on
@@ -227,7 +235,9 @@ class LoadFollower:
         import time
 
         self.max_threads = max(1, usable_cpus() if max_threads is None else int(max_threads))
-        self.interval, self.patience = float(interval), int(patience)
+        self.interval, self.base_patience = float(interval), int(patience)
+        self.patience = self.base_patience
+        self._since_raise: int | None = None  # checks since the last raise
         self._clock, self._cpu = time.monotonic, time.process_time
         self._calm = 0
         self.history: list[tuple[float, float, int]] = []  # (time, others' CPUs, count)
@@ -251,13 +261,20 @@ class LoadFollower:
         down = max(1, min(self.max_threads, int(free + 0.5)))
         if initial:
             return down
+        if self._since_raise is not None:
+            self._since_raise += 1
+            if self._since_raise >= 10:  # the raise held: back to the usual patience
+                self.patience, self._since_raise = self.base_patience, None
         if down < self.threads:
             self._calm = 0
+            if self._since_raise is not None and self._since_raise <= 2:
+                self.patience = min(MAX_PATIENCE, 2 * self.patience)
+            self._since_raise = None
             return down
         if free >= self.threads + 0.75:
             self._calm += 1
             if self._calm >= self.patience:
-                self._calm = 0
+                self._calm, self._since_raise = 0, 0
                 return min(self.max_threads, self.threads + 1)
         else:
             self._calm = 0

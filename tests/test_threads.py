@@ -248,3 +248,38 @@ def test_training_does_not_depend_on_the_thread_count_here(tmp_path):
 
     one, two, mixed = run([1]), run([2]), run([1, 2, 2])
     assert all(torch.equal(one[k], two[k]) and torch.equal(one[k], mixed[k]) for k in one)
+
+
+def test_a_raise_taken_back_at_once_makes_the_next_one_wait_longer(monkeypatch):
+    """A neighbour working in bursts: each raise it takes back within two checks doubles
+    the calm checks the next raise needs, so the count does not flap."""
+    f, s = _follower(monkeypatch, cpus=2, start_others=1.0)
+    assert f.threads == 1 and f.patience == 2
+
+    def check(others: float) -> int:
+        s.advance(2.5, others=others)
+        return f.tick()
+
+    assert [check(0.0), check(0.0)] == [1, 2]  # raised after two calm checks
+    assert check(1.0) == 1 and f.patience == 4  # taken back at once: wait twice as long
+    assert [check(0.0) for _ in range(4)] == [1, 1, 1, 2]
+    assert check(1.0) == 1 and f.patience == 8
+    assert [check(0.0) for _ in range(8)][-2:] == [1, 2]
+    assert [check(0.1) for _ in range(10)][-1] == 2 and f.patience == 2  # held: reset
+
+
+def test_a_short_run_keeps_the_policys_count(monkeypatch, tmp_path):
+    """Runs shorter than MIN_FOLLOW_ITERATIONS (tests, smoke runs) make no probe."""
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.model.config import ModelConfig, TrainConfig
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train
+
+    made = []
+    monkeypatch.setattr(threads, "LoadFollower", lambda **kw: made.append(kw))
+    data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
+    cfg = TrainConfig(model=ModelConfig(num_levels=2, gen_hidden=(8,), disc_hidden=(8,)),
+                      block_iterations=(2,), n_critic=1, checkpoint_every=0)  # fmt: skip
+    train(data, cfg, tmp_path, progress=False)
+    assert made == []
+    assert threads.MIN_FOLLOW_ITERATIONS > 2

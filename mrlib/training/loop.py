@@ -22,7 +22,7 @@ import torch
 
 from mrlib.errors import MrlibError
 from mrlib.io.outputs import open_for_append, write_text
-from mrlib.threads import load_follower
+from mrlib.threads import MIN_FOLLOW_ITERATIONS, load_follower
 from mrlib.training.run import TrainResult
 
 __all__ = [
@@ -49,7 +49,9 @@ def run_blocks(trainer, progress: bool, callback: Callable[..., None] | None) ->
     from tqdm.auto import tqdm
 
     tr, c = trainer, trainer.config
-    follower = load_follower()  # None where the user chose the thread count
+    # the count follows the load unless the user chose it, or the run is a few iterations
+    left = sum(c.block_iterations[tr.block :]) - tr.iteration
+    follower = load_follower() if left >= MIN_FOLLOW_ITERATIONS else None
     tr.out_dir.mkdir(parents=True, exist_ok=True)
     log_path = tr.out_dir / "losses.csv"
     prepare_log(log_path, tr.resumed_from, tr.block, tr.iteration)
