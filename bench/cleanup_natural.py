@@ -66,6 +66,9 @@ def methods():
         "new, no floor clamp": lambda m, body, floor: clean(m, body, floor_clamp=False),
         "new, root kept": lambda m, body, floor: clean(m, body, floor=floor, move_root=False),
         "new, no jitter filter": lambda m, body, floor: clean(m, body, floor=floor, jitter=0),
+        "new, solved once (reweight=0)": lambda m, body, floor: clean(
+            m, body, floor=floor, reweight=0
+        ),
     }
 
 
