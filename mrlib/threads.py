@@ -224,7 +224,7 @@ class LoadFollower:
       forth, and a raise that lasts ten checks restores it.
 
     It starts from a short sample taken before the run's own work. Between 1 and
-    ``max_threads`` (the usable CPUs). Where the counts give the same numbers, as on
+    ``max_threads`` (the usable CPUs, at most torch's own count). Where the counts give the same numbers, as on
     this build (training at 1, 2 and alternating counts: identical weights,
     ``tests/test_threads.py``), the run's result does not depend on the load; pass
     ``--threads N`` for a fixed count.
@@ -234,7 +234,8 @@ class LoadFollower:
                  patience: int = 2, probe: float = 0.1):  # fmt: skip
         import time
 
-        self.max_threads = max(1, usable_cpus() if max_threads is None else int(max_threads))
+        top = min(usable_cpus(), _START) if max_threads is None else int(max_threads)
+        self.max_threads = max(1, top)
         self.interval, self.base_patience = float(interval), int(patience)
         self.patience = self.base_patience
         self._since_raise: int | None = None  # checks since the last raise

@@ -175,6 +175,7 @@ def _follower(
 ) -> tuple[threads.LoadFollower, _Scripted]:
     s = _Scripted()
     monkeypatch.setattr(threads, "usable_cpus", lambda: cpus)
+    monkeypatch.setattr(threads, "_START", cpus)  # torch started with one per CPU
     monkeypatch.setattr(threads, "_busy_cpu_seconds", lambda: s.busy)
     monkeypatch.setattr("time.monotonic", lambda: s.t)
     monkeypatch.setattr("time.process_time", lambda: s.own)
