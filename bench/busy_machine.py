@@ -28,7 +28,7 @@ per second over all four blocks (each block's best of ``--repeats`` rounds, so t
 burst of other work spoils one round of one block, not the figure), the busy/idle
 slowdown measured in the same run, and the policy's idle speed as a share of the others'.
 ``--extras`` adds, idle and on the policy's thread count, Adam's three implementations
-(for-loop, foreach, fused; ``mrlib.training.trainer.make_adam`` picks fused where the torch build
+(for-loop, foreach, fused; ``mrlib.training.build.make_adam`` picks fused where the torch build
 has it) and the per-call weight masking against mrlib's (blocks 1 and 4), and
 ``torch.compile`` of the finest block's generator levels with its start-up time.
 

@@ -11,7 +11,7 @@ the ``demo`` preset 4.5-12x slower than on the idle machine, one thread 0.97-1.6
 latter with other jobs on the cores too), and foot-contact cleaned samples took 960 ms
 instead of 89 on two threads, 101 instead of 100 on one. On the idle machine two threads
 were 18-35 % faster per block than one; one thread ran at 0.87x the speed two threads
-had before the fused Adam step (``mrlib.training.trainer.make_adam``) and the masked gradients of
+had before the fused Adam step (``mrlib.training.build.make_adam``) and the masked gradients of
 ``mrlib.model.networks.SkeletonConv1d``, which made it about 13 % faster.
 
 The policy (:func:`apply_policy`), in order:
