@@ -46,7 +46,7 @@ from mrlib.representation.motion import NUM_BETAS, Motion
 from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from mrlib.representation.skeleton import NUM_CONTACTS, NUM_JOINTS
 
-__all__ = ["load_npz", "save_npz", "load_easymocap", "POSE_WIDTHS"]
+__all__ = ["load_npz", "save_npz", "load_easymocap", "read_npy_header", "POSE_WIDTHS"]
 
 # Pose vector widths and the body model they come from.
 POSE_WIDTHS = {72: "SMPL", 156: "SMPL-H", 165: "SMPL-X"}
@@ -58,6 +58,20 @@ _USED_KEYS = frozenset(
 # in float64. Checked before the array is read, from the zip's record and the array's own
 # header, so a small file that inflates to gigabytes (a zip bomb) is refused, not read.
 MAX_ARRAY_BYTES = 256 * 2**20
+
+
+def read_npy_header(fh) -> tuple[tuple[int, ...], bool, np.dtype]:
+    """Shape, Fortran order and dtype from the header of an ``.npy`` stream (an npz member), without
+    reading its data: what a size or type check needs before the array is loaded."""
+    version = np.lib.format.read_magic(fh)
+    read = (
+        np.lib.format.read_array_header_1_0
+        if version == (1, 0)
+        else np.lib.format.read_array_header_2_0
+    )
+    return read(fh)
+
+
 MAX_FRAME_JSON_BYTES = 16 * 2**20  # one EasyMocap frame (a few KB per person)
 
 
@@ -73,13 +87,7 @@ def _read_used_keys(path: Path, z) -> dict[str, Any]:
         member = f"{key}.npy" if f"{key}.npy" in names else key
         size = z.zip.getinfo(member).file_size
         with z.zip.open(member) as fh:
-            version = np.lib.format.read_magic(fh)
-            read_header = (
-                np.lib.format.read_array_header_1_0
-                if version == (1, 0)
-                else np.lib.format.read_array_header_2_0
-            )
-            shape, _, dtype = read_header(fh)
+            shape, _, dtype = read_npy_header(fh)
         size = max(size, int(np.prod(shape, dtype=object)) * dtype.itemsize)
         if size > MAX_ARRAY_BYTES:
             raise MotionFileError(

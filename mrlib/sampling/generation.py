@@ -266,8 +266,7 @@ def label_inputs(
             if main in model.clip_labels
             else int(model.lengths[0, -1])
         )
-    length = check_count("length", length)
-    check_sample_length(model, length)
+    length = check_count("length", length)  # its bound: sample_features
     pad = (model.config.model.kernel_size - 1) // 2
     lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
     amp = noise_amplitude(model, W)
@@ -323,8 +322,6 @@ def _label_samples(
 ) -> tuple[list[Motion], list[list[Motion]] | None]:
     """What :func:`generate`, :func:`generate_many` and :func:`generate_levels` share:
     ``num_samples`` samples and, with ``levels``, each one's per-level Motions."""
-    num_samples = check_count("num_samples", num_samples)
-    seed = check_seed("seed", seed)
     W = label_weights(model, condition, conditions, blend)  # (L, K)
     L = model.num_levels
     lengths, amp, conds = label_inputs(model, W, length)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError, check_count
+from mrlib.errors import MotionValueError
 from mrlib.model.checkpoint import CheckpointError, load_checkpoint, reading
 from mrlib.model.pyramid import level_fps
 from mrlib.model.trained import GenerativeModel, model_from_state
@@ -183,7 +183,6 @@ def _audio_samples(
     ``levels``, each one's per-level Motions."""
     if not isinstance(model, SpeechModel):
         model = load_speech_model(model)
-    num_samples = check_count("num_samples", num_samples)
     name = Path(audio).stem if isinstance(audio, (str, Path)) else "audio"
     conds, lengths, wav, rate = audio_conditions(model, audio, sr)
     gm = model.model

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.io.npz import read_npy_header
 from mrlib.representation.motion import MAX_TRANSLATION_M, Motion
 from mrlib.representation.skeleton import NUM_JOINTS
 from mrlib.sampling.constraints.common import joint_ids
@@ -162,13 +163,7 @@ def _keyframe_arrays(path: Path) -> dict[str, np.ndarray]:
                     path, f"not a keyframe file: no '{key}' ({', '.join(_KEYFRAME_KEYS)})"
                 )
             with z.open(member) as fh:
-                version = np.lib.format.read_magic(fh)
-                read_header = (
-                    np.lib.format.read_array_header_1_0
-                    if version == (1, 0)
-                    else np.lib.format.read_array_header_2_0
-                )
-                shape, fortran, dtype = read_header(fh)
+                shape, fortran, dtype = read_npy_header(fh)
                 if dtype.hasobject or dtype.kind not in "biuf":
                     raise MotionFileError(path, f"'{key}' holds {dtype}, not numbers")
                 if len(shape) == 0 or shape[0] > MAX_KEYFRAMES:
