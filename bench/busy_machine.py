@@ -15,8 +15,8 @@ foot-contact cleaned samples of a training clip's length (``mrlib.sampling.gener
 Every measurement runs in a fresh process:
 
 * ``policy``: mrlib as it is, ``mrlib.threads.apply_policy()`` with no thread variable
-  set and the count then following the load (``mrlib.threads.load_follower``, ticked
-  after every iteration), what ``mrlib train`` and ``Trainer.fit`` do;
+  set: the count a training run fixes at its start (``mrlib.threads.run_threads``), what
+  ``mrlib train`` and ``Trainer.fit`` do;
 * ``torch``: the same code on PyTorch's own thread count (one per physical core), kept
   by setting ``OMP_NUM_THREADS`` to it;
 * ``before``: what mrlib did before it had a policy: PyTorch's count, Adam's for-loop
@@ -77,14 +77,11 @@ def measure(blocks, iterations, samples, adam: str, mask_copy: bool, compile_: b
     import torch
 
     from mrlib.model.config import PRESET_FPS, get_preset
-    from mrlib.threads import apply_policy, load_follower
+    from mrlib.threads import apply_policy
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import Trainer
 
     threads = apply_policy()  # mrlib's policy; keeps OMP_NUM_THREADS where it is set
-    follower = load_follower()  # as Trainer.fit: the count follows the load (None: fixed)
-    if follower is not None:
-        threads = follower.threads
     if mask_copy:
         _mask_every_call()
     data = TrainingSet.from_files(CLIPS, fps=PRESET_FPS["demo"])
@@ -112,8 +109,6 @@ def measure(blocks, iterations, samples, adam: str, mask_copy: bool, compile_: b
         t0, c0 = time.perf_counter(), time.process_time()
         for _ in range(iterations):
             tr.step()
-            if follower is not None:
-                follower.tick()
         dt, cpu = time.perf_counter() - t0, time.process_time() - c0
         rate = iterations / dt
         out["blocks"][b] = {"it_per_s": rate, "warmup_s": warm, "cpu_per_wall": cpu / dt}

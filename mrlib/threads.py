@@ -25,12 +25,17 @@ The policy (:func:`apply_policy`), in order:
    runs fit beside it. On 2 cores that is one thread; counts above 2 CPUs follow the
    same rule but were not measured here.
 
-During training (``mrlib.training.loop.run_blocks``) a count that is mrlib's own choice
-then follows the machine's load (:class:`LoadFollower`): all usable CPUs while other
-processes leave them free, fewer as soon as they take one, so an idle machine trains
-at two threads' speed and a busy one does not collapse (``python bench/busy_machine.py``:
-1.27x slower beside a CPU-bound process than idle, against 3.46x on torch's count;
-idle 1.25x the speed of the code before the policy).
+A training run fixes its count when it starts and keeps it to the end
+(:func:`run_threads`): the user's choice, else the count recorded in the checkpoint of
+the run it resumes, else :func:`default_threads`. The count is stored in every checkpoint
+(``threads``), so a resumed run continues on the count it began with. Nothing reads the
+machine's load: float kernels may round differently at different thread counts (on an
+AVX-512 / AMX Xeon, training at one and at two threads gave different weights), so a count
+that followed the load would make the same seed give another model whenever something else
+ran beside it. Same seed, same machine and same count give bit-identical weights whatever
+else runs (``tests/test_threads.py`` trains beside a CPU-bound process and alone and
+compares); across thread counts and CPUs results agree only to float rounding, and no
+test assumes more.
 
 The command line applies the policy around each command; ``mrlib.training.trainer.Trainer.fit``,
 ``mrlib.sampling.generation.generate``, ``mrlib.evaluation.evaluate.evaluate_model``,
@@ -50,7 +55,6 @@ import contextlib
 import functools
 import os
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import TypeVar
 
 import torch
@@ -59,12 +63,10 @@ from mrlib.errors import MrlibError
 
 __all__ = [
     "ENV_VARS",
-    "LoadFollower",
-    "MIN_FOLLOW_ITERATIONS",
-    "load_follower",
     "apply_policy",
     "default_threads",
     "policy",
+    "run_threads",
     "usable_cpus",
     "user_threads",
     "with_policy",
@@ -116,8 +118,17 @@ def default_threads() -> int:
 
 
 def _check(threads) -> int:
+    """An explicit count: a positive integer, at most 4 x the usable CPUs (more only
+    adds threads that wait on each other: 10000 made a sample 6x slower and 2x larger)."""
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise MrlibError(f"threads must be a positive integer, got {threads!r}")
+    cpus = usable_cpus()
+    if threads > 4 * cpus:
+        raise MrlibError(
+            f"threads: {threads} is more than the {4 * cpus} mrlib runs here (4 x the {cpus} "
+            f"usable CPUs); pass --threads N (apply_policy(N)) with N <= {4 * cpus}, or leave "
+            "it out for the default"
+        )
     return threads
 
 
@@ -183,125 +194,19 @@ def with_policy(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-# -- following the load during a long run ---------------------------------------------------
-def _busy_cpu_seconds() -> float | None:
-    """CPU seconds all processes have spent busy since boot (``/proc/stat``: user, nice,
-    system, irq, softirq and steal, the last being time the hypervisor gave away), or
-    None where there is no ``/proc/stat``."""
-    try:
-        first = Path("/proc/stat").read_text().split("\n", 1)[0]  # the "cpu" line
-        v = [int(x) for x in first.split()[1:]]
-        return (v[0] + v[1] + v[2] + v[5] + v[6] + (v[7] if len(v) > 7 else 0)) / _HZ
-    except (OSError, ValueError, IndexError):
-        return None
+# -- the count of a training run ---------------------------------------------------------------
+def run_threads(recorded: int | None = None) -> tuple[int, str]:
+    """The thread count a training run uses from its start to its end, and why.
 
-
-try:
-    _HZ = os.sysconf("SC_CLK_TCK")
-except (AttributeError, ValueError, OSError):
-    _HZ = 100
-
-
-MAX_PATIENCE = 16  # calm checks (of 2 s) a raise may have to wait for after raises taken back
-MIN_FOLLOW_ITERATIONS = 200  # shorter runs keep the policy's count (no probe, no checks)
-
-
-class LoadFollower:
-    """Torch's thread count during a long run (training), following the machine's load.
-
-    Two threads train the small networks 18-35 % faster than one on an idle 2-core
-    machine, and 4.5-12x slower when another process holds a core (the module docstring).
-    The follower takes what the other processes leave: every ``interval`` seconds it
-    reads how many CPUs they kept busy (``/proc/stat``'s busy time minus this process's
-    own CPU time, over the wall time), and
-
-    * lowers the count at once to the CPUs left, rounded to the nearest (others busy on
-      half a core or more take that core);
-    * raises it by one when a whole further CPU has been left free (others below a
-      quarter of it) at ``patience`` checks in a row; a raise that the next two checks
-      take back doubles the patience (up to ``MAX_PATIENCE``), so a neighbour that
-      works in bursts (a test runner, a notebook) does not make it switch back and
-      forth, and a raise that lasts ten checks restores it.
-
-    It starts from a short sample taken before the run's own work. Between 1 and
-    ``max_threads`` (the usable CPUs, at most torch's own count). Where the counts give the same numbers, as on
-    this build (training at 1, 2 and alternating counts: identical weights,
-    ``tests/test_threads.py``), the run's result does not depend on the load; pass
-    ``--threads N`` for a fixed count.
-    """
-
-    def __init__(self, max_threads: int | None = None, interval: float = 2.0,
-                 patience: int = 2, probe: float = 0.1):  # fmt: skip
-        import time
-
-        top = min(usable_cpus(), _START) if max_threads is None else int(max_threads)
-        self.max_threads = max(1, top)
-        self.interval, self.base_patience = float(interval), int(patience)
-        self.patience = self.base_patience
-        self._since_raise: int | None = None  # checks since the last raise
-        self._clock, self._cpu = time.monotonic, time.process_time
-        self._calm = 0
-        self.history: list[tuple[float, float, int]] = []  # (time, others' CPUs, count)
-        start = self._sample()
-        time.sleep(probe)
-        self.threads = self._decide(self._others(start), initial=True)
-        _set(self.threads)
-        _state.last_set = self.threads
-        self._last = self._sample()
-
-    def _sample(self) -> tuple[float, float, float]:
-        return self._clock(), _busy_cpu_seconds() or 0.0, self._cpu()
-
-    def _others(self, since: tuple[float, float, float]) -> float:
-        now = self._sample()
-        wall = max(now[0] - since[0], 1e-6)
-        return max(0.0, ((now[1] - since[1]) - (now[2] - since[2])) / wall)
-
-    def _decide(self, others: float, initial: bool = False) -> int:
-        free = self.max_threads - others
-        down = max(1, min(self.max_threads, int(free + 0.5)))
-        if initial:
-            return down
-        if self._since_raise is not None:
-            self._since_raise += 1
-            if self._since_raise >= 10:  # the raise held: back to the usual patience
-                self.patience, self._since_raise = self.base_patience, None
-        if down < self.threads:
-            self._calm = 0
-            if self._since_raise is not None and self._since_raise <= 2:
-                self.patience = min(MAX_PATIENCE, 2 * self.patience)
-            self._since_raise = None
-            return down
-        if free >= self.threads + 0.75:
-            self._calm += 1
-            if self._calm >= self.patience:
-                self._calm, self._since_raise = 0, 0
-                return min(self.max_threads, self.threads + 1)
-        else:
-            self._calm = 0
-        return self.threads
-
-    def tick(self) -> int:
-        """Call between iterations: checks the load once per ``interval`` seconds (a
-        clock read otherwise) and sets the new count; returns the count in use."""
-        if self._clock() - self._last[0] < self.interval:
-            return self.threads
-        others = self._others(self._last)
-        self._last = self._sample()
-        n = self._decide(others)
-        self.history.append((self._last[0], others, n))
-        if n != self.threads:
-            self.threads = n
-            _set(n)
-            _state.last_set = n
-        return n
-
-
-def load_follower(**kwargs) -> LoadFollower | None:
-    """A :class:`LoadFollower` when the thread count is mrlib's own choice (no
-    ``--threads``, no ``OMP_NUM_THREADS``, no ``torch.set_num_threads`` of the user's),
-    more than one CPU is usable and ``/proc/stat`` can be read; else None (the count
-    stays as :func:`apply_policy` set it)."""
-    if user_threads() is not None or usable_cpus() < 2 or _busy_cpu_seconds() is None:
-        return None
-    return LoadFollower(**kwargs)
+    ``recorded``: the count stored in the checkpoint of the run being resumed (None for a
+    new run or a checkpoint written before counts were recorded). The user's choice
+    (:func:`user_threads`: ``--threads``, ``OMP_NUM_THREADS``, ``torch.set_num_threads``)
+    wins; else the recorded count, so that a resumed run continues exactly as it would
+    have; else :func:`default_threads`. Returns ``(count, reason)``; the reason is one of
+    ``"user"``, ``"resumed"``, ``"default"``."""
+    chosen = user_threads()
+    if chosen is not None:
+        return chosen, "user"
+    if recorded is not None and not isinstance(recorded, bool) and int(recorded) >= 1:
+        return int(recorded), "resumed"
+    return default_threads(), "default"

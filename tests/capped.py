@@ -56,3 +56,37 @@ def run_capped(cases: list[list[str]]) -> list[dict]:
     )
     assert res.returncode == 0, res.stderr[-2000:]
     return [json.loads(line) for line in res.stdout.splitlines()]
+
+
+def run_capped_python(setup: str, cases: list[str]) -> list[dict]:
+    """Run ``setup`` once, then every Python statement in ``cases``, in a child under
+    ``CAP_BYTES``: per case the exception it raised (``"error"``: ``Class: message``, or
+    None when it raised none), its seconds and the child's peak resident memory (MB) so
+    far; how a bound of the Python API is shown to come before the work."""
+    script = textwrap.dedent(
+        f"""
+        import contextlib, io, json, resource, sys, time
+        def vm_hwm_mb():
+            with open("/proc/self/status") as fh:
+                line = next(l for l in fh if l.startswith("VmHWM:"))
+            return int(line.split()[1]) / 1024
+        resource.setrlimit(resource.RLIMIT_DATA, ({CAP_BYTES}, {CAP_BYTES}))
+        env = {{}}
+        with contextlib.redirect_stdout(io.StringIO()):
+            exec(sys.argv[1], env)
+        for code in json.loads(sys.argv[2]):
+            t, error = time.perf_counter(), None
+            try:
+                with contextlib.redirect_stdout(io.StringIO()):
+                    exec(code, dict(env))
+            except Exception as e:
+                error = f"{{type(e).__name__}}: {{e}}"
+            print(json.dumps({{"error": error, "s": time.perf_counter() - t,
+                               "peak_mb": vm_hwm_mb()}}))
+        """
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", script, setup, json.dumps(cases)], capture_output=True, text=True
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    return [json.loads(line) for line in res.stdout.splitlines()]

@@ -18,14 +18,21 @@ from mrlib.app.cli import main
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MrlibError
 from mrlib.io import load_motion, save_motion
-from mrlib.model.checkpoint import CheckpointError, load_checkpoint
+from mrlib.model.checkpoint import (
+    CheckpointError,
+    CheckpointWarning,
+    load_checkpoint,
+    state_checksum,
+)
 from mrlib.model.config import ModelConfig, TrainConfig
 from mrlib.model.trained import load_model
 from mrlib.sampling.constraints.path import parse_path
 from mrlib.sampling.generation import generate, generate_many
+from mrlib.sampling.restyling import restyle
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import Trainer, train
 
+SAMPLE_CLIP = Path(__file__).resolve().parents[1] / "data_samples" / "walk_sad.npz"
 GOOD_BVH_HEAD = """HIERARCHY
 ROOT Hips
 {
@@ -167,9 +174,11 @@ def checkpoint(tmp_path_factory):
 
 
 def _rewrite(src: Path, dst: Path, change) -> Path:
+    """``src`` changed by ``change`` and saved with a checksum of the changed content (a
+    damaged file that still passes the checksum: what the checks behind it must catch)."""
     state = torch.load(src, weights_only=True)
     change(state)
-    state.pop("checksum", None)
+    state["checksum"] = state_checksum(state)
     torch.save(state, dst)
     return dst
 
@@ -186,6 +195,14 @@ CHECKPOINT_CASES = {
         "inconsistent checkpoint",
     ),
     "missing labels": (lambda s: s.pop("labels"), "missing 'labels'"),
+    "a label listed twice": (
+        lambda s: s.update(labels=[s["labels"][0]] * 2),
+        "'walk_sad' is listed twice",
+    ),
+    "labels that are numbers": (
+        lambda s: s.update(labels=[7]),
+        "'labels' must be a list of label names",
+    ),
 }
 
 
@@ -197,6 +214,19 @@ def test_a_damaged_checkpoint_is_a_checkpoint_error(case, checkpoint, tmp_path):
         with pytest.raises(CheckpointError, match=message) as info:
             load(path)
         assert "bad.pt" in str(info.value)
+
+
+def test_a_checkpoint_without_its_checksum_loads_with_a_warning(checkpoint, tmp_path):
+    """Checkpoints of version 1 written before checksums (2026-12-01) have none: one
+    without is loaded, but never silently (a file whose checksum was taken out looks the
+    same)."""
+    state = torch.load(checkpoint, weights_only=True)
+    del state["checksum"]
+    path = tmp_path / "unchecked.pt"
+    torch.save(state, path)
+    for load in (load_model, Trainer.from_checkpoint):
+        with pytest.warns(CheckpointWarning, match="unchecked.pt: the checkpoint has no checksum"):
+            load(path)
 
 
 def test_a_zip_that_is_not_a_checkpoint(tmp_path):
@@ -271,6 +301,31 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             "clip.npz",
         ),
         "info of a missing file": (["info", str(tmp / "nope.bvh")], 1, "nope.bvh"),
+        "sample --parts naming a part twice": (
+            ["sample", str(ckpt), "--parts", "upper=walk_sad,upper=wave"],
+            2,
+            "names the part 'upper' twice",
+        ),
+        "export of an npz with --joint-map": (
+            ["export", str(clip), str(tmp / "j.bvh"), "--joint-map", "cmu"],
+            1,
+            "joint_map (--joint-map) applies to BVH files only",
+        ),
+        "info of an npz with --joint-map": (
+            ["info", str(clip), "--joint-map", "smpl"],
+            1,
+            "joint_map (--joint-map) applies to BVH files only",
+        ),
+        "train on npz clips with --joint-map": (
+            ["train", str(clip), "--joint-map", "cmu", "--out", str(tmp / "jm")],
+            1,
+            "applies to BVH files only",
+        ),
+        "export at 0.005 fps to BVH": (
+            ["export", str(clip), str(tmp / "slow.bvh"), "--fps", "0.005"],
+            1,
+            "makes no BVH",
+        ),
     }
 
 
@@ -368,6 +423,20 @@ API_CASES = {
     "save_motion(motion, None)": (
         lambda m: save_motion(synthetic_walk("walk_sad", seconds=1.0, fps=10.0), None),
         "must be a file path",
+    ),
+    # the issue's cases; tests/test_bad_arguments.py sweeps every public function
+    "load_model(123)": (lambda m: load_model(123), "load_model: path must be a file path"),
+    "generate('path/to/model.pt')": (
+        lambda m: generate("path/to/model.pt", "walk_sad"),
+        r"load it first: model = mrlib.load_model\('path/to/model.pt'\)",
+    ),
+    "restyle(..., seed='1')": (
+        lambda m: restyle(m, synthetic_walk("walk_sad", seconds=3.0, fps=10.0), 0, seed="1"),
+        r"restyle: seed must be an integer .*, got '1' \(str\)",
+    ),
+    "load_motion(path, fps='30')": (
+        lambda m: load_motion(SAMPLE_CLIP, fps="30"),
+        r"load_motion: fps must be a number .*, got '30' \(str\)",
     ),
 }
 

@@ -285,7 +285,7 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
     assert update().weights[:3, 0].tolist() == [1.0, 1.0, 1.0]
 
 
-def test_interactive_crossover_mesh_view(model, monkeypatch):
+def test_interactive_crossover_mesh_view(model, body, monkeypatch):
     pytest.importorskip("ipywidgets")
     import mrlib.viz.widgets
 
@@ -297,7 +297,7 @@ def test_interactive_crossover_mesh_view(model, monkeypatch):
 
     monkeypatch.setattr(mrlib.viz.widgets, "render_meshes", fake_render)
     _, update = interactive_crossover(
-        model, body=object(), frames=3, window=10, coarse="wave", fine="walk_sad", level=1
+        model, body=body, frames=3, window=10, coarse="wave", fine="walk_sad", level=1
     )
     view = update()
     assert view.image.shape == (40, 120, 3) and len(calls[-1]) == 3

@@ -1,5 +1,6 @@
 """Tests for mrlib.io.retarget and the BVH side of mrlib.io (load_motion/save_motion)."""
 
+import re
 import time
 import warnings
 
@@ -631,8 +632,14 @@ def test_a_clip_above_the_threshold_is_never_loaded_silently(wrong_map_clip, bod
     assert m.meta["retarget_error_mean_cm"] > RETARGET_WARN_CM
     assert m.meta["retarget_warning"] == text
     assert str(path) in text and "worst joints: " in text
-    worst = max(m.meta["retarget_joint_error_cm"], key=m.meta["retarget_joint_error_cm"].get)
-    assert worst in text
+    # the joints named are the worst by the meta's numbers; a near-tie may be named in
+    # either order, so each is checked against the third-worst error, not by name
+    per = m.meta["retarget_joint_error_cm"]
+    named = re.findall(r"(\w+) [\d.]+ cm", text.split("worst joints: ", 1)[1])[:3]
+    assert len(named) == 3 and all(n in per for n in named), text
+    third = sorted(per.values(), reverse=True)[2]
+    assert all(per[n] >= third - 1e-6 for n in named), (named, per)
+    assert per[named[0]] == max(per.values())
     assert "--write-map" in text and "--joint-map" in text and "--accept-retarget-error" in text
     # the right map (recognised) loads without a word
     with warnings.catch_warnings():

@@ -98,9 +98,9 @@ def test_library_entry_points_run_under_the_policy(monkeypatch):
     from mrlib.evaluation.evaluate import evaluate_model
     from mrlib.sampling.cleanup import cleanup_foot_contacts
     from mrlib.sampling.generation import generate
-    from mrlib.training.trainer import Trainer
 
-    for fn in (generate, evaluate_model, cleanup_foot_contacts, Trainer.fit):
+    # (Trainer.fit fixes a run's count itself: the tests of run_threads below)
+    for fn in (generate, evaluate_model, cleanup_foot_contacts):
         assert getattr(fn, "__wrapped__", None) is not None, fn.__qualname__
     _started_with(monkeypatch, 2, 2)
     seen = threads.with_policy(torch.get_num_threads)()
@@ -157,130 +157,103 @@ def test_a_bad_threads_value_is_a_one_line_usage_error(capsys, value):
 
 
 # -- following the load during training -----------------------------------------------------
-class _Scripted:
-    """A clock, the machine's busy CPU seconds and this process's CPU seconds, advanced
-    by hand: ``others`` CPUs kept busy by other processes over each step of ``dt``."""
-
-    def __init__(self):
-        self.t = self.busy = self.own = 0.0
-
-    def advance(self, dt: float, others: float, own: float = 1.0) -> None:
-        self.t += dt
-        self.own += own * dt
-        self.busy += (others + own) * dt
-
-
-def _follower(
-    monkeypatch, cpus: int, start_others: float
-) -> tuple[threads.LoadFollower, _Scripted]:
-    s = _Scripted()
-    monkeypatch.setattr(threads, "usable_cpus", lambda: cpus)
-    monkeypatch.setattr(threads, "_START", cpus)  # torch started with one per CPU
-    monkeypatch.setattr(threads, "_busy_cpu_seconds", lambda: s.busy)
-    monkeypatch.setattr("time.monotonic", lambda: s.t)
-    monkeypatch.setattr("time.process_time", lambda: s.own)
-    monkeypatch.setattr("time.sleep", lambda dt: s.advance(dt, start_others, own=0.0))
-    return threads.LoadFollower(interval=2.0, patience=2), s
-
-
-def test_the_follower_starts_from_what_other_processes_leave(monkeypatch):
-    idle, _ = _follower(monkeypatch, cpus=2, start_others=0.05)
-    assert idle.threads == 2 and torch.get_num_threads() == 2
-    busy, _ = _follower(monkeypatch, cpus=2, start_others=1.0)
-    assert busy.threads == 1 and torch.get_num_threads() == 1
-    assert threads.user_threads() is None  # its own count is not taken for the user's
-
-
-def test_the_follower_steps_down_at_once_and_up_after_calm_checks(monkeypatch):
-    f, s = _follower(monkeypatch, cpus=2, start_others=0.0)
-    assert f.threads == 2
-    s.advance(1.0, others=1.0)
-    assert f.tick() == 2  # within the interval: nothing read
-    s.advance(1.5, others=1.0, own=1.0)
-    assert f.tick() == 1 and torch.get_num_threads() == 1  # a busy neighbour: down at once
-    s.advance(2.5, others=1.0)
-    assert f.tick() == 1
-    s.advance(2.5, others=0.1)
-    assert f.tick() == 1  # one calm check is not enough
-    s.advance(2.5, others=0.1)
-    assert f.tick() == 2 and torch.get_num_threads() == 2
-    s.advance(2.5, others=0.4)  # background noise under half a core keeps the count
-    assert f.tick() == 2
-    assert [n for _, _, n in f.history] == [1, 1, 1, 2, 2]
-
-
-def test_no_follower_where_the_user_chose_the_count(monkeypatch):
-    monkeypatch.setattr(threads, "usable_cpus", lambda: 2)
-    threads.apply_policy(2)  # --threads 2
-    assert threads.load_follower() is None
-    monkeypatch.setattr(threads, "_state", threads._State())
-    monkeypatch.setenv("OMP_NUM_THREADS", "1")
-    assert threads.load_follower() is None
-    monkeypatch.delenv("OMP_NUM_THREADS")
-    monkeypatch.setattr(threads, "usable_cpus", lambda: 1)
-    assert threads.load_follower() is None  # one CPU: nothing to follow
-
-
-def test_training_does_not_depend_on_the_thread_count_here(tmp_path):
-    """What lets the follower change the count mid-run: on this build, training at one
-    thread, at two and alternating gives the same weights (if a build breaks this, runs
-    depend on the load, and ``--threads N`` is the way to fixed results)."""
+# -- a training run's count: fixed at its start, recorded, reused on resume ------------------
+def _tiny_run():
     from mrlib.datasets.synthetic import synthetic_walk
     from mrlib.model.config import ModelConfig, TrainConfig
     from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import Trainer
 
     data = TrainingSet.from_motions(
-        [synthetic_walk(lab, seconds=2.0, fps=15.0) for lab in ("walk_sad", "walk_happy")]
+        [synthetic_walk(lab, seconds=2.0, fps=10.0) for lab in ("walk_sad", "walk_happy")]
     )
-    cfg = TrainConfig(model=ModelConfig(num_levels=4, gen_hidden=(32, 64), disc_hidden=(32,)),
-                      block_iterations=(3, 3), n_critic=1, checkpoint_every=0)  # fmt: skip
-
-    def run(schedule: list[int]) -> dict[str, torch.Tensor]:
-        tr, k = Trainer(data, cfg, tmp_path / "-".join(map(str, schedule))), 0
-        for b in range(2):
-            tr.block = b
-            tr.start_block()
-            for _ in range(3):
-                torch.set_num_threads(schedule[k % len(schedule)])
-                k += 1
-                tr.step()
-        return {n: p.detach().clone() for n, p in tr.generator.named_parameters()}
-
-    one, two, mixed = run([1]), run([2]), run([1, 2, 2])
-    assert all(torch.equal(one[k], two[k]) and torch.equal(one[k], mixed[k]) for k in one)
+    cfg = TrainConfig(model=ModelConfig(num_levels=4, gen_hidden=(16,), disc_hidden=(16,)),
+                      block_iterations=(4, 4), n_critic=1, checkpoint_every=0)  # fmt: skip
+    return data, cfg
 
 
-def test_a_raise_taken_back_at_once_makes_the_next_one_wait_longer(monkeypatch):
-    """A neighbour working in bursts: each raise it takes back within two checks doubles
-    the calm checks the next raise needs, so the count does not flap."""
-    f, s = _follower(monkeypatch, cpus=2, start_others=1.0)
-    assert f.threads == 1 and f.patience == 2
+def _weights(path) -> dict[str, torch.Tensor]:
+    from mrlib.model.checkpoint import load_checkpoint
 
-    def check(others: float) -> int:
-        s.advance(2.5, others=others)
-        return f.tick()
-
-    assert [check(0.0), check(0.0)] == [1, 2]  # raised after two calm checks
-    assert check(1.0) == 1 and f.patience == 4  # taken back at once: wait twice as long
-    assert [check(0.0) for _ in range(4)] == [1, 1, 1, 2]
-    assert check(1.0) == 1 and f.patience == 8
-    assert [check(0.0) for _ in range(8)][-2:] == [1, 2]
-    assert [check(0.1) for _ in range(10)][-1] == 2 and f.patience == 2  # held: reset
+    state = load_checkpoint(path)
+    return {f"{n}.{k}": v for n in ("generator", "critics") for k, v in state[n].items()}
 
 
-def test_a_short_run_keeps_the_policys_count(monkeypatch, tmp_path):
-    """Runs shorter than MIN_FOLLOW_ITERATIONS (tests, smoke runs) make no probe."""
-    from mrlib.datasets.synthetic import synthetic_walk
-    from mrlib.model.config import ModelConfig, TrainConfig
-    from mrlib.training.data import TrainingSet
+def test_a_run_keeps_one_count_records_it_and_resumes_on_it(monkeypatch, tmp_path):
+    """The count is chosen once (here mrlib's default, 2 of 4 CPUs), held through every
+    iteration, written into the checkpoint, and a resume without --threads takes it back
+    even where the default would now be another."""
+    from mrlib.model.checkpoint import load_checkpoint
     from mrlib.training.trainer import train
 
-    made = []
-    monkeypatch.setattr(threads, "LoadFollower", lambda **kw: made.append(kw))
-    data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
-    cfg = TrainConfig(model=ModelConfig(num_levels=2, gen_hidden=(8,), disc_hidden=(8,)),
-                      block_iterations=(2,), n_critic=1, checkpoint_every=0)  # fmt: skip
-    train(data, cfg, tmp_path, progress=False)
-    assert made == []
-    assert threads.MIN_FOLLOW_ITERATIONS > 2
+    _started_with(monkeypatch, 4, cpus=4)
+    data, cfg = _tiny_run()
+    seen = []
+
+    def stop_in_block_2(trainer, losses):
+        seen.append(torch.get_num_threads())
+        if (trainer.block, trainer.iteration) == (1, 2):
+            raise KeyboardInterrupt
+
+    part = train(data, cfg, tmp_path, progress=False, callback=stop_in_block_2)
+    assert part.interrupted and set(seen) == {2} and len(seen) == 6
+    assert load_checkpoint(part.checkpoint)["threads"] == 2
+    assert torch.get_num_threads() == 4  # the caller's count is back afterwards
+
+    _started_with(monkeypatch, 3, cpus=8)  # another machine: its default would be 3
+    seen.clear()
+    done = train(None, None, tmp_path, resume=part.checkpoint, progress=False,
+                 callback=lambda tr, losses: seen.append(torch.get_num_threads()))  # fmt: skip
+    assert set(seen) == {2} and load_checkpoint(done.checkpoint)["threads"] == 2
+
+
+def test_resuming_on_another_count_than_the_run_began_with_warns(monkeypatch, tmp_path):
+    from mrlib.training.trainer import train
+
+    _started_with(monkeypatch, 2, cpus=2)
+    data, cfg = _tiny_run()
+    cfg = cfg.replace(block_iterations=(2, 2))
+
+    def stop(trainer, losses):
+        if (trainer.block, trainer.iteration) == (0, 1):
+            raise KeyboardInterrupt
+
+    part = train(data, cfg, tmp_path, progress=False, callback=stop)  # default: 1 thread
+    threads.apply_policy(2)  # --threads 2
+    with pytest.warns(RuntimeWarning, match="started with 1 torch threads and continues with 2"):
+        train(None, None, tmp_path, resume=part.checkpoint, progress=False)
+
+
+_HOG = "import os\np = os.getppid()\nwhile os.getppid() == p:\n    pass"  # ends with its parent
+
+
+def test_the_same_seed_gives_the_same_weights_beside_a_cpu_hog(monkeypatch, tmp_path):
+    """Same seed, same machine, mrlib's own thread count: bit-identical weights whether
+    the machine is idle or every CPU also runs a busy loop. The paired contrast (another
+    seed) shows the comparison can tell two models apart."""
+    import subprocess
+    import sys
+
+    from mrlib.training.trainer import train
+
+    cpus = threads.usable_cpus()
+    _started_with(monkeypatch, cpus, cpus=cpus)  # torch's own start: one per CPU
+    data, cfg = _tiny_run()
+    seen = {"alone": set(), "busy": set()}
+
+    def run(name: str):
+        return train(data, cfg, tmp_path / name, progress=False,
+                     callback=lambda tr, losses: seen[name].add(torch.get_num_threads()))  # fmt: skip
+
+    alone = run("alone")
+    hogs = [subprocess.Popen([sys.executable, "-c", _HOG]) for _ in range(cpus)]
+    try:
+        busy = run("busy")
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    other = train(data, cfg.replace(seed=cfg.seed + 1), tmp_path / "other", progress=False)
+    a, b, c = _weights(alone.checkpoint), _weights(busy.checkpoint), _weights(other.checkpoint)
+    assert seen["alone"] == seen["busy"] == {threads.default_threads()}
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    assert not all(torch.equal(a[k], c[k]) for k in a)

@@ -230,6 +230,48 @@ def _build(name, model, body, clips):
 BUILDERS = ["crossover", "restyle", "path", "parts", "inbetween"]
 
 
+# the builders' own arguments, each refused before a control is built (frames <= 0 made
+# views that drew nothing; a path for the model a view that failed on first use)
+BAD_ARGUMENTS = [
+    ("crossover", "frames", 0),
+    ("crossover", "frames", -3),
+    ("crossover", "frames", 2.5),
+    ("crossover", "frames", "5"),
+    ("crossover", "length", 0),
+    ("crossover", "window", 0),
+    ("crossover", "render", "no"),
+    ("crossover", "model", "runs/x/checkpoint.pt"),
+    ("restyle", "frames", 0),
+    ("restyle", "frames", -1),
+    ("restyle", "motion", "clip.bvh"),
+    ("restyle", "label", 3.5),
+    ("path", "seconds", 0),
+    ("path", "seconds", float("nan")),
+    ("path", "body", "smpl.pkl"),
+    ("parts", "frames", 0),
+    ("parts", "length", -5),
+    ("inbetween", "seconds", -1.0),
+    ("inbetween", "steps", -1),
+    ("inbetween", "clips", []),
+]
+
+
+@pytest.mark.parametrize(("view", "arg", "value"), BAD_ARGUMENTS)
+def test_a_view_refuses_a_bad_argument_up_front(view, arg, value, model, body, sad_wave_clips):
+    clips = {c.label: c for c in sad_wave_clips}
+    args = {
+        "crossover": (W.interactive_crossover, dict(model=model, body=body, frames=2)),
+        "restyle": (W.interactive_restyle, dict(model=model, motion=sad_wave_clips[0], body=body)),
+        "path": (CV.interactive_path, dict(model=model, body=body)),
+        "parts": (CV.interactive_parts, dict(model=model, body=body)),
+        "inbetween": (CV.interactive_inbetween, dict(model=model, clips=clips, body=body)),
+    }
+    build, kwargs = args[view]
+    with pytest.raises(MotionValueError, match=f"{build.__name__}: {arg} must be") as info:
+        build(**{**kwargs, arg: value})
+    assert repr(value) in str(info.value)
+
+
 class TestInvalidValuesFromPython:
     """Every view: a NaN in a numeric control, or a label option the model does not
     have, shows its problem in the status line and keeps the last good picture; the

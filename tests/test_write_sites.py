@@ -17,8 +17,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "mrlib"
 
-# the module that implements the writer: the only place allowed to write directly
-WRITER_MODULES = {"io/outputs.py"}
+# the modules that implement the writer: the only places allowed to write directly
+WRITER_MODULES = {"io/outputs.py", "io/transaction.py"}
 
 WRITE_CALL = re.compile(
     r"open\(|\.write_text\(|\.write_bytes\(|savefig\(|imwrite\(|mimsave\(|mimwrite\("
@@ -28,6 +28,10 @@ WRITE_CALL = re.compile(
 
 # (file under mrlib/, text on the matching line) -> why it is not a direct output write
 ALLOWED: dict[tuple[str, str], str] = {
+    (
+        "datasets/bandai.py",
+        'with open(output_file, "wb") as fh:',
+    ): "pooch's own temporary download file, which pooch checks (SHA-256) and renames",
     (
         "model/checkpoint.py",
         "atomic_write(path, lambda fh: torch.save(state, fh)",

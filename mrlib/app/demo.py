@@ -17,19 +17,25 @@ Runs on the synthetic clips in ``data_samples/`` (nothing to download), in six s
    skating of the model (cleaned, and raw beside it) next to the calibration rows (the
    training clip played twice, a frozen first frame), and the full table.
 
-Everything goes to one output folder; ``summary.md`` there lists what was made.
+Everything goes to one output folder; ``summary.md`` there lists what was made. The
+files are written in one ``mrlib.io.transaction.output_transaction`` (the model trains in a
+scratch folder beside its own): all of them, or (a full disk, an error, Ctrl-C) none,
+the folder as it was before.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from pathlib import Path
 
 import numpy as np
 
 from mrlib.io.outputs import write_text
+from mrlib.io.transaction import make_folders, output_transaction, when_written
 from mrlib.model.config import PRESET_FPS
+from mrlib.progress import bar as progress_bar
 
 __all__ = ["run_demo", "DATA_SAMPLES", "DEMO_FPS"]
 
@@ -62,17 +68,15 @@ class _Stages:
         return time.perf_counter() - self.t0
 
 
-def _bar(iterable, desc: str, total: int | None = None, unit: str = "it"):
-    from tqdm.auto import tqdm
+def _bar(iterable, desc: str, total: int | None = None, unit: str = "it", enabled: bool = True):
+    return progress_bar(
+        iterable, desc=f"  {desc}", total=total, unit=unit, leave=False, enabled=enabled
+    )
 
-    return tqdm(iterable, desc=f"  {desc}", total=total, unit=unit, leave=False)
 
-
-def _train_with_eta(data, cfg, out: Path, body):
+def _train_with_eta(data, cfg, out: Path, body, progress: bool = True):
     """``mrlib.training.trainer.train`` with one progress bar over all blocks: the ETA weighs each
     block's iterations by the frames its levels generate (the finer blocks cost more)."""
-    from tqdm.auto import tqdm
-
     from mrlib.model.pyramid import pyramid_lengths
     from mrlib.training.trainer import train
 
@@ -81,7 +85,10 @@ def _train_with_eta(data, cfg, out: Path, body):
     cost = [float(lengths[:, levels].sum()) for levels in cfg.blocks]
     unit = [c / max(cost) for c in cost]
     total = sum(n * u for n, u in zip(cfg.block_iterations, unit, strict=True))
-    bar = tqdm(total=total, desc="  training", unit="", bar_format=_TRAIN_BAR, leave=False)
+    bar = progress_bar(
+        total=total, desc="  training", unit="", bar_format=_TRAIN_BAR, leave=False,
+        enabled=progress,
+    )  # fmt: skip
     done = {"work": 0.0}
 
     def callback(trainer, _last) -> None:
@@ -102,6 +109,27 @@ def _train_with_eta(data, cfg, out: Path, body):
 _TRAIN_BAR = "{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}{postfix}"
 
 
+def _all_or_none(fn):
+    """Run ``fn`` in one output transaction: its files all written, or none."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with output_transaction():
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+def _publish_model(scratch: Path, model_dir: Path) -> None:
+    """Stage the run trained in ``scratch`` as ``model_dir``'s files (published with the
+    demo's other files; an earlier demo's model there is replaced only then)."""
+    from mrlib.io.transaction import current_transaction
+    from mrlib.training.run import stage_run
+
+    stage_run(current_transaction(), scratch, model_dir, overwrite=True)
+
+
+@_all_or_none
 def run_demo(
     out: str | Path = "outputs",
     *,
@@ -111,6 +139,7 @@ def run_demo(
     samples: int = 10,
     seed: int = 0,
     overwrite: bool = False,
+    progress: bool = True,
 ) -> Path:
     """Run the demo, writing into ``out``; returns the path of ``summary.md``.
 
@@ -123,6 +152,8 @@ def run_demo(
         seed: training and sampling seed.
         overwrite: replace the files of an earlier demo run in ``out``; without it such
             a folder is refused before any work (``OutputExistsError``).
+        progress: show progress (``mrlib.progress.bar``: a live bar on a terminal, one
+            line per stage in a log).
     """
     import mrlib
     from mrlib.datasets.bandai import bandai_dir
@@ -144,7 +175,7 @@ def run_demo(
 
     out = Path(out)
     check_demo_folder(out, overwrite=overwrite)
-    out.mkdir(parents=True, exist_ok=True)
+    make_folders(out)
     stages = _Stages()
     lines = ["# mrlib demo", ""]
     body = mrlib.load_body_model()
@@ -153,7 +184,7 @@ def run_demo(
     files = sorted(DATA_SAMPLES.glob("*.npz"))
     stages.start("load", f"{len(files)} synthetic training clips from {DATA_SAMPLES.name}/")
     clips = []
-    for p in _bar(files, "loading and rendering", unit="clip"):
+    for p in _bar(files, "loading and rendering", unit="clip", enabled=progress):
         c = mrlib.load_motion(p, fps=fps)
         c = c.replace(contacts=mrlib.representation.foot_contacts(c, body))
         img = render_meshes(c, body, frames=evenly_spaced_frames(len(c), 5))
@@ -205,8 +236,12 @@ def run_demo(
         f"iterations per block {cfg.block_iterations}, clips at {clips[0].fps:g} fps",
     )
     data = TrainingSet.from_motions(clips, body=body)
-    res = _train_with_eta(data, cfg, out / "model", body)
+    from mrlib.io.transaction import current_transaction
+
+    scratch = current_transaction().scratch_folder(out / "model")
+    res = _train_with_eta(data, cfg, scratch, body, progress)
     model = load_model(res.checkpoint)
+    _publish_model(scratch, out / "model")
     print(f"  trained in {res.wall_time_s:.0f} s -> {out / 'model' / 'checkpoint.pt'}")
     lines += ["", "## Training", ""]
     lines.append(
@@ -218,9 +253,9 @@ def run_demo(
     length = 2 * clips[0].num_frames
     stages.start("sample", f"every label, {length} frames each (twice the training length)")
     lines += ["", "## Samples", ""]
-    (out / "samples").mkdir(exist_ok=True)
+    make_folders(out / "samples")
     pure = {}
-    for lab in _bar(model.labels, "sampling and rendering", unit="label"):
+    for lab in _bar(model.labels, "sampling and rendering", unit="label", enabled=progress):
         m = generate(model, lab, length=length, seed=seed, fix_contacts=True)
         pure[lab] = m
         mrlib.save_motion(m, out / "samples" / f"{lab}.npz")
@@ -236,7 +271,7 @@ def run_demo(
         titles=[f"'{lab}'" for lab in pure],
         spacing=1.2,
         window_size=(220 * len(pure), 360),
-        progress=True,
+        progress=progress,
     )
     lines.append("- animated preview of one sample per label: [`sample.gif`](sample.gif)")
 
@@ -271,7 +306,7 @@ def run_demo(
         seconds=4.0,
         titles=[f"'{coarse}'", f"{coarse} 1-{split} + {fine} {split + 1}-{L}", f"'{fine}'"],
         window_size=(720, 360),
-        progress=True,
+        progress=progress,
     )
     lines.append(
         f"- crossover `{coarse}` (levels 1-{split}) + `{fine}` (levels {split + 1}-{L}): "
@@ -282,7 +317,7 @@ def run_demo(
     # 6. evaluation
     stages.start("evaluate", f"{n_eval} samples per label against the training clips")
     result = evaluate_model(
-        model, num_samples=n_eval, seed=seed, body=body, progress=True, contacts="both"
+        model, num_samples=n_eval, seed=seed, body=body, progress=progress, contacts="both"
     )
     result.save(out / "evaluation")
     plot_evaluation(result, out / "evaluation" / "evaluation.png")
@@ -308,7 +343,7 @@ def run_demo(
     write_text(summary, "\n".join(lines) + "\n", overwrite=True)
     print()
     print(headline_table(result))
-    print(f"\ndone in {stages.total:.0f} s: see {summary}")
+    when_written(lambda: print(f"\ndone in {stages.total:.0f} s: see {summary}"))
     return summary
 
 

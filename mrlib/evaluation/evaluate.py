@@ -43,11 +43,21 @@ from typing import Any
 
 import numpy as np
 
-from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.errors import (
+    ArgumentError,
+    ClipTooShortError,
+    MotionValueError,
+    check_args,
+    check_choice,
+    check_text,
+    shown,
+)
 from mrlib.evaluation.calibration import CALIBRATION_METHODS, calibration_rows, load_counterparts
 from mrlib.evaluation.results import CALIB_PREFIX, EvaluationResult, EvaluationSettings
 from mrlib.metrics import paper as mt
 from mrlib.metrics import plausibility as pl
+from mrlib.model.trained import check_label_model
+from mrlib.progress import bar as progress_bar
 from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion
 from mrlib.threads import with_policy
@@ -236,7 +246,7 @@ def evaluate(
             None uses none; or label -> {row name: Motion}.
         data_dir: the Bandai Namco folder for ``"auto"`` (default ``default_data_dir()``).
         body: ``BodyModel`` (default body when None).
-        progress: show a tqdm progress bar.
+        progress: show progress (``mrlib.progress.bar``).
         settings: all settings at once, instead of ``num_samples``, ``length_factor``,
             ``seed`` and ``eps`` (the windows ``T_c, T_min, T_d`` and the plausibility
             thresholds are only set here); passing both is an error.
@@ -245,8 +255,6 @@ def evaluate(
         an :class:`EvaluationResult`; the condition fidelity column is filled when there
         are two labels or more.
     """
-    from tqdm.auto import tqdm
-
     given = dict(num_samples=num_samples, length_factor=length_factor, seed=seed, eps=eps)
     if settings is None:
         settings = EvaluationSettings(**given)
@@ -291,7 +299,7 @@ def evaluate(
     notes: list[str] = []
     for method, fn in models.items():
         total = settings.num_samples * len(references)
-        with tqdm(total=total, desc=method, disable=not progress, leave=False) as bar:
+        with progress_bar(total=total, desc=method, enabled=progress, leave=False) as bar:
             for label, ref in references.items():
                 length = max(1, round(settings.length_factor * ref.num_frames))
                 samples = _draw(fn, method, label, length, seeds, bar)
@@ -306,8 +314,8 @@ def evaluate(
 
     if calibration:
         calib_rows: dict[str, list[dict[str, Any]]] = {}
-        for label, ref in tqdm(
-            references.items(), desc="calibration", disable=not progress, leave=False
+        for label, ref in progress_bar(
+            references.items(), desc="calibration", enabled=progress, leave=False
         ):
             if calibration_others == "auto":
                 others = load_counterparts(label, ref, data_dir, body, notes)
@@ -384,6 +392,21 @@ def _clip_index(model: Any, key: str) -> int:
     raise KeyError(f"{key!r} is neither a clip nor a label of this model ({model.clip_names})")
 
 
+def _baselines(name: str, value: Any) -> Any:
+    if value is None or isinstance(value, Mapping):
+        return value
+    raise ArgumentError(
+        f"{name} must be a dict {{method name: model or {{key: model}}}} or None, got "
+        f"{shown(value)}"
+    )
+
+
+@check_args(
+    model=check_label_model,
+    baselines=_baselines,
+    name=check_text,
+    contacts=lambda n, v: check_choice(n, v, ("raw", "clean", "both")),
+)
 @with_policy
 def evaluate_model(
     model: Any,

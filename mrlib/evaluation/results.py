@@ -227,13 +227,14 @@ class EvaluationResult:
         settings as ``evaluation_settings.json`` into ``out_dir`` (created). Returns the
         paths by kind. The figure is ``mrlib.viz.plots.plot_evaluation(result, path)``.
 
-        Each file is written atomically and never through a symbolic link
-        (``mrlib.io.outputs``); ``overwrite=False`` refuses, before writing any, files
-        already there."""
-        from mrlib.io.outputs import check_writable, write_text
+        The files are written in one ``mrlib.io.transaction.output_transaction``: all four,
+        or (a full disk, a file that cannot be replaced) none, ``out_dir`` as it was;
+        never through a symbolic link; ``overwrite=False`` refuses, before writing any,
+        files already there."""
+        from mrlib.io.outputs import check_writable
+        from mrlib.io.transaction import make_folders, output_transaction
 
         out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
         names = {
             "csv": "evaluation.csv",
             "summary_csv": "evaluation_summary.csv",
@@ -242,6 +243,13 @@ class EvaluationResult:
         }
         for name in names.values():
             check_writable(out / name, overwrite=overwrite)
+        with output_transaction():
+            make_folders(out)
+            return self._save_files(out, names, overwrite)
+
+    def _save_files(self, out: Path, names: dict[str, str], overwrite: bool) -> dict[str, Path]:
+        from mrlib.io.outputs import write_text
+
         paths = {
             "csv": self.to_csv(out / names["csv"], overwrite=overwrite),
             "summary_csv": self.summary_to_csv(out / names["summary_csv"], overwrite=overwrite),

@@ -22,27 +22,53 @@ import os
 import re
 from pathlib import Path
 
+import numpy as np
+
 from mrlib.errors import (
+    ArgumentError,
+    BVHFormatError,
     MotionFileError,
     MotionValueError,
     MrlibError,
     UnsupportedFormatError,
+    check_args,
+    check_choice,
+    check_flag,
+    check_number,
     check_path,
+    check_text,
+    shown,
 )
-from mrlib.io.bvh import BVH, BVHSkeleton, format_bvh, parse_bvh, read_bvh, write_bvh
+from mrlib.io.bvh import (
+    BVH,
+    BVHSkeleton,
+    format_bvh,
+    frame_time_problem,
+    parse_bvh,
+    read_bvh,
+    write_bvh,
+)
 from mrlib.io.export import smpl_to_bvh
-from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, shipped_joint_maps
+from mrlib.io.jointmap import (
+    JointMap,
+    check_joint_map,
+    detect_joint_map,
+    load_joint_map,
+    shipped_joint_maps,
+)
 from mrlib.io.npz import load_easymocap, load_npz, save_npz
-from mrlib.io.outputs import check_writable, write_text
+from mrlib.io.outputs import OutputError, check_writable, write_text
 from mrlib.io.paths import default_data_dir, read_text_bounded
 from mrlib.io.retarget import calibrate_retarget, retarget_bvh
 from mrlib.io.retarget_report import RetargetResult
-from mrlib.representation.motion import Motion
+from mrlib.representation.body import check_body
+from mrlib.representation.motion import MAX_FPS, MAX_ROTATION_RAD, Motion
 
 __all__ = [
     "default_data_dir",
     "load_motion",
     "save_motion",
+    "joint_maps_for",
     "load_label",
     "load_bvh",
     "load_npz",
@@ -152,6 +178,7 @@ def load_bvh(
     """
     path = Path(path)
     bvh = read_bvh(path)
+    _check_angles(bvh, path)
     r = retarget_bvh(bvh, joint_map, body=body, up_axis=up_axis, unit=unit, **retarget_options)
     if label == "auto":
         label = None
@@ -171,6 +198,24 @@ def load_bvh(
         meta=meta,
     )
     return motion if fps is None else motion.resample(fps)
+
+
+def _check_angles(bvh: BVH, path: Path) -> None:
+    """Refuse rotation channels beyond ``MAX_ROTATION_RAD`` (in degrees): a damaged file
+    or wrong columns, not a rotation (the matrices of any number look like one)."""
+    names = [c for chs in bvh.skeleton.channels for c in chs]
+    cols = [i for i, c in enumerate(names) if c.endswith("rotation")]
+    if not cols or not bvh.num_frames:
+        return
+    v = np.abs(bvh.motion[:, cols])
+    limit = np.degrees(MAX_ROTATION_RAD)
+    if v.max() > limit:
+        frame, k = np.unravel_index(int(v.argmax()), v.shape)
+        raise BVHFormatError(
+            path,
+            f"frame {frame + 1}: a rotation channel holds {v[frame, k]:.3g} degrees, more "
+            f"than {limit:.0f}: not an angle (a damaged file?)",
+        )
 
 
 def _not_a_file(path: Path) -> str:
@@ -200,6 +245,43 @@ def _not_a_file(path: Path) -> str:
     return f"is {kind}, not a regular file; mrlib reads regular files only"
 
 
+def _check_unit(name: str, value):
+    if isinstance(value, str):
+        return value
+    return check_number(name, value, low=0, open_low=True)
+
+
+def _format_options(path: Path, kind: str, joint_map, unit, person) -> None:
+    """Refuse the options of one format given for a file of another (they would be
+    ignored): ``joint_map``/``unit`` are BVH's, ``person`` EasyMocap's."""
+    given = []
+    if kind != "bvh":
+        given += ["joint_map (--joint-map)"] * (joint_map is not None)
+        given += [f"unit={unit!r}"] * (unit != "auto")
+    if kind != "easymocap":
+        given += [f"person={person!r}"] * (person != 0)
+    if given:
+        what = {"bvh": "a BVH file", "npz": "an .npz of SMPL parameters"}.get(
+            kind, "an EasyMocap folder"
+        )
+        only = {"joint_map": "BVH files", "unit=": "BVH files", "person=": "EasyMocap folders"}
+        first = given[0]
+        applies = next(v for k, v in only.items() if first.startswith(k))
+        raise MotionFileError(
+            path, f"{first} applies to {applies} only, and this is {what}; leave it out"
+        )
+
+
+@check_args(
+    path=check_path,
+    fps=lambda n, v: check_number(n, v, low=0, high=MAX_FPS, open_low=True, optional=True),
+    joint_map=check_joint_map,
+    body=check_body,
+    up_axis=lambda n, v: check_text(n, v, optional=True),
+    unit=_check_unit,
+    person=lambda n, v: check_number(n, v, low=0, integer=True),
+    label=lambda n, v: check_text(n, v, optional=True),
+)
 def load_motion(
     path: str | Path,
     fps: float | None = None,
@@ -217,23 +299,30 @@ def load_motion(
         path: ``.bvh``, ``.npz``, or a folder of EasyMocap per-frame JSON files.
         fps: resample to this rate. Required for EasyMocap folders, which store no rate:
             there it *is* the capture rate (nothing is resampled).
-        joint_map: BVH only: a shipped map name, JSON path or ``{smpl: bvh}`` dict.
+        joint_map: BVH only (refused for other files): a shipped map name, JSON path
+            or ``{smpl: bvh}`` dict.
         body: body model (default: mrlib's), used for the rest joints.
         up_axis: the source's up axis, ``x y z -x -y -z`` or ``"auto"``. Defaults: BVH
             ``"auto"`` (from the skeleton), npz the file's ``up_axis`` key or ``"z"``
             (AMASS), EasyMocap ``"auto"`` (from the body's orientation).
         unit: BVH only: metres per file unit or ``"auto"``.
         person: EasyMocap only: the person ``id`` to read.
-        label: BVH only: ``"auto"`` reads a Bandai Namco JSON next to the file.
+        label: ``"auto"``: BVH files read a Bandai Namco JSON next to the file, npz
+            files their own ``label`` key; None or a string replaces it.
+
+    Arguments of the wrong type (``fps="30"``, ``path=123``) are an ``ArgumentError``
+    naming the argument; an option of another format (``joint_map`` for an npz) is
+    refused, not ignored.
 
     Raises:
         UnsupportedFormatError: unknown extension.
         MotionFileError: missing or malformed file (``BVHFormatError``,
             ``JointMapError`` for BVH problems), with the path and the problem.
     """
-    path = check_path("path", path)
     if path.is_dir():
-        return load_easymocap(path, fps, person=person, up_axis=up_axis or "auto", body=body)
+        _format_options(path, "easymocap", joint_map, unit, person)
+        motion = load_easymocap(path, fps, person=person, up_axis=up_axis or "auto", body=body)
+        return motion if label == "auto" else motion.replace(label=label)
     ext = path.suffix.lower()
     if ext not in SUPPORTED_EXTENSIONS:
         raise UnsupportedFormatError(
@@ -241,6 +330,7 @@ def load_motion(
         )
     if not path.is_file():
         raise MotionFileError(path, _not_a_file(path))
+    _format_options(path, ext[1:], joint_map, unit, person)
     try:
         if ext == ".bvh":
             return load_bvh(
@@ -252,7 +342,8 @@ def load_motion(
                 unit=unit,
                 label=label,
             )
-        return load_npz(path, fps, up_axis=up_axis, body=body)
+        motion = load_npz(path, fps, up_axis=up_axis, body=body)
+        return motion if label == "auto" else motion.replace(label=label)
     except MotionFileError:
         raise
     except MotionValueError as e:  # the values read make no motion (bounds, NaN, shapes)
@@ -267,6 +358,30 @@ def load_motion(
         raise MotionFileError(path, "too large to read into memory") from e
 
 
+def joint_maps_for(paths, joint_map) -> list:
+    """Per file of ``paths``, the joint map to read it with: ``joint_map`` for BVH files,
+    None for the others (SMPL parameters need none). A joint map given for files none of
+    which is a BVH is refused (it would be ignored)."""
+    files = [Path(os.fsdecode(os.fspath(p))) for p in paths]
+    is_bvh = [f.suffix.lower() == ".bvh" for f in files]
+    if joint_map is not None and files and not any(is_bvh):
+        raise MotionFileError(
+            files[0] if len(files) == 1 else None,
+            "joint_map (--joint-map) applies to BVH files only, and "
+            + ("this is not one" if len(files) == 1 else "none of these files is one")
+            + "; leave it out",
+        )
+    return [joint_map if b else None for b in is_bvh]
+
+
+@check_args(
+    path=check_path,
+    body=check_body,
+    bvh_unit=lambda n, v: check_choice(n, v, ("cm", "m")),
+    euler_order=lambda n, v: check_choice(n, v.upper() if isinstance(v, str) else v,
+                                          ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")),
+    overwrite=check_flag,
+)  # fmt: skip
 def save_motion(
     motion: Motion,
     path: str | Path,
@@ -290,13 +405,24 @@ def save_motion(
         OutputError: ``path`` is a symbolic link or not a regular file.
         MotionFileError: the write failed (a missing folder, a full disk).
     """
-    path = check_path("path", path)
     if not isinstance(motion, Motion):
-        raise MotionValueError(f"save_motion wants a Motion, got {type(motion).__name__}")
+        hint = ""
+        if isinstance(motion, (str, os.PathLike)):
+            hint = " (a file: load it with mrlib.load_motion first)"
+        raise ArgumentError(
+            f"save_motion wants a Motion, got {type(motion).__name__}: motion={shown(motion)}{hint}"
+        )
     ext = path.suffix.lower()
     if ext not in (".npz", ".bvh", ".glb"):
         raise UnsupportedFormatError(
             path, f"unsupported file type '{ext}'; mrlib writes .bvh, .glb and .npz"
+        )
+    problem = frame_time_problem(float(f"{1.0 / motion.fps:.8f}")) if ext == ".bvh" else None
+    if problem is not None:  # what mrlib's reader (and most others) would refuse
+        raise MotionFileError(
+            path,
+            f"a motion at {motion.fps:g} fps makes no BVH: {problem}; resample it first "
+            "(motion.resample(fps), or `mrlib export --fps`)",
         )
     check_writable(path, overwrite=overwrite)
     try:
@@ -309,5 +435,7 @@ def save_motion(
         bvh = smpl_to_bvh(motion, body=body, unit=bvh_unit, order=euler_order)
         return write_text(path, format_bvh(bvh), overwrite=overwrite)
     except OSError as e:
+        if isinstance(e, OutputError):  # it names the file and what became of it
+            raise MotionFileError(e.path, e.problem) from e
         kept = "; the previous file is kept" if os.path.lexists(path) else ""
         raise MotionFileError(path, f"cannot write: {e.strerror or e}{kept}") from e

@@ -196,6 +196,20 @@ MAX_DEPTH = 256  # joints nested deeper than this are refused (humanoid rigs: < 
 # files over this are refused from their size, before reading: about 20 minutes of a
 # 60-joint rig at 120 fps; mrlib trains on at most 18,000 frames of a clip anyway
 MAX_BVH_BYTES = 256 * 2**20
+# "Frame Time:" bounds in seconds per frame, one pair for the reader (which refuses
+# others) and the writer (which never writes them): 1000 fps down to 0.01 fps
+MIN_FRAME_TIME = 1.0 / MAX_FPS
+MAX_FRAME_TIME = 100.0
+
+
+def frame_time_problem(frame_time: float) -> str | None:
+    """Why ``frame_time`` (seconds) is no BVH frame time, or None when it is one."""
+    if math.isfinite(frame_time) and MIN_FRAME_TIME <= frame_time <= MAX_FRAME_TIME:
+        return None
+    return (
+        f"'Frame Time:' must be seconds per frame between {MIN_FRAME_TIME:g} and "
+        f"{MAX_FRAME_TIME:g} ({1 / MAX_FRAME_TIME:g} to {1 / MIN_FRAME_TIME:g} fps)"
+    )
 
 
 def _parse_joint(tk: _Tokens, name: str, parent: int, out: dict, depth: int = 0) -> None:
@@ -377,12 +391,9 @@ def parse_bvh(text: str, *, source: str | Path = "<string>") -> BVH:
         frame_time = float(header["Frame Time"])
     except ValueError:
         frame_time = float("nan")
-    if not (math.isfinite(frame_time) and 1.0 / MAX_FPS <= frame_time <= 100.0):
-        raise BVHFormatError(
-            source,
-            f"line {i}: 'Frame Time:' must be seconds per frame between {1.0 / MAX_FPS:g} "
-            f"and 100, got '{header['Frame Time']}'",
-        )
+    problem = frame_time_problem(frame_time)
+    if problem is not None:
+        raise BVHFormatError(source, f"line {i}: {problem}, got '{header['Frame Time']}'")
     motion = _parse_frames(lines, i, n_frames, skeleton.num_channels, source)
     return BVH(skeleton=skeleton, motion=motion, frame_time=frame_time, source=source)
 
@@ -597,7 +608,13 @@ def format_bvh(bvh: BVH, *, precision: int = 6) -> str:
 
     for r in (j for j, p in enumerate(sk.parents) if p < 0):
         emit(r, 0)
-    out += ["MOTION", f"Frames: {bvh.num_frames}", f"Frame Time: {bvh.frame_time:.8f}"]
+    frame_time = f"{bvh.frame_time:.8f}"
+    problem = frame_time_problem(float(frame_time))  # as written: what a reader sees
+    if problem is not None:
+        raise BVHFormatError(
+            bvh.source, f"cannot write a BVH: {problem}, got {bvh.frame_time:.8g} s"
+        )
+    out += ["MOTION", f"Frames: {bvh.num_frames}", f"Frame Time: {frame_time}"]
     text = "\n".join(out) + "\n"
     if bvh.num_frames:
         starts = sk.channel_starts()
@@ -605,8 +622,11 @@ def format_bvh(bvh: BVH, *, precision: int = 6) -> str:
             [np.arange(starts[j], starts[j] + len(sk.channels[j])) for j in order]
         )
         values = bvh.motion[:, cols.astype(np.int64)]
-        body = np.char.mod(f"%.{precision}f", np.round(values, precision) + 0.0)
-        text += "\n".join(" ".join(row) for row in body) + "\n"
+        pieces = [text]
+        for a in range(0, len(values), 4096):  # in pieces: a few MB of strings at a time
+            body = np.char.mod(f"%.{precision}f", np.round(values[a : a + 4096], precision) + 0.0)
+            pieces.append("\n".join(" ".join(row) for row in body) + "\n")
+        text = "".join(pieces)
     return text
 
 

@@ -62,8 +62,10 @@ def smpl_to_bvh(motion, *, body=None, unit: str = "cm", order: str = "ZXY") -> B
         names=JOINT_NAMES, parents=PARENTS, offsets=offsets, channels=channels, end_sites=ends
     )
     T = motion.num_frames
-    R = axis_angle_to_matrix(torch.from_numpy(motion.poses.astype(np.float64))).numpy()
-    euler = matrix_to_euler(R, order)  # (T, 24, 3) degrees
+    euler = np.empty((T, NUM_JOINTS, 3))  # degrees
+    for a in range(0, T, 8192):  # in pieces: the float64 temporaries of a few MB at a time
+        aa = torch.from_numpy(motion.poses[a : a + 8192].astype(np.float64))
+        euler[a : a + 8192] = matrix_to_euler(axis_angle_to_matrix(aa).numpy(), order)
     root = (motion.trans.astype(np.float64) + J[0]) * k
     values = np.concatenate([root, euler.reshape(T, -1)], axis=1)  # (T, 3 + 72)
     return BVH(

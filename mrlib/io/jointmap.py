@@ -11,14 +11,16 @@ ancestor maps to a source ancestor).
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from mrlib.errors import JointMapError
+from mrlib.errors import ArgumentError, JointMapError, shown
 from mrlib.io.paths import read_text_bounded
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
@@ -28,6 +30,7 @@ __all__ = [
     "SMPL_JOINT_MAP",
     "load_joint_map",
     "joint_map_from_json",
+    "check_joint_map",
     "shipped_joint_maps",
     "detect_joint_map",
     "validate_map",
@@ -60,6 +63,32 @@ class JointMap:
     refit_torso: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise JointMapError(None, f"a joint map's name must be text, got {shown(self.name)}")
+        if not isinstance(self.mapping, Mapping):
+            raise JointMapError(
+                None,
+                f"joint map '{self.name}' must be an object {{smpl_joint: source_joint}}, "
+                f"got {shown(self.mapping)}",
+            )
+        for k, v in self.mapping.items():
+            if not isinstance(k, str) or not isinstance(v, str) or not v:
+                raise JointMapError(
+                    None,
+                    f"joint map '{self.name}': each entry maps an SMPL joint name to a source "
+                    f"joint name (text), got {shown(k)}: {shown(v)}",
+                )
+        if not isinstance(self.description, str):
+            raise JointMapError(
+                None,
+                f"joint map '{self.name}': 'description' must be text, got {shown(self.description)}",
+            )
+        if not isinstance(self.refit_torso, bool):
+            raise JointMapError(
+                None,
+                f"joint map '{self.name}': 'refit_torso' must be true or false, got "
+                f"{shown(self.refit_torso)}",
+            )
         bad = [k for k in self.mapping if k not in JOINT_NAMES]
         if bad:
             raise JointMapError(
@@ -101,24 +130,64 @@ SMPL_JOINT_MAP = JointMap(
 )
 
 
+def _from_data(data: Any, default_name: str, path: Path | None) -> JointMap:
+    """A map from what a joint map file holds (or the same as a dict): ``{"name",
+    "description", "refit_torso", "map": {smpl: source}}`` or a flat ``{smpl: source}``."""
+    layout = (
+        'expected {"map": {smpl_name: source_name, ...}} or a flat {smpl_name: source_name} object'
+    )
+    if not isinstance(data, dict):
+        raise JointMapError(path, f"{layout}, got {shown(data)}")
+    try:
+        if "map" in data:
+            if not isinstance(data["map"], dict):
+                raise JointMapError(
+                    path,
+                    f"'map' must be an object {{smpl_name: source_name}}, got {shown(data['map'])}",
+                )
+            extra = sorted(set(data) - {"name", "description", "refit_torso", "map"})
+            if extra:
+                raise JointMapError(
+                    path, f"unknown keys {extra} beside 'map' (name, description, refit_torso)"
+                )
+            return JointMap(
+                data.get("name", default_name),
+                dict(data["map"]),
+                data.get("description", ""),
+                data.get("refit_torso", False),
+            )
+        return JointMap(default_name, dict(data))
+    except JointMapError as e:
+        if e.path is None and path is not None:
+            raise JointMapError(path, e.problem) from None
+        raise
+
+
 def joint_map_from_json(path: Path) -> JointMap:
     """A map from ``{"name", "description", "map": {smpl: source}}`` (and optionally
-    ``"refit_torso": true``) or a flat ``{smpl: source}`` JSON object."""
+    ``"refit_torso": true``) or a flat ``{smpl: source}`` JSON object. Anything else (a
+    list, numbers or nested objects for joint names, unknown SMPL joints) is a one-line
+    ``JointMapError`` naming the file."""
+    path = Path(path)
     try:
         data = json.loads(read_text_bounded(path, 2**20, "a joint map", JointMapError))
     except json.JSONDecodeError as e:
-        raise JointMapError(path, f"cannot read joint map: {e}") from None
-    if isinstance(data, dict) and isinstance(data.get("map"), dict):
-        return JointMap(
-            str(data.get("name", Path(path).stem)),
-            dict(data["map"]),
-            str(data.get("description", "")),
-            data.get("refit_torso") is True,
-        )
-    if isinstance(data, dict) and all(isinstance(v, str) for v in data.values()):
-        return JointMap(Path(path).stem, dict(data))
-    raise JointMapError(
-        path, 'expected {"map": {smpl_name: bvh_name, ...}} or a flat {smpl_name: bvh_name} object'
+        raise JointMapError(path, f"cannot read joint map: not valid JSON ({e})") from None
+    except RecursionError:
+        raise JointMapError(path, "cannot read joint map: nested too deeply for one") from None
+    except UnicodeDecodeError:
+        raise JointMapError(path, "cannot read joint map: not a UTF-8 text file") from None
+    return _from_data(data, path.stem, path)
+
+
+def check_joint_map(name: str, value: Any) -> Any:
+    """``value`` if it can name a joint map (None, a shipped map's name or a JSON path, a
+    ``{smpl: source}`` dict, a :class:`JointMap`), else an ``ArgumentError``."""
+    if value is None or isinstance(value, (str, os.PathLike, Mapping, JointMap)):
+        return value
+    raise ArgumentError(
+        f"{name} must be a shipped map's name, a JSON file, a {{smpl_joint: source_joint}} "
+        f"dict or a JointMap, got {shown(value)}"
     )
 
 
@@ -134,10 +203,11 @@ def shipped_joint_maps() -> dict[str, JointMap]:
 
 def load_joint_map(spec: str | Path | Mapping[str, str] | JointMap) -> JointMap:
     """A ``JointMap`` from a shipped map's name, a JSON file or a ``{smpl: bvh}`` dict."""
+    check_joint_map("joint_map", spec)
     if isinstance(spec, JointMap):
         return spec
     if isinstance(spec, Mapping):
-        return JointMap("custom", dict(spec))
+        return _from_data(dict(spec), "custom", None)
     if str(spec) == "smpl":
         return SMPL_JOINT_MAP
     shipped = shipped_joint_maps()
@@ -193,6 +263,13 @@ def validate_map(
             source,
             f"joint map '{jmap.name}': BVH has no joints {sorted(missing.values())} (for SMPL "
             f"{sorted(missing)}); BVH joints: {list(names)}",
+        )
+    if len(jmap.mapping) < 2:
+        raise JointMapError(
+            source,
+            f"joint map '{jmap.name}' maps only {sorted(jmap.mapping)}: retargeting needs at "
+            "least two joints (a bone) to find the file's unit and pose; map the hips, knees, "
+            "spine and arms",
         )
     src = jmap.source_indices(names)
 

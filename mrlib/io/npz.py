@@ -42,7 +42,7 @@ from mrlib.io.axes import change_up_axis, detect_up_axis, up_axis_rotation
 from mrlib.io.bodyfit import default_body, rest_pelvis
 from mrlib.io.outputs import atomic_write
 from mrlib.io.paths import read_text_bounded
-from mrlib.representation.motion import NUM_BETAS, Motion
+from mrlib.representation.motion import NUM_BETAS, Motion, check_rotations
 from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from mrlib.representation.skeleton import NUM_CONTACTS, NUM_JOINTS
 
@@ -241,6 +241,7 @@ def load_npz(
     axis = up_axis if up_axis is not None else (_text_value(data, "up_axis") or "z")
     axis = _check_axis(path, axis)
     meta["up_axis"] = axis
+    _check_rotations(path, "'poses'", poses)  # before the turn to Y up hides the root's
     poses, trans = _to_y_up(poses, trans, betas, axis, body)
     contacts = None
     if "contacts" in data:
@@ -376,6 +377,8 @@ def load_easymocap(
             _vector(f, p, "shapes", None)[:NUM_BETAS] if "shapes" in p else np.zeros(NUM_BETAS)
         )
     Rh, Th, poses = np.stack(Rh), np.stack(Th), np.stack(poses)
+    _check_rotations(folder, "'Rh'", Rh)
+    _check_rotations(folder, "'poses'", poses)
     betas = np.mean(np.stack([np.pad(s, (0, NUM_BETAS - len(s))) for s in shapes]), axis=0)
     body = default_body() if body is None else body
     J0 = rest_pelvis(body, betas)
@@ -394,6 +397,14 @@ def load_easymocap(
         )
     except MotionValueError as e:
         raise MotionFileError(folder, str(e)) from None
+
+
+def _check_rotations(path: Path, what: str, poses: np.ndarray) -> None:
+    """Axis-angle of a file refused, naming the file, beyond ``MAX_ROTATION_RAD``."""
+    try:
+        check_rotations(what, poses)
+    except MotionValueError as e:
+        raise MotionFileError(path, str(e)) from None
 
 
 def _vector(path: Path, person: dict, key: str, size: tuple[int, ...] | None) -> np.ndarray:

@@ -12,7 +12,15 @@ Every file mrlib writes (motion files, checkpoints, loss logs, renders) goes thr
   redirects a write to a file elsewhere;
 * with ``overwrite=False`` an existing target is refused, atomically (the temporary file
   is hard-linked to the name, which fails if the name exists), so two writers never
-  replace each other's file.
+  replace each other's file;
+* a write that fails in the operating system (``EFBIG`` past a file size limit,
+  ``ENOSPC``, ``EROFS``, ``EACCES``...) raises :class:`OutputWriteError`, which names the
+  file and the reason (and is an ``OSError`` too).
+
+A command that writes several files writes them in an :func:`output_transaction`
+(``mrlib.io.transaction``): each file is staged as a temporary file beside its target and
+all of them take their names together when the block ends, or none does (a failure while
+publishing restores the files already replaced). Its outputs are all written or none.
 
 :class:`RunLock` guards a folder that one process writes over a long time (a training
 run): a second writer gets :class:`RunLockedError` naming the holder (process id, host,
@@ -32,6 +40,7 @@ import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
+from contextvars import ContextVar
 from pathlib import Path
 from typing import BinaryIO
 
@@ -45,6 +54,7 @@ except ImportError:  # pragma: no cover
 __all__ = [
     "OutputError",
     "OutputExistsError",
+    "OutputWriteError",
     "RunLockedError",
     "atomic_write",
     "atomic_file",
@@ -78,6 +88,40 @@ class OutputExistsError(OutputError):
 
 class RunLockedError(OutputError):
     """Another process holds the folder's run lock."""
+
+
+class OutputWriteError(OutputError, OSError):
+    """Writing an output failed in the operating system (a full disk, a file size limit,
+    a read-only folder, a target that cannot be replaced): ``path`` names the file,
+    ``errno`` and ``strerror`` the reason. An ``OSError`` as well as an ``OutputError``."""
+
+    def __init__(self, path: str | Path, problem: str, cause: OSError | None = None):
+        super().__init__(path, problem)
+        if cause is not None:
+            self.errno, self.strerror = cause.errno, cause.strerror or str(cause)
+
+    def __str__(self) -> str:  # not OSError's "[Errno N] ..."
+        return f"{self.path}: {self.problem}"
+
+
+def write_error(path: str | Path, e: OSError, what: str = "") -> OutputWriteError:
+    """``e`` (an OS error while writing ``path``) as an :class:`OutputWriteError` naming
+    ``path``; ``what`` says what became of it (default: what :func:`atomic_write` keeps)."""
+    if isinstance(e, OutputWriteError):
+        return e
+    reason = e.strerror or str(e) or type(e).__name__
+    if not what:
+        if _ACTIVE.get() is not None:
+            what = "none of this command's outputs was written (earlier files are kept)"
+        elif os.path.lexists(path):
+            what = "the previous file is kept"
+        else:
+            what = "nothing was written"
+    return OutputWriteError(path, f"cannot write: {reason}; {what}", e)
+
+
+# the transaction the current command writes in (``mrlib.io.transaction``), or None
+_ACTIVE: ContextVar = ContextVar("mrlib_output_transaction", default=None)
 
 
 def _temporary_name(path: Path) -> Path:
@@ -203,18 +247,43 @@ def atomic_write(
 @contextlib.contextmanager
 def atomic_file(path: str | Path, *, overwrite: bool = False) -> Iterator[BinaryIO]:
     """``with atomic_file(path) as fh: ...``: the file takes its name only when the
-    block ends without an exception (see :func:`atomic_write`)."""
+    block ends without an exception (see :func:`atomic_write`); inside an
+    :func:`output_transaction`, when the transaction ends."""
     path = Path(path)
     check_writable(path, overwrite=overwrite)
     remove_stale_temporaries(path)
+    tx = _ACTIVE.get()
     tmp = _temporary_name(path)
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o666)
     try:
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        _publish(tmp, path, overwrite)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | _CLOEXEC, 0o666)
+    except OSError as e:
+        raise write_error(path, e) from e
+    try:
+        fh = os.fdopen(fd, "wb")
+        try:
+            try:
+                yield fh
+                fh.flush()
+                os.fsync(fh.fileno())
+                fh.close()
+            except OSError as e:  # the disk's limits (a full disk, a file size limit)
+                raise write_error(path, e) from e
+            except RuntimeError as e:  # torch.save's writer wraps the OS error
+                if isinstance(e.__context__, OSError):
+                    raise write_error(path, e.__context__) from e
+                raise
+        finally:
+            with contextlib.suppress(OSError):  # a failed close must not hide the error
+                fh.close()
+        if tx is not None:
+            tx.stage(tmp, path, overwrite)  # published when the transaction ends
+            return
+        try:
+            _publish(tmp, path, overwrite)
+        except OutputError:
+            raise
+        except OSError as e:
+            raise write_error(path, e) from e
     except BaseException:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -234,17 +303,53 @@ def write_text(
     return write_bytes(path, text.encode(encoding), overwrite=overwrite)
 
 
+class _AppendFile:
+    """A text file open for appending whose failed writes raise :class:`OutputWriteError`
+    naming it (an ``EFBIG`` from a buffered write names no file by itself)."""
+
+    def __init__(self, fh, path: Path):
+        self._fh, self.path = fh, path
+
+    def _call(self, name: str, *args):
+        try:
+            return getattr(self._fh, name)(*args)
+        except OSError as e:
+            raise write_error(self.path, e, "its earlier lines are kept") from e
+
+    def write(self, text: str) -> int:
+        return self._call("write", text)
+
+    def flush(self) -> None:
+        self._call("flush")
+
+    def close(self) -> None:
+        self._call("close")
+
+    def __getattr__(self, name: str):
+        return getattr(self._fh, name)
+
+    def __enter__(self) -> _AppendFile:
+        return self
+
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is None:
+            self.close()
+            return
+        with contextlib.suppress(OSError):  # the write that failed is being reported
+            self._fh.close()
+
+
 def open_for_append(path: str | Path, newline: str | None = "") -> object:
     """A text file opened for appending to an existing regular file, never through a
-    symbolic link (``O_NOFOLLOW``)."""
+    symbolic link (``O_NOFOLLOW``); a failed write raises :class:`OutputWriteError`."""
     path = Path(path)
     try:
         fd = os.open(path, os.O_WRONLY | os.O_APPEND | _NOFOLLOW | _CLOEXEC)
     except OSError as e:
         if e.errno == errno.ELOOP:
             raise OutputError(path, "is a symbolic link; refusing to write through it") from None
-        raise
-    return os.fdopen(fd, "a", newline=newline, encoding="utf-8")
+        raise write_error(path, e, "nothing was written") from e
+    return _AppendFile(os.fdopen(fd, "a", newline=newline, encoding="utf-8"), path)
 
 
 # -- the run lock ----------------------------------------------------------------------------

@@ -27,6 +27,7 @@ __all__ = [
     "default_data_dir",
     "CACHE_ENV",
     "cache_root",
+    "folder_problem",
     "UnsafePathError",
     "safe_component",
     "unique_components",
@@ -56,6 +57,20 @@ def default_data_dir(data_dir: str | Path | None = None) -> Path:
 
 
 CACHE_ENV = "MRLIB_CACHE_DIR"
+
+
+def folder_problem(path: str | Path) -> str | None:
+    """Why ``path`` can be no folder (it exists and is not one, or a folder above it is a
+    file), or None when it is one or can be made."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        return f"{p} exists and is not a folder"
+    for above in p.parents:
+        if os.path.lexists(above):
+            if not above.is_dir():
+                return f"{above} is a file, not a folder, so {p} cannot be made"
+            break
+    return None
 
 
 def cache_root() -> Path:

@@ -128,6 +128,11 @@ __all__ = [
 ]
 
 
+# A mean joint error beyond this (1 km) is no fit at all but garbage in the file: refused,
+# where errors of a wrong map (tens of cm) load with a RetargetWarning.
+MAX_RETARGET_ERROR_CM = 1e5
+
+
 def retarget_bvh(
     bvh: BVH,
     joint_map: str | Path | Mapping[str, str] | JointMap | None = None,
@@ -245,6 +250,13 @@ def retarget_bvh(
         mode=mode, betas_at_bound=fit.at_bound(b), implausible_joints=implausible_joints(poses),
         **clip_errors(source, G, J, trans, scale_used, leg_src, mode),
     )  # fmt: skip
+    if not result.error_mean_cm <= MAX_RETARGET_ERROR_CM:  # NaN included
+        raise MotionFileError(
+            bvh.source,
+            f"cannot retarget onto SMPL: the fitted joints lie {result.error_mean_cm:.3g} cm "
+            "from the file's on average, no body's skeleton or motion (a damaged file, or "
+            "values in the wrong columns?)",
+        )
     text = warning_text(result, bvh.source, shape_bound)
     if text is not None:
         result = replace(result, warning=text)

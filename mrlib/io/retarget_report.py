@@ -236,8 +236,12 @@ def warning_text(r: RetargetResult, source, bound: float) -> str | None:
     its joint angles are not a person's."""
     if not (r.error_mean_cm > RETARGET_WARN_CM or r.implausible_joints):
         return None
-    per = {JOINT_NAMES[j]: e for j, e in enumerate(r.joint_error_cm) if not np.isnan(e)}
-    worst = sorted(per, key=per.get, reverse=True)[:3]
+    # the numbers of the meta (rounded alike), worst first, ties in joint order, so that
+    # the joints named are the meta's worst whatever the last bits of the fit
+    per = {
+        JOINT_NAMES[j]: round(float(e), 3) for j, e in enumerate(r.joint_error_cm) if np.isfinite(e)
+    }
+    worst = sorted(per, key=lambda n: (-per[n], JOINT_NAMES.index(n)))[:3]
     what = (
         "mean joint error"
         if r.mode == "positions"

@@ -23,16 +23,24 @@ Keys (``FORMAT_VERSION`` 1)::
     progress                 {"block": int, "iteration": int, "done": bool}
     optim_g, optim_d         optimizer state dicts of the running block (or None)
     rng                      {"torch", "numpy", "python", "trainer"} RNG states
+    threads                  torch thread count the run trains with (kept on resume;
+                             absent in checkpoints written before it was recorded)
     checksum                 SHA-256 of everything above (``state_checksum``), checked
                              on load: a flipped byte is reported, not loaded
+
+Checkpoints written before 2026-12-01 have no ``checksum`` (same version 1), so one
+without it still loads, with a :class:`CheckpointWarning` (it may be one of those, or a
+file whose checksum was taken out). Labels listed twice are refused.
 """
 
 from __future__ import annotations
 
 import contextlib
 import hashlib
+import os
 import pickle
 import random
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -41,7 +49,8 @@ import numpy as np
 import torch
 
 from mrlib.errors import MotionFileError, MrlibError
-from mrlib.io.outputs import atomic_write, write_text
+from mrlib.io.outputs import OutputWriteError, atomic_write, write_text
+from mrlib.io.transaction import make_folders, output_transaction
 
 __all__ = [
     "FORMAT",
@@ -51,6 +60,7 @@ __all__ = [
     "state_checksum",
     "reading",
     "CheckpointError",
+    "CheckpointWarning",
     "global_rng_state",
     "set_global_rng_state",
 ]
@@ -61,6 +71,10 @@ FORMAT_VERSION = 1
 
 class CheckpointError(MotionFileError):
     """A checkpoint file is missing, unreadable, or not an mrlib checkpoint."""
+
+
+class CheckpointWarning(UserWarning):
+    """A checkpoint loads but cannot be checked (it has no checksum)."""
 
 
 def _digest(h: Any, value: Any) -> None:
@@ -91,37 +105,36 @@ def state_checksum(state: dict[str, Any]) -> str:
 
 def save_checkpoint(path: str | Path, state: dict[str, Any], *, overwrite: bool = True) -> Path:
     """Write ``state`` atomically to ``path`` (and its config to ``path.json``), with a
-    checksum of its content, through ``mrlib.io.outputs.atomic_write``: a failed write
-    (full disk, interruption) leaves the previous file as it was and removes the
-    temporary file; a symbolic link at ``path`` is refused, never followed;
-    ``overwrite=False`` refuses an existing file."""
+    checksum of its content, through ``mrlib.io.outputs``: both files in one
+    ``output_transaction`` (both written, or neither); a failed write (full disk, file
+    size limit, interruption) leaves the previous files as they were and removes the
+    temporary files, and the error says whether there was a previous checkpoint; a
+    symbolic link at ``path`` is refused, never followed; ``overwrite=False`` refuses an
+    existing file."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folders(path.parent)
     state = {"format": FORMAT, "version": FORMAT_VERSION, **state}
     state["checksum"] = state_checksum(state)
+    meta = path.with_name(path.name + ".json")
+    had = os.path.lexists(path)
     try:
-        atomic_write(path, lambda fh: torch.save(state, fh), overwrite=overwrite)
+        with output_transaction():
+            atomic_write(path, lambda fh: torch.save(state, fh), overwrite=overwrite)
+            if "config" in state:
+                write_text(meta, state["config"], overwrite=overwrite)
+        return path
+    except OutputWriteError as exc:
+        failed, why, cause = exc.path, exc.strerror or exc.problem, exc
     except MrlibError:
         raise
-    except BaseException as exc:
+    except (OSError, RuntimeError) as exc:  # RuntimeError: torch's zip writer, a short write
+        failed, cause = path, exc
+        why = "the write failed part-way (disk full, or a file size limit?)"
         if isinstance(exc, OSError):
             why = exc.strerror or str(exc)
-        elif isinstance(exc, RuntimeError):  # torch's zip writer: a short or failed write
-            why = "the write failed part-way (disk full, or a file size limit?)"
-        else:
-            raise
-        raise CheckpointError(
-            path, f"could not write the checkpoint: {why}; the previous one is kept"
-        ) from exc
-    if "config" in state:
-        meta = path.with_name(path.name + ".json")
-        try:
-            write_text(meta, state["config"], overwrite=overwrite)
-        except OSError as exc:
-            raise CheckpointError(
-                meta, f"could not write the config: {exc.strerror or exc}; the previous one is kept"
-            ) from exc
-    return path
+    what = "config" if failed == meta else "checkpoint"
+    kept = "the previous one is kept" if had else "nothing was written"
+    raise CheckpointError(failed, f"could not write the {what}: {why}; {kept}") from cause
 
 
 @contextlib.contextmanager
@@ -161,7 +174,15 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         raise CheckpointError(path, f"cannot read checkpoint: {str(exc).splitlines()[0]}") from exc
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise CheckpointError(path, "not an mrlib checkpoint (missing 'format' key)")
-    if "checksum" in state and state["checksum"] != state_checksum(state):
+    if "checksum" not in state:
+        warnings.warn(
+            f"{path}: the checkpoint has no checksum, so damage or an edit cannot be "
+            "detected (mrlib writes one since 2026-12-01: an older file, or one changed "
+            "by hand); resuming training writes a checked one",
+            CheckpointWarning,
+            stacklevel=2,
+        )
+    elif state["checksum"] != state_checksum(state):
         raise CheckpointError(
             path, "checksum mismatch: the file is corrupt (changed after it was written)"
         )
@@ -171,7 +192,25 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
             f"checkpoint version {state.get('version')} is not supported "
             f"(this mrlib reads version {FORMAT_VERSION})",
         )
+    _check_labels(path, state)
     return state
+
+
+def _check_labels(path: Path, state: dict[str, Any]) -> None:
+    """The checkpoint's ``labels``, where present, are distinct names (a label names one
+    condition: a second 'walk_sad' would make two conditions of one name)."""
+    if "labels" not in state:
+        return  # reported as missing where it is needed
+    labels = state["labels"]
+    if not isinstance(labels, (list, tuple)) or not all(isinstance(x, str) and x for x in labels):
+        raise CheckpointError(path, "invalid checkpoint: 'labels' must be a list of label names")
+    twice = sorted({x for x in labels if labels.count(x) > 1})
+    if twice:
+        raise CheckpointError(
+            path,
+            f"invalid checkpoint: label {twice[0]!r} is listed twice in 'labels' "
+            f"({list(labels)}); each label names one condition",
+        )
 
 
 def global_rng_state() -> dict:

@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from mrlib.errors import MrlibError
+from mrlib.errors import MrlibError, check_fields
 from mrlib.representation.skeleton import UPPER_BODY_JOINTS
 
 __all__ = [
@@ -130,6 +130,7 @@ class ModelConfig:
     critic_band: str = "full"
 
     def __post_init__(self):
+        check_fields(self, ConfigError)
         if not 1 <= self.num_levels <= MAX_LEVELS:
             raise ConfigError(
                 f"num_levels must be in [1, {MAX_LEVELS}], got {self.num_levels} (the paper "
@@ -188,6 +189,7 @@ class LossWeights:
     detail: float = 0.0
 
     def __post_init__(self):
+        check_fields(self, ConfigError)
         for name in ("adv", "con", "rec", "smooth", "gp", "mismatch", "detail"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"loss weight {name} must be >= 0, got {getattr(self, name)}")
@@ -216,6 +218,7 @@ class TrainConfig:
     device: str = "cpu"
 
     def __post_init__(self):
+        check_fields(self, ConfigError)
         object.__setattr__(self, "block_iterations", tuple(int(n) for n in self.block_iterations))
         object.__setattr__(self, "betas", tuple(float(b) for b in self.betas))
         if self.block_size < 1:

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import ArgumentError, MotionValueError, check_args, check_path, shown
 from mrlib.model.checkpoint import load_checkpoint, reading
 from mrlib.model.config import TrainConfig, config_from_json
 from mrlib.model.networks import MultiResGenerator, build_generator
@@ -24,6 +24,9 @@ __all__ = [
     "model_from_state",
     "load_model",
     "model_from_trainer",
+    "check_model",
+    "check_label_model",
+    "check_device",
 ]
 
 # Amplitude of the finest level's noise at sampling, as a share of its training sigma_L
@@ -70,6 +73,7 @@ class GenerativeModel:
     trained_levels: int  # levels whose training finished (all of them for a done run)
     fine_noise: float = FINE_NOISE
     guidance: float = GUIDANCE
+    progress: dict | None = None  # the checkpoint's {"block", "iteration", "done"}
 
     @property
     def num_levels(self) -> int:
@@ -89,6 +93,21 @@ class GenerativeModel:
         if label not in self.labels:
             raise MotionValueError(f"unknown label {label!r}; this model knows {self.labels}")
         return self.labels.index(label)
+
+    def unfinished(self) -> str | None:
+        """Where an unfinished run stopped (``"block 2 of 4, iteration 150 of 800; levels
+        1-4 of 8 trained"``), or None for a finished one (or one of unknown progress)."""
+        p = self.progress
+        if not p or p.get("done", True):
+            return None
+        its = self.config.block_iterations
+        b = int(p.get("block", 0))
+        where = f"block {b + 1} of {len(its)}"
+        if b < len(its):
+            where += f", iteration {int(p.get('iteration', 0))} of {its[b]}"
+        done = self.trained_levels
+        trained = f"levels 1-{done} of {self.num_levels} trained" if done else "no level trained"
+        return f"{where}; {trained}"
 
     def __repr__(self) -> str:
         return (
@@ -121,11 +140,67 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
         zstar=list(state["zstar"]),
         features=list(state["features"]),
         trained_levels=int(done_levels),
+        progress={"block": int(p["block"]), "iteration": int(p["iteration"]),
+                  "done": bool(p["done"])},
+    )  # fmt: skip
+
+
+def check_device(name: str, value) -> str | torch.device:
+    """``value`` if it is a device name (``"cpu"``, ``"cuda:0"``) or a ``torch.device``."""
+    if isinstance(value, (str, torch.device)) and str(value):
+        return value
+    raise ArgumentError(
+        f"{name} must be a device ('cpu', 'cuda', a torch.device), got {shown(value)}"
     )
 
 
+def _checkpoint_path(name: str, value) -> Path:
+    if isinstance(value, GenerativeModel) or hasattr(value, "generator"):
+        raise ArgumentError(f"{name} must be a checkpoint file; this is a model already loaded")
+    return check_path(name, value)
+
+
+def check_model(name: str, value):
+    """``value`` if it is a trained model (a :class:`GenerativeModel`, or a speech model
+    wrapping one), else an ``ArgumentError``. A checkpoint's path is refused with the line
+    that loads it: mrlib never loads a model behind a call that samples, so that a loop
+    of calls does not read the file each time and the device stays the caller's choice."""
+    if isinstance(value, GenerativeModel):
+        return value
+    if hasattr(value, "generator") and hasattr(value, "labels") and hasattr(value, "num_levels"):
+        return value  # a stand-in with the same attributes (tests, wrappers)
+    if hasattr(value, "feature_config") and hasattr(value, "model"):
+        return value  # mrlib.speech.SpeechModel (refused where a label model is needed)
+    if isinstance(value, (str, bytes)) or hasattr(value, "__fspath__"):
+        raise ArgumentError(
+            f"{name} must be a trained model, got the path {shown(value)}; load it first: "
+            f"model = mrlib.load_model({str(value)!r})"
+        )
+    raise ArgumentError(
+        f"{name} must be a trained model (mrlib.load_model(checkpoint)), got {shown(value)}"
+    )
+
+
+def check_label_model(name: str, value):
+    """:func:`check_model` for the functions that condition on labels: a speech model
+    (whose condition is audio) is refused with what to use instead."""
+    value = check_model(name, value)
+    speech = hasattr(value, "feature_config") or (
+        int(getattr(value.generator, "cond_dim", len(value.labels))) != len(value.labels)
+    )
+    if speech:
+        raise ArgumentError(
+            f"{name} is a speech-conditioned model (its condition is audio, not a label): "
+            "generate from audio with mrlib.speech.generate_from_audio"
+        )
+    return value
+
+
+@check_args(path=_checkpoint_path, device=check_device)
 def load_model(path: str | Path, device: str | torch.device = "cpu") -> GenerativeModel:
-    """Load a checkpoint written by ``mrlib.training.trainer`` for sampling."""
+    """Load a checkpoint written by ``mrlib.training.trainer`` for sampling. The functions
+    that sample take the loaded model: pass ``load_model(path)``, not the path (they
+    refuse a path with the line that loads it)."""
     state = load_checkpoint(path)
     with reading(path):
         return model_from_state(state, device)

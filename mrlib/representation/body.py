@@ -33,7 +33,15 @@ import smplx
 import torch
 from smplx.lbs import batch_rigid_transform
 
-from mrlib.errors import BodyModelError
+from mrlib.errors import (
+    ArgumentError,
+    BodyModelError,
+    check_args,
+    check_number,
+    check_optional_path,
+    check_text,
+    shown,
+)
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, SMPL_FOOT_VERTEX_IDS
 from mrlib.representation.smpl_files import (
     OFFICIAL_NAMES,
@@ -48,6 +56,7 @@ __all__ = [
     "BodyOutput",
     "load_body_model",
     "resolve_body",
+    "check_body",
     "fit_betas",
     "default_body_path",
     "SMPL_PATH_ENV",
@@ -330,6 +339,27 @@ def fit_betas(betas: Any, num_betas: int, dtype: Any = np.float32) -> np.ndarray
 
 
 # -- loading ------------------------------------------------------------------------------
+def check_body(name: str, value: Any) -> BodyModel | None:
+    """``value`` if it is None or a :class:`BodyModel`, else an ``ArgumentError`` (a
+    file path: load it first with :func:`load_body_model`)."""
+    if value is None or isinstance(value, BodyModel):
+        return value
+    hint = ""
+    if isinstance(value, str) or hasattr(value, "__fspath__"):
+        hint = f" (a file: body=mrlib.load_body_model({str(value)!r}))"
+    raise ArgumentError(
+        f"{name} must be a body model (mrlib.load_body_model()) or None{hint}, got {shown(value)}"
+    )
+
+
+def _check_device(name: str, value: Any) -> Any:
+    if isinstance(value, (str, torch.device)):
+        return value
+    raise ArgumentError(
+        f"{name} must be a device ('cpu', 'cuda', a torch.device), got {shown(value)}"
+    )
+
+
 def resolve_body(body: BodyModel | None = None, *, shared: bool = False) -> BodyModel:
     """``body``, or the default body model (:func:`load_body_model`) when None: every
     function of mrlib that takes an optional ``body`` falls back through here.
@@ -367,6 +397,12 @@ def _resolve(path: str | Path | None, gender: str) -> tuple[Path, bool]:
     return p, p.resolve() == default_body_path()
 
 
+@check_args(
+    path=check_optional_path,
+    gender=check_text,  # its value: a BodyModelError below, as for a missing file
+    num_betas=lambda n, v: check_number(n, v, low=1, integer=True),
+    device=_check_device,
+)
 def load_body_model(
     path: str | Path | None = None,
     *,

@@ -9,16 +9,17 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from numbers import Integral
 from typing import Any
 
 import numpy as np
 import roma
 import torch
 
-from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.errors import ArgumentError, ClipTooShortError, MotionValueError, shown
 from mrlib.representation.skeleton import NUM_CONTACTS, NUM_JOINTS
 
-__all__ = ["Motion", "NUM_BETAS"]
+__all__ = ["Motion", "NUM_BETAS", "check_motion", "check_motions"]
 
 NUM_BETAS = 10
 
@@ -28,7 +29,15 @@ NUM_BETAS = 10
 # Module constants, read at every check: raise them for a capture that really is longer.
 MAX_FPS = 1000.0
 MAX_TRANSLATION_M = 1000.0
+# An axis-angle's length is its angle: a few times pi where a capture unwraps its angles;
+# thousands of radians are a damaged file or wrong units, not a rotation.
+MAX_ROTATION_RAD = 1000.0
 MAX_FRAMES = 5_000_000  # ~46 h at 30 fps: more is an fps typo, and would not fit in memory
+# frames a resampling may make beyond the clip's own (a 24-frame clip at 0.001 fps is 6.7 h:
+# at 30 fps, 690,000 frames): 55 minutes at 30 fps, 100 s at 1000 fps. A clip of this many
+# frames takes ~10 s and ~1 GB to write as BVH; mrlib samples and restyles 600 s at most.
+MAX_RESAMPLE_FRAMES = 100_000
+_CHUNK = 32_768  # frames interpolated at a time (a few KB of temporaries each)
 
 
 def _as_array(name: str, value: Any, shape_tail: tuple[int, ...], what: str) -> np.ndarray:
@@ -86,6 +95,7 @@ class Motion:
         T = len(self.poses)
         if T == 0:
             raise ClipTooShortError("Motion has no frames")
+        check_rotations("Motion.poses", self.poses)
         if isinstance(self.trans, torch.Tensor):
             self.trans = self.trans.detach().cpu().numpy()
         self.trans = _as_array("trans", self.trans, (3,), "root translation in metres")
@@ -98,15 +108,28 @@ class Motion:
                 f"{MAX_TRANSLATION_M:g} m): wrong units? (BVH: pass unit=...; for a real "
                 "capture that long, raise mrlib.representation.motion.MAX_TRANSLATION_M)"
             )
-        betas = np.asarray(self.betas, dtype=np.float32).reshape(-1)
+        try:
+            betas = np.asarray(self.betas, dtype=np.float32).reshape(-1)
+        except (TypeError, ValueError):
+            raise ArgumentError(f"Motion.betas must be numbers, got {shown(self.betas)}") from None
         if not np.isfinite(betas).all():
             raise MotionValueError("Motion.betas has NaN or inf values")
         self.betas = betas
-        if not (np.isfinite(self.fps) and 0 < self.fps <= MAX_FPS):
-            raise MotionValueError(
-                f"Motion.fps must be a number in (0, {MAX_FPS:g}], got {self.fps}"
-            )
-        self.fps = float(self.fps)
+        fps = self.fps
+        if isinstance(fps, (bool, str, bytes)) or not isinstance(
+            fps, (int, float, np.integer, np.floating)
+        ):
+            raise ArgumentError(f"Motion.fps must be a number, got {shown(fps)}")
+        if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
+            raise MotionValueError(f"Motion.fps must be a number in (0, {MAX_FPS:g}], got {fps}")
+        self.fps = float(fps)
+        for key in ("label", "name"):
+            if getattr(self, key) is not None and not isinstance(getattr(self, key), str):
+                raise ArgumentError(
+                    f"Motion.{key} must be a string or None, got {shown(getattr(self, key))}"
+                )
+        if not isinstance(self.meta, dict):
+            raise ArgumentError(f"Motion.meta must be a dict, got {shown(self.meta)}")
         if self.contacts is not None:
             c = _as_array("contacts", self.contacts, (NUM_CONTACTS,), "foot contact labels")
             if len(c) != T:
@@ -138,6 +161,9 @@ class Motion:
     # -- editing ----------------------------------------------------------------------
     def slice(self, start: int, stop: int | None = None) -> Motion:
         """Frames ``[start, stop)`` as a new ``Motion``."""
+        for key, value in (("start", start), ("stop", stop)):
+            if value is not None and (isinstance(value, bool) or not isinstance(value, Integral)):
+                raise ArgumentError(f"Motion.slice: {key} must be an integer, got {shown(value)}")
         sl = slice(start, stop)
         if len(range(*sl.indices(self.num_frames))) == 0:
             raise ClipTooShortError(f"slice [{start}:{stop}] of {self!r} is empty")
@@ -147,20 +173,36 @@ class Motion:
             contacts=None if self.contacts is None else self.contacts[sl],
         )
 
-    def resample(self, fps: float) -> Motion:
-        """Resample to ``fps``: rotations by slerp, translation linearly, contact labels
-        by nearest frame. The first frame is kept; the last output frame is the last
-        one not after the input's end."""
+    def resampled_frames(self, fps: float) -> int:
+        """The number of frames :meth:`resample` would give at ``fps``, computed without
+        resampling (what a caller checks against its own bound first)."""
+        if not isinstance(fps, (int, float, np.integer, np.floating)) or isinstance(fps, bool):
+            raise ArgumentError(f"Motion.resample: fps must be a number, got {shown(fps)}")
         if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
             raise MotionValueError(f"target fps must be in (0, {MAX_FPS:g}], got {fps}")
         if abs(fps - self.fps) < 1e-9:
+            return self.num_frames
+        last = (self.num_frames - 1) * (float(fps) / self.fps)
+        if not last < 2**62:  # a frame rate of 1e-300: as many as no bound allows
+            return 2**62
+        return int(np.floor(last + 1e-9)) + 1
+
+    def resample(self, fps: float) -> Motion:
+        """Resample to ``fps``: rotations by slerp, translation linearly, contact labels
+        by nearest frame. The first frame is kept; the last output frame is the last
+        one not after the input's end. A resampling that would make more than
+        ``MAX_RESAMPLE_FRAMES`` frames (and more than the clip has) is refused before
+        anything is allocated."""
+        n_out = self.resampled_frames(fps)
+        if abs(fps - self.fps) < 1e-9:
             return self.replace()
         T = self.num_frames
-        n_out = int(np.floor((T - 1) * fps / self.fps + 1e-9)) + 1
-        if n_out > MAX_FRAMES:
+        if n_out > max(MAX_RESAMPLE_FRAMES, T):
             raise MotionValueError(
-                f"resampling {T} frames from {self.fps:g} to {fps:g} fps would make {n_out} "
-                f"frames (more than {MAX_FRAMES}); choose a lower fps"
+                f"resampling {self.name or 'the clip'} ({T} frames, {self.duration:.4g} s) "
+                f"from {self.fps:g} to {fps:g} fps would make {n_out} frames, more than the "
+                f"{MAX_RESAMPLE_FRAMES} mrlib resamples to; choose a lower fps, cut the clip "
+                "into pieces, or check its frame rate"
             )
         t = np.arange(n_out) * (self.fps / fps)  # positions in input frames
         return self.at_frames(t).replace(fps=float(fps))
@@ -169,7 +211,12 @@ class Motion:
         """The motion at fractional frame positions ``t`` (a 1-D array, clipped to the
         clip): rotations by slerp between the neighbouring frames, translation linearly,
         contact labels from the nearer frame. Same frame rate; ``len(t)`` frames."""
-        t = np.asarray(t, np.float64).reshape(-1)
+        try:
+            t = np.asarray(t, np.float64).reshape(-1)
+        except (TypeError, ValueError):
+            raise ArgumentError(
+                f"Motion.at_frames: t must be frame positions, got {shown(t)}"
+            ) from None
         if t.size == 0 or not np.isfinite(t).all():
             raise MotionValueError("at_frames needs a non-empty array of finite frame positions")
         T = self.num_frames
@@ -177,18 +224,51 @@ class Motion:
         i0 = np.clip(np.floor(t).astype(np.int64), 0, T - 1)
         i1 = np.clip(i0 + 1, 0, T - 1)
         w = t - i0
-        aa = torch.from_numpy(self.poses.astype(np.float64))
-        q0 = roma.rotvec_to_unitquat(aa[i0])
-        q1 = roma.rotvec_to_unitquat(aa[i1])
-        q1 = torch.where((q0 * q1).sum(-1, keepdim=True) < 0, -q1, q1)  # shortest arc
-        wt = torch.from_numpy(w)[:, None, None]
-        q = _slerp(q0, q1, wt)
-        poses = roma.unitquat_to_rotvec(q).numpy().astype(np.float32)
+        quats = roma.rotvec_to_unitquat(torch.from_numpy(self.poses.astype(np.float64)))
+        poses = np.empty((len(t), NUM_JOINTS, 3), np.float32)
+        for a in range(0, len(t), _CHUNK):  # in pieces: temporaries stay small
+            b = min(a + _CHUNK, len(t))
+            q0, q1 = quats[i0[a:b]], quats[i1[a:b]]
+            q1 = torch.where((q0 * q1).sum(-1, keepdim=True) < 0, -q1, q1)  # shortest arc
+            q = _slerp(q0, q1, torch.from_numpy(w[a:b])[:, None, None])
+            poses[a:b] = roma.unitquat_to_rotvec(q).numpy()
         trans = (1 - w)[:, None] * self.trans[i0] + w[:, None] * self.trans[i1]
         contacts = None
         if self.contacts is not None:
             contacts = self.contacts[np.where(w < 0.5, i0, i1)]
         return self.replace(poses=poses, trans=trans, contacts=contacts)
+
+
+def check_rotations(what: str, poses: np.ndarray) -> None:
+    """Refuse axis-angle ``poses (..., 3)`` (radians) longer than ``MAX_ROTATION_RAD``:
+    degrees or garbage read as radians, not a rotation."""
+    angles = np.linalg.norm(np.asarray(poses, np.float64).reshape(-1, 3), axis=-1)
+    if angles.size and angles.max() > MAX_ROTATION_RAD:
+        i = int(angles.argmax())
+        frame, joint = divmod(i, NUM_JOINTS) if np.ndim(poses) == 3 else (i, 0)
+        where = f"frame {frame}, joint {joint}" if np.ndim(poses) == 3 else f"row {i}"
+        raise MotionValueError(
+            f"{what} holds an axis-angle of {angles[i]:.3g} rad ({where}), more than "
+            f"{MAX_ROTATION_RAD:g} rad: not a rotation (degrees, or a damaged file?)"
+        )
+
+
+def check_motion(name: str, value: Any) -> Motion:
+    """``value`` if it is a :class:`Motion`, else an ``ArgumentError`` (a file path: load
+    it with ``mrlib.load_motion`` first)."""
+    if isinstance(value, Motion):
+        return value
+    hint = ""
+    if isinstance(value, str) or hasattr(value, "__fspath__"):
+        hint = " (a file: load it first with mrlib.load_motion)"
+    raise ArgumentError(f"{name} must be a mrlib.Motion{hint}, got {shown(value)}")
+
+
+def check_motions(name: str, value: Any) -> list[Motion]:
+    """``value`` as a list if it is a list or tuple of :class:`Motion` (not one Motion)."""
+    from mrlib.errors import check_list
+
+    return check_list(name, value, check_motion, what="a list of mrlib.Motion")
 
 
 def _slerp(q0: torch.Tensor, q1: torch.Tensor, w: torch.Tensor) -> torch.Tensor:

@@ -14,11 +14,12 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError, check_count, check_seed
+from mrlib.errors import MotionValueError, check_count, check_number, check_seed
 from mrlib.model.pyramid import PackedLevels, level_fps, pyramid_lengths
 from mrlib.model.trained import GenerativeModel
 from mrlib.representation.features import features_to_motion, features_to_motions
 from mrlib.representation.motion import Motion
+from mrlib.sampling.arguments import checked
 from mrlib.sampling.cleanup import cleanup_foot_contacts
 from mrlib.threads import with_policy
 
@@ -352,6 +353,7 @@ def _label_samples(
     return motions, per_level
 
 
+@checked()
 @with_policy
 def generate(
     model: GenerativeModel,
@@ -368,6 +370,11 @@ def generate(
     level's output too: :func:`generate_levels`).
 
     Args:
+        model: a loaded model (``mrlib.load_model(checkpoint)``). A checkpoint's path is
+            refused with an ``ArgumentError`` that gives the line loading it: mrlib never
+            loads a model behind a sampling call (a loop of calls would read the file
+            every time, on a device the caller did not choose). Arguments of the wrong
+            type are refused the same way before any work (``mrlib.sampling.arguments``).
         condition: a label name (``"walk_happy"``) or index for every level; or use
             ``conditions`` / ``blend`` (see :func:`label_weights`).
         length: frames of the output (any length, also longer than the training clips,
@@ -389,6 +396,7 @@ def generate(
     return motions[0]
 
 
+@checked()
 @with_policy
 def generate_many(
     model: GenerativeModel,
@@ -411,6 +419,7 @@ def generate_many(
     return motions
 
 
+@checked()
 @with_policy
 def generate_levels(
     model: GenerativeModel,
@@ -432,6 +441,7 @@ def generate_levels(
     return motions[0], levels[0]
 
 
+@checked(clip_index=lambda n, v: check_number(n, v, low=0, integer=True))
 def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.Tensor]:
     """Normalised features ``[(1, C, T_i)]`` of every level of training clip
     ``clip_index`` regenerated from its fixed noise (z*_1 at level 1, zero above) and
@@ -452,6 +462,7 @@ def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.
     return [layout.unpack(o, i)[0][None] for i, o in enumerate(outs)]
 
 
+@checked(clip_index=lambda n, v: check_number(n, v, low=0, integer=True))
 def reconstruct(model: GenerativeModel, clip_index: int) -> Motion:
     """Training clip ``clip_index`` regenerated from z* and its label (with every level:
     :func:`reconstruct_levels`)."""
@@ -461,6 +472,7 @@ def reconstruct(model: GenerativeModel, clip_index: int) -> Motion:
     return _to_motion(model, outs[-1][0], model.fps, label, name)
 
 
+@checked(clip_index=lambda n, v: check_number(n, v, low=0, integer=True))
 def reconstruct_levels(model: GenerativeModel, clip_index: int) -> tuple[Motion, list[Motion]]:
     """:func:`reconstruct`'s motion and every level's output as Motions at the level's
     frame rate (``fps * T_i / T_L``)."""

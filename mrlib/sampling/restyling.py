@@ -70,10 +70,17 @@ from typing import Any
 import numpy as np
 import torch
 
-from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.errors import (
+    ArgumentError,
+    ClipTooShortError,
+    MotionValueError,
+    check_choice,
+    shown,
+)
 from mrlib.metrics.bands import lowpass
 from mrlib.model.networks import MultiResGenerator
 from mrlib.model.pyramid import level_fps, pyramid_lengths, resample_linear
+from mrlib.model.trained import check_model
 from mrlib.representation.features import (
     NUM_FEATURES,
     ROOT_SLICE,
@@ -82,6 +89,7 @@ from mrlib.representation.features import (
 )
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import matrix_to_6d, sixd_to_matrix
+from mrlib.sampling.arguments import checked
 from mrlib.threads import with_policy
 
 __all__ = [
@@ -147,7 +155,9 @@ def restyle_level(model: Any, level: int | None) -> int:
 
 def at_model_rate(model: Any, motion: Motion | str | Path, resample: bool = True) -> Motion:
     """``motion`` (or the file it names) as a ``Motion``, resampled to the model's frame
-    rate unless ``resample`` is False."""
+    rate unless ``resample`` is False. A clip longer than ``MAX_SAMPLE_SECONDS`` at that
+    rate (a long one, or a few frames at a tiny frame rate) is refused before any
+    resampling."""
     if isinstance(motion, (str, Path)):
         from mrlib.io import load_motion
 
@@ -156,9 +166,27 @@ def at_model_rate(model: Any, motion: Motion | str | Path, resample: bool = True
         raise MotionValueError(
             f"restyle takes a Motion or a motion file, got {type(motion).__name__}"
         )
+    check_restyle_length(model, motion)
     if resample and abs(motion.fps - model.fps) > 1e-6:
         motion = motion.resample(model.fps)
     return motion
+
+
+def check_restyle_length(model: Any, motion: Motion) -> int:
+    """The frames ``motion`` has at the model's frame rate, or a ``MotionValueError``
+    when that is longer than ``MAX_SAMPLE_SECONDS`` (computed, not resampled)."""
+    from mrlib.sampling.generation import MAX_SAMPLE_SECONDS
+
+    frames = motion.resampled_frames(model.fps)
+    if frames > MAX_SAMPLE_SECONDS * model.fps + 1:
+        name = motion.meta.get("source", motion.name or "the clip")
+        raise MotionValueError(
+            f"{name}: {motion.num_frames} frames at {motion.fps:g} fps are {frames} frames "
+            f"({frames / model.fps:.4g} s) at the model's {model.fps:g} fps, longer than the "
+            f"{MAX_SAMPLE_SECONDS:.0f} s mrlib restyles in one pass; cut it into pieces, or "
+            "check its frame rate"
+        )
+    return frames
 
 
 def restyle_lengths(model: Any, frames: int, name: str = "the clip") -> list[int]:
@@ -281,6 +309,15 @@ def _fit_coarse(model: Any, target: torch.Tensor, noises, conds, steps: int, pro
 
 
 # -- restyle -------------------------------------------------------------------------------
+def _clip(name: str, value: Any) -> Any:
+    import os
+
+    if isinstance(value, (Motion, str, os.PathLike)):
+        return value
+    raise ArgumentError(f"{name} must be a Motion or a motion file, got {shown(value)}")
+
+
+@checked(model=check_model, motion=_clip, keep=lambda n, v: check_choice(n, v, KEEP))
 @with_policy
 def restyle(
     model: Any,
@@ -339,8 +376,10 @@ def restyle(
         raise MotionValueError(f"keep must be one of {KEEP}, got {keep!r}")
     if invert and keep != "coarse":
         raise MotionValueError("invert fits the coarse levels to the clip: keep='coarse' only")
-    if invert and (isinstance(invert_steps, bool) or int(invert_steps) < 1):
-        raise MotionValueError(f"invert_steps must be a positive integer, got {invert_steps!r}")
+    if invert:
+        from mrlib.sampling.constraints.optimise import check_fit_steps
+
+        invert_steps = check_fit_steps(invert_steps, "invert_steps", minimum=1)
     k = restyle_level(model, level)
     lab = model.label_index(label)
     motion = at_model_rate(model, motion, resample=False)

@@ -182,7 +182,8 @@ def load_paired_folder(
                 mpath,
                 f"motion lasts {motion.duration:.2f} s but {audio[stem].name} lasts "
                 f"{clip.duration:.2f} s (more than {max_mismatch_s:g} s apart): wrong pair "
-                "or a cut recording? (raise max_mismatch_s to accept)",
+                "or a cut recording? (to accept: --max-mismatch SECONDS on the command line, "
+                "max_mismatch_s= in Python)",
             )
         out.append(SpeechMotionPair(**vars(clip), motion=motion, motion_path=mpath))
     return out
@@ -314,13 +315,17 @@ class SpeechTrainingSet:
         fps: float = 25.0,
         body=None,
         downsample: str = "area",
+        max_mismatch_s: float = 0.5,
     ) -> SpeechTrainingSet:
-        """``paired_dir``: ``<stem>.wav`` + ``<stem>.npz|.bvh`` (``load_paired_folder``);
+        """``paired_dir``: ``<stem>.wav`` + ``<stem>.npz|.bvh`` (``load_paired_folder``,
+        which refuses a pair whose durations differ by more than ``max_mismatch_s``);
         ``unpaired_dir``: ``.wav`` files (``load_unpaired_folder``). ``extractor``
         defaults to WavLM (needs local weights); motion is resampled to ``fps`` (the
         paper uses 25)."""
         ex = extractor if extractor is not None else SpeechFeatureExtractor()
-        pairs = load_paired_folder(paired_dir, ex, motion_fps=fps, body=body)
+        pairs = load_paired_folder(
+            paired_dir, ex, motion_fps=fps, body=body, max_mismatch_s=max_mismatch_s
+        )
         unpaired = [] if unpaired_dir is None else load_unpaired_folder(unpaired_dir, ex)
         return cls.from_clips(pairs, unpaired, ex.config, fps=fps, body=body, downsample=downsample)
 

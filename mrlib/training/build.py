@@ -91,6 +91,7 @@ class TrainerBase:
         self.resumed_from: Path | None = None  # the checkpoint this trainer continues
         self._claimed = False  # out_dir checked (check_run_folder) by an earlier fit
         self._saved = False
+        self.threads: int | None = None  # the run's torch thread count, fixed by fit()
         self.device = torch.device(config.device)
         self.rng = torch.Generator().manual_seed(config.seed)  # every random draw of training
         torch.manual_seed(config.seed)  # network initialisation

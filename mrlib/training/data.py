@@ -14,11 +14,35 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.errors import ClipTooShortError, MotionValueError
+from mrlib.errors import (
+    ClipTooShortError,
+    MotionValueError,
+    check_args,
+    check_list,
+    check_number,
+    check_path,
+    check_text,
+)
+from mrlib.io.jointmap import check_joint_map
+from mrlib.representation.body import check_body
 from mrlib.representation.features import NUM_FEATURES, FeatureNormalizer, motion_to_features
-from mrlib.representation.motion import MAX_FPS, Motion
+from mrlib.representation.motion import MAX_FPS, Motion, check_motions
 
-__all__ = ["TrainingSet"]
+__all__ = ["TrainingSet", "MAX_TRAIN_CLIP_FRAMES"]
+
+# frames of one training clip at the training rate: 10 minutes at 30 fps (the bound of
+# `mrlib train`, mrlib.app.cli.train, which says it in the command's words)
+MAX_TRAIN_CLIP_FRAMES = 18_000
+
+
+def _labels(name: str, value):
+    if value is None:
+        return None
+    return check_list(name, value, check_text, what="a list of label names, one per clip")
+
+
+def _fps(name: str, value):
+    return check_number(name, value, low=0, high=MAX_FPS, open_low=True, optional=True)
 
 
 @dataclass
@@ -63,6 +87,7 @@ class TrainingSet:
 
     # -- construction ----------------------------------------------------------------------
     @classmethod
+    @check_args(motions=check_motions, labels=_labels, fps=_fps, body=check_body)
     def from_motions(
         cls,
         motions: Sequence[Motion],
@@ -81,10 +106,20 @@ class TrainingSet:
         fps = float(motions[0].fps if fps is None else fps)
         if not (np.isfinite(fps) and 0 < fps <= MAX_FPS):
             raise MotionValueError(f"fps must be a number in (0, {MAX_FPS:g}], got {fps}")
-        names, clip_label_names, feats = [], [], []
-        for k, m in enumerate(motions):
+        for k, m in enumerate(motions):  # every clip's length first, before any resampling
             if not isinstance(m, Motion):
                 raise MotionValueError(f"item {k} is a {type(m).__name__}, not a Motion")
+            frames = m.resampled_frames(fps)
+            if frames > MAX_TRAIN_CLIP_FRAMES:
+                where = m.meta.get("source", m.name or f"clip{k}")
+                raise MotionValueError(
+                    f"{where}: {m.num_frames} frames at {m.fps:g} fps ({m.duration:.4g} s) are "
+                    f"{frames} frames at {fps:g} fps, more than the {MAX_TRAIN_CLIP_FRAMES} a "
+                    "training clip may have; cut it into shorter clips, train at a lower fps, "
+                    "or check its frame rate"
+                )
+        names, clip_label_names, feats = [], [], []
+        for k, m in enumerate(motions):
             if abs(m.fps - fps) > 1e-6:
                 m = m.resample(fps)
             name = m.name or f"clip{k}"
@@ -115,6 +150,13 @@ class TrainingSet:
         )
 
     @classmethod
+    @check_args(
+        paths=lambda n, v: check_list(n, v, check_path, what="a list of file paths"),
+        labels=_labels,
+        fps=_fps,
+        body=check_body,
+        joint_map=check_joint_map,
+    )
     def from_files(
         cls,
         paths: Sequence[str | Path],
@@ -125,10 +167,12 @@ class TrainingSet:
     ) -> TrainingSet:
         """Load every file with ``mrlib.io.load_motion`` and build the set (labels from the
         files, e.g. Bandai ``walk_happy``, unless given; ``joint_map`` for BVH files whose
-        skeleton is neither shipped nor recognised)."""
-        from mrlib.io import load_motion
+        skeleton is neither shipped nor recognised; given to the BVH files only, and refused
+        when there is none)."""
+        from mrlib.io import joint_maps_for, load_motion
 
-        motions = [load_motion(p, joint_map=joint_map, body=body) for p in paths]
+        maps = joint_maps_for(paths, joint_map)
+        motions = [load_motion(p, joint_map=m, body=body) for p, m in zip(paths, maps, strict=True)]
         return cls.from_motions(motions, labels, fps, body)
 
     # -- views -----------------------------------------------------------------------------

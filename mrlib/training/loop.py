@@ -22,7 +22,7 @@ import torch
 
 from mrlib.errors import MrlibError
 from mrlib.io.outputs import open_for_append, write_text
-from mrlib.threads import MIN_FOLLOW_ITERATIONS, load_follower
+from mrlib.progress import bar as progress_bar
 from mrlib.training.run import TrainResult
 
 __all__ = [
@@ -46,12 +46,7 @@ CSV_FIELDS = ["time_s", "block", "iteration", "level", *LOSS_NAMES]
 def run_blocks(trainer, progress: bool, callback: Callable[..., None] | None) -> TrainResult:
     """Train every remaining block of ``trainer`` (a ``mrlib.training.trainer.Trainer``)
     from where it stands; see ``mrlib.training.trainer.train``."""
-    from tqdm.auto import tqdm
-
     tr, c = trainer, trainer.config
-    # the count follows the load unless the user chose it, or the run is a few iterations
-    left = sum(c.block_iterations[tr.block :]) - tr.iteration
-    follower = load_follower() if left >= MIN_FOLLOW_ITERATIONS else None
     tr.out_dir.mkdir(parents=True, exist_ok=True)
     log_path = tr.out_dir / "losses.csv"
     prepare_log(log_path, tr.resumed_from, tr.block, tr.iteration)
@@ -78,10 +73,10 @@ def run_blocks(trainer, progress: bool, callback: Callable[..., None] | None) ->
                     tr.start_block()
                 levels = tr.block_levels
                 n_iter = c.block_iterations[tr.block]
-                bar = tqdm(
+                bar = progress_bar(
                     total=n_iter,
                     initial=tr.iteration,
-                    disable=not progress,
+                    enabled=progress,
                     leave=True,
                     desc=f"block {tr.block + 1}/{c.num_blocks} "
                     f"(levels {levels[0] + 1}-{levels[-1] + 1})",
@@ -90,8 +85,6 @@ def run_blocks(trainer, progress: bool, callback: Callable[..., None] | None) ->
                     while tr.iteration < n_iter:
                         stop["in_step"] = True
                         losses = tr.step()
-                        if follower is not None:
-                            follower.tick()
                         check_finite(losses, tr.block, tr.iteration, tr.out_dir)
                         tr.iteration += 1
                         stop["in_step"] = False
@@ -160,9 +153,8 @@ def check_finite(
     bad = next((i + 1, k) for i, d in losses.items() for k, v in d.items() if not torch.isfinite(v))
     raise TrainingDivergedError(
         f"loss '{bad[1]}' of level {bad[0]} is not finite at block {block + 1}, "
-        f"iteration {iteration + 1}; training stopped and the last checkpoint in "
-        f"{out_dir} was kept. Check the clips (frame rate, units, NaN values) or "
-        "lower the learning rate"
+        f"iteration {iteration + 1} in {out_dir}; check the clips (frame rate, units, "
+        "NaN values) or lower the learning rate"  # Trainer.fit adds what was kept
     )
 
 

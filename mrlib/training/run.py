@@ -9,6 +9,7 @@ these pieces.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import json
@@ -22,6 +23,7 @@ import numpy as np
 
 from mrlib.io.outputs import OutputExistsError
 from mrlib.io.paths import cache_root
+from mrlib.io.transaction import put_back, with_note
 from mrlib.model.config import TrainConfig, config_to_json
 from mrlib.model.trained import load_model
 from mrlib.training.data import TrainingSet
@@ -29,6 +31,9 @@ from mrlib.training.data import TrainingSet
 __all__ = [
     "RUN_FILES",
     "RunExistsError",
+    "RunAttempt",
+    "stage_run",
+    "progress_text",
     "check_run_folder",
     "same_file",
     "TrainResult",
@@ -81,6 +86,130 @@ def check_run_folder(
             f"holds another run ({held}); a resumed run continues in its checkpoint's own "
             f"folder ({Path(resume).parent}) or in a new one (or pass --overwrite)",
         )
+
+
+class RunAttempt:
+    """What one ``Trainer.fit`` may change in its run folder, and how to undo it.
+
+    Made before the folder is locked (it notes the folders the lock creates),
+    :meth:`claim`-ed under the lock once the folder is checked: a fresh run over an old
+    one (``--overwrite``) moves the old :data:`RUN_FILES` aside, and an existing loss
+    log gets a second name (a hard link) before the run rewrites it. A run that fails
+    before it writes its first checkpoint (:meth:`failed` with ``wrote=False``) puts
+    everything back: the folder is as it was, byte for byte, and a folder it created
+    is removed. Once a checkpoint is written, what was set aside is dropped.
+    """
+
+    def __init__(self, out_dir: str | Path):
+        self.out = Path(out_dir)
+        self.created: list[Path] = []  # the folders the run creates, deepest first
+        p = self.out
+        while not os.path.lexists(p) and p != p.parent:
+            self.created.append(p)
+            p = p.parent
+        self.claimed = False
+        self.present: set[str] = set()
+        self.aside: dict[str, Path] = {}  # name -> its previous file under another name
+        self.copies: dict[str, bytes] = {}  # name -> previous bytes (no hard links here)
+
+    def claim(self, *, fresh: bool) -> None:
+        """Note what the folder holds; ``fresh``: the run replaces it (moved aside)."""
+        from mrlib.io.transaction import set_aside
+
+        self.present = {n for n in RUN_FILES if os.path.lexists(self.out / n)}
+        for name in sorted(self.present):
+            path = self.out / name
+            if fresh:  # nothing of the old run remains in the new run's way
+                self.aside[name] = set_aside(path, move=True)
+            elif name == "losses.csv" and path.is_file() and not path.is_symlink():
+                keep = set_aside(path)  # the run rewrites it before its first checkpoint
+                if keep is not None and os.path.lexists(path):
+                    self.aside[name] = keep
+                elif keep is not None:  # no hard links here: moved; keep its bytes instead
+                    self.copies[name] = keep.read_bytes()
+                    put_back(keep, path)
+        self.claimed = True
+
+    def drop(self) -> None:
+        """A checkpoint was written: what was set aside is not needed any more."""
+        for keep in self.aside.values():
+            with contextlib.suppress(OSError):
+                os.unlink(keep)
+        self.aside.clear()
+        self.copies.clear()
+
+    def restore(self) -> None:
+        """The run wrote no checkpoint: put the folder back as it was."""
+        from mrlib.io.outputs import write_bytes
+
+        for name in RUN_FILES:
+            path = self.out / name
+            with contextlib.suppress(OSError):
+                if name in self.aside:
+                    put_back(self.aside[name], path)
+                elif name in self.copies:
+                    write_bytes(path, self.copies[name], overwrite=True)
+                elif name not in self.present and os.path.lexists(path):
+                    os.unlink(path)  # written by this run
+        self.aside.clear()
+        self.copies.clear()
+
+    def remove_created_folders(self) -> None:
+        """Remove, when empty, the folders this run created (call after the lock's release)."""
+        for folder in self.created:
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+
+    def failed(
+        self,
+        e: BaseException,
+        *,
+        wrote: str | None,
+        earlier: str | None = None,
+        resumed_from: Path | None = None,
+    ) -> BaseException:
+        """After a failed run (its lock released): keep or restore, and ``e`` with what
+        was kept said at the end of its message. ``wrote``: the checkpoint this run wrote
+        last (described), or None; ``earlier``: the run's checkpoint the folder held
+        before (described: the one it resumed from, or an earlier fit's); ``resumed_from``:
+        the checkpoint it resumed from when that lies in another folder."""
+        if not self.claimed:  # refused before it started: nothing of ours to undo
+            return e
+        if wrote is not None:
+            self.drop()
+            note = f"training stopped; kept: {wrote}"
+        else:
+            self.restore()
+            self.remove_created_folders()
+            note = "training stopped before writing a checkpoint; "
+            if earlier is not None:
+                note += f"kept: {earlier}, {self.out} as it was"
+            elif resumed_from is not None:
+                note += f"nothing was written to {self.out} ({resumed_from} is unchanged)"
+            else:
+                note += f"nothing was kept ({self.out} is as it was before)"
+        return with_note(e, note, self.out)
+
+
+def stage_run(tx, scratch: Path, out: Path, *, overwrite: bool) -> None:
+    """Stage the run files trained in ``scratch`` (a ``tx.scratch_folder``) as ``out``'s
+    in the output transaction ``tx``: the run takes its folder when ``tx`` ends, with
+    the command's other files, or not at all."""
+    from mrlib.io.transaction import make_folders
+
+    make_folders(out)
+    for name in RUN_FILES:
+        if (Path(scratch) / name).is_file():
+            tx.adopt(Path(scratch) / name, out / name, overwrite=overwrite)
+
+
+def progress_text(trainer) -> str:
+    """Where a trainer stands, as its checkpoint would record it: ``block B, iteration I``
+    (1-based block; a block's end is its last iteration, not the next block's 0th)."""
+    b, it = trainer.block, trainer.iteration
+    if it == 0 and b > 0:
+        return f"block {b}, iteration {trainer.config.block_iterations[b - 1]}"
+    return f"block {b + 1}, iteration {it}"
 
 
 @dataclass

@@ -19,14 +19,23 @@ the functions that train or reuse a model (:func:`train_or_reuse`, :func:`train_
 from __future__ import annotations
 
 import dataclasses
-import os
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from mrlib.errors import (
+    ArgumentError,
+    check_args,
+    check_flag,
+    check_optional_path,
+    check_path,
+    shown,
+)
 from mrlib.io.outputs import RunLock
+from mrlib.io.transaction import outside_transactions
 from mrlib.model.checkpoint import (
     CheckpointError,
     global_rng_state,
@@ -36,18 +45,20 @@ from mrlib.model.checkpoint import (
     set_global_rng_state,
 )
 from mrlib.model.config import TrainConfig, config_from_json, config_to_json
-from mrlib.model.trained import load_model
-from mrlib.threads import with_policy
+from mrlib.model.trained import check_device, load_model
+from mrlib.representation.body import check_body
+from mrlib.threads import policy, run_threads, usable_cpus
 from mrlib.training.build import TrainerBase
 from mrlib.training.data import TrainingSet
 from mrlib.training.loop import TrainingDivergedError, run_blocks
 from mrlib.training.run import (
-    RUN_FILES,
+    RunAttempt,
     TrainRecord,
     TrainResult,
     cache_folder,
     check_run_folder,
     models_root,
+    progress_text,
     reuse_finished_run,
     same_file,
 )
@@ -108,6 +119,7 @@ class Trainer(TrainerBase):
             "optim_g": None if self.opt_g is None else self.opt_g.state_dict(),
             "optim_d": None if self.opt_d is None else self.opt_d.state_dict(),
             "rng": {**global_rng_state(), "trainer": self.rng.get_state()},
+            "threads": None if self.threads is None else int(self.threads),
         }
 
     @classmethod
@@ -169,6 +181,8 @@ class Trainer(TrainerBase):
                 self.opt_d.load_state_dict(state["optim_d"])
         set_global_rng_state(state["rng"])
         self.rng.set_state(state["rng"]["trainer"])
+        recorded = state.get("threads")  # absent in checkpoints of earlier versions
+        self.threads = int(recorded) if isinstance(recorded, int) and recorded >= 1 else None
 
     def save(self, path: Path | None = None) -> Path:
         """Write the checkpoint; refuses (keeping the previous file) when a network holds
@@ -181,10 +195,11 @@ class Trainer(TrainerBase):
                 )
         out = save_checkpoint(path or self.out_dir / "checkpoint.pt", self.state_dict())
         self._saved = True
+        self._saves = getattr(self, "_saves", 0) + 1  # what a failed fit says it kept:
+        self._last_saved = f"the checkpoint of {progress_text(self)} ({out})"
         return out
 
     # -- the run -------------------------------------------------------------------------------
-    @with_policy
     def fit(
         self,
         progress: bool = True,
@@ -194,22 +209,84 @@ class Trainer(TrainerBase):
     ) -> TrainResult:
         """Train every remaining block (``mrlib.training.loop``); see :func:`train`. The
         output folder is locked while it runs (``mrlib.io.outputs.RunLock``: a second run
-        there is refused) and checked first (:func:`check_run_folder`)."""
-        with RunLock(self.out_dir):
-            if not self._claimed:
-                check_run_folder(self.out_dir, resume=self.resumed_from, overwrite=overwrite)
-                if overwrite and self.resumed_from is None:
-                    for name in RUN_FILES:  # a fresh start: nothing of the old run remains
-                        if os.path.lexists(self.out_dir / name):
-                            os.unlink(self.out_dir / name)
+        there is refused) and checked first (:func:`check_run_folder`). The run keeps one
+        torch thread count from start to end (``mrlib.threads.run_threads``: the user's
+        choice, else the count recorded by the run it resumes, else mrlib's default), and
+        records it in its checkpoints."""
+        n, why = run_threads(self.threads)
+        if why == "user" and self.threads is not None and n != self.threads:
+            warnings.warn(
+                f"this run was started with {self.threads} torch threads and continues with "
+                f"{n}: its weights may differ (by float rounding) from an uninterrupted run's; "
+                f"--threads {self.threads} continues it exactly",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        elif why == "resumed" and n > usable_cpus():
+            warnings.warn(
+                f"this run was started with {n} torch threads, more than the {usable_cpus()} "
+                "CPUs usable here; it keeps that count so that it continues exactly "
+                "(--threads N trades that for speed)",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        self.threads = n
+        # a run that fails before its first checkpoint leaves the folder as it was
+        # (mrlib.training.run.RunAttempt); its files reach the disk as it goes, outside
+        # any output transaction of the caller
+        attempt, saves, claiming = RunAttempt(self.out_dir), getattr(self, "_saves", 0), False
+        ckpt, earlier, elsewhere = self.out_dir / "checkpoint.pt", None, None
+        if getattr(self, "_last_saved", None) is not None:  # by an earlier fit
+            earlier = self._last_saved
+        elif self.resumed_from is not None and same_file(self.resumed_from, ckpt):
+            earlier = f"the checkpoint it resumed from ({progress_text(self)})"
+        elif self.resumed_from is not None:
+            elsewhere = self.resumed_from
+        try:
+            with policy(n), outside_transactions(), RunLock(self.out_dir):
+                claiming = not self._claimed
+                if claiming:
+                    check_run_folder(self.out_dir, resume=self.resumed_from, overwrite=overwrite)
+                # a fresh start moves the old run aside: nothing of it remains in the way
+                attempt.claim(fresh=overwrite and claiming and self.resumed_from is None)
                 self._claimed = True
-            result = run_blocks(self, progress, callback)
-            ckpt = self.out_dir / "checkpoint.pt"
-            if not self._saved and not same_file(ckpt, self.resumed_from or ckpt):
-                self.save()  # resumed from a finished run into another folder: copy it there
-            return result
+                result = run_blocks(self, progress, callback)
+                if not self._saved and not same_file(ckpt, self.resumed_from or ckpt):
+                    self.save()  # resumed from a finished run into another folder: copy it there
+        except BaseException as e:
+            wrote = self._last_saved if getattr(self, "_saves", 0) > saves else None
+            if wrote is None and claiming and attempt.claimed:
+                self._claimed = False  # the folder is as it was: check it again next time
+            err = attempt.failed(e, wrote=wrote, earlier=earlier, resumed_from=elsewhere)
+            if err is e:
+                raise
+            raise err from e
+        attempt.drop()
+        return result
 
 
+def _instance(kind: type, what: str):
+    def check(name: str, value):
+        if value is None or isinstance(value, kind):
+            return value
+        raise ArgumentError(f"{name} must be {what} or None, got {shown(value)}")
+
+    return check
+
+
+@check_args(
+    data=_instance(TrainingSet, "a TrainingSet (TrainingSet.from_motions / from_files)"),
+    config=_instance(TrainConfig, "a TrainConfig (e.g. mrlib.get_preset('demo'))"),
+    out_dir=check_path,
+    resume=check_optional_path,
+    body=check_body,
+    device=lambda n, v: None if v is None else check_device(n, v),
+    progress=check_flag,
+    callback=lambda n, v: (
+        v if v is None or callable(v) else _instance(type(None), "a function")(n, v)
+    ),
+    overwrite=check_flag,
+)
 def train(
     data: TrainingSet | None,
     config: TrainConfig | None,

@@ -12,9 +12,10 @@ from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import ArgumentError, MotionValueError, check_number, check_text, shown
 from mrlib.representation.body import resolve_body
-from mrlib.representation.motion import Motion
+from mrlib.representation.motion import Motion, check_motion
+from mrlib.sampling.arguments import steps
 from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
 from mrlib.viz.widget_kit import (
     BUSY,
@@ -23,6 +24,7 @@ from mrlib.viz.widget_kit import (
     mesh_figure,
     show_figure,
     strict,
+    view_arguments,
     view_parts,
     wire,
 )
@@ -30,6 +32,21 @@ from mrlib.viz.widget_kit import (
 __all__ = ["interactive_path", "interactive_parts", "interactive_inbetween"]
 
 
+def _seconds(name: str, value: Any) -> float:
+    return check_number(name, value, low=0, open_low=True)
+
+
+def _clips(name: str, value: Any) -> dict:
+    if not isinstance(value, dict) or not value:
+        raise ArgumentError(
+            f"{name} must be a dict {{name: Motion}} of one clip or more, got {shown(value)}"
+        )
+    for key, m in value.items():
+        check_motion(f"{name}[{key!r}]", m)
+    return value
+
+
+@view_arguments(label=lambda n, v: check_text(n, v, optional=True), seconds=_seconds)
 def interactive_path(
     model: Any, body: Any = None, *, label: str | None = None, seconds: float = 20.0
 ) -> tuple[Any, Callable[[], Motion]]:
@@ -90,6 +107,7 @@ def interactive_path(
     return w.VBox(rows), update
 
 
+@view_arguments()
 def interactive_parts(
     model: Any, body: Any = None, *, frames: int = 5, length: int | None = None
 ) -> tuple[Any, Callable[[], Motion]]:
@@ -181,6 +199,9 @@ def interactive_parts(
     return w.VBox(rows), update
 
 
+@view_arguments(
+    clips=_clips, steps=lambda n, v: None if v is None else steps(n, v), seconds=_seconds
+)
 def interactive_inbetween(
     model: Any, clips: dict[str, Motion], body: Any = None, *, seconds: float = 4.0,
     steps: int | None = None,

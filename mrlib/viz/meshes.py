@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from mrlib.errors import MotionValueError
+from mrlib.progress import bar as progress_bar
 
 __all__ = [
     "SKIN",
@@ -285,9 +286,7 @@ def render_mesh_animation(
     images = []
     steps = range(n_out)
     if progress:
-        from tqdm.auto import tqdm
-
-        steps = tqdm(steps, desc=f"rendering {Path(path).name}", unit="frame", leave=False)
+        steps = progress_bar(steps, desc=f"rendering {Path(path).name}", unit="frame", leave=False)
     for t in steps:
         for k, v in enumerate(verts):
             meshes[k].points = v[t]

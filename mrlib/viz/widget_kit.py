@@ -26,6 +26,7 @@ __all__ = [
     "WIDE",
     "status_html",
     "checked",
+    "view_arguments",
     "strict",
     "Runner",
     "Player3D",
@@ -46,6 +47,24 @@ def status_html(text: str, kind: str = "done") -> str:
     class, ``mrlib-busy`` and so on, which the browser test reads)."""
     body = html.escape(text, quote=False)
     return f'<span class="mrlib-{kind}" style="color: {_COLOURS[kind]}">{body}</span>'
+
+
+def view_arguments(**own: Callable[[str, Any], Any]) -> Callable:
+    """Decorator of a view builder: its arguments checked before any control is built
+    (``mrlib.sampling.arguments.checked``: ``model``, ``body``, ``frames``, ``length``,
+    ``window``, ``seconds``, ``motion``... refused when of the wrong type or out of range,
+    e.g. ``frames=0``), ``render`` a flag, and ``own`` checks; an ``ArgumentError`` (a
+    ``MotionValueError``) like the views' other refusals."""
+    import inspect
+
+    from mrlib.errors import check_flag
+    from mrlib.sampling.arguments import checked as sampling_checks
+
+    def wrap(fn: Callable) -> Callable:
+        flags = {"render": check_flag} if "render" in inspect.signature(fn).parameters else {}
+        return sampling_checks(**flags, **own)(fn)
+
+    return wrap
 
 
 def checked(control: Any) -> float:

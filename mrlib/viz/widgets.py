@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_text
 from mrlib.evaluation.crossover import check_crossover_level, crossover_blend
 from mrlib.evaluation.fidelity import (
     NearestSequenceStrip,
@@ -37,7 +37,16 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.generation import generate, label_weights
 from mrlib.viz.control_plots import plot_nearest_sequence
 from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
-from mrlib.viz.widget_kit import BUSY, WIDE, checked, show_figure, strict, view_parts, wire
+from mrlib.viz.widget_kit import (
+    BUSY,
+    WIDE,
+    checked,
+    show_figure,
+    strict,
+    view_arguments,
+    view_parts,
+    wire,
+)
 
 __all__ = [
     "CrossoverView",
@@ -74,6 +83,10 @@ def crossover_title(coarse: str, fine: str, weight: float, level: int, levels: i
 
 
 # -- the views ---------------------------------------------------------------------------------
+@view_arguments(
+    coarse=lambda n, v: check_text(n, v, optional=True),
+    fine=lambda n, v: check_text(n, v, optional=True),
+)
 def interactive_crossover(
     model: Any,
     body: Any = None,
@@ -216,6 +229,7 @@ class RestyleView:
     title: str
 
 
+@view_arguments(label=lambda n, v: check_text(n, v, optional=True))
 def interactive_restyle(
     model: Any, motion: Motion, body: Any = None, *, frames: int = 5, render: bool = True,
     label: str | None = None, level: int | None = None,

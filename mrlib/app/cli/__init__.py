@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
 from mrlib.app.cli.common import describe, threads_option
 from mrlib.app.cli.common import sample_files as _sample_files  # noqa: F401 (tests use it)
@@ -71,10 +72,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A Python warning as the command line shows it: ``warning: <message>``, one line
+    (not the file, line number and source line where it was raised)."""
+    text = " ".join(str(message).split())
+    print(f"warning: {text}", file=sys.stderr if file is None else file)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command. Errors print one line (``error: ...``) and exit 1 (usage errors
-    exit 2); ``--debug`` shows the full traceback instead. mrlib's own errors name the
-    file or flag; any other exception (a bug, a library's error) is one line
+    exit 2); ``--debug`` shows the full traceback instead; warnings print one line each
+    (``warning: ...``). The command's output files
+    are written in one ``mrlib.io.transaction.output_transaction``: all of them, or (when one
+    fails, or the command does) none, the output folder as it was. mrlib's own errors
+    name the file or flag; any other exception (a bug, a library's error) is one line
     ``error: <command>: <ExceptionClass>: <message> (run with --debug for the traceback)``."""
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -82,9 +93,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        from mrlib.io.transaction import output_transaction
         from mrlib.threads import policy
 
-        with policy(args.threads):
+        # a command's outputs are all written or none (a training run's checkpoints,
+        # which must reach the disk as it goes, are written outside it)
+        with policy(args.threads), output_transaction(), warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning  # restored when the command ends
             return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)

@@ -46,9 +46,22 @@ def parse_iterations(text: str | None) -> tuple[int, ...] | None:
     return its
 
 
-def parse_steps(text: str) -> int:
+def _whole(text: str) -> int:
+    """``text`` as an int: ``"300"``, or a whole number written as ``"1e8"``."""
     try:
-        n = int(text)
+        return int(text)
+    except ValueError:
+        v = float(text)  # ValueError for what is no number at all
+        if not (math.isfinite(v) and v.is_integer()):
+            raise ValueError(text) from None
+        return int(v)
+
+
+def parse_steps(text: str) -> int:
+    """A count of steps (its cap is the command's check, in one line:
+    ``mrlib.sampling.constraints.optimise.check_fit_steps``)."""
+    try:
+        n = _whole(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
     if n < 0:
@@ -67,8 +80,9 @@ def parse_non_negative(text: str) -> float:
 
 
 def parse_threads(text: str) -> int:
+    """A positive count (its cap, 4 x the usable CPUs, is ``mrlib.threads``'s check)."""
     try:
-        n = int(text)
+        n = _whole(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"wants a positive integer, got {text!r}") from None
     if n < 1:
@@ -97,8 +111,8 @@ def threads_option(p) -> None:
         type=parse_threads,
         default=None,
         metavar="N",
-        help="torch threads for the CPU work [default: OMP_NUM_THREADS if set, else half the "
-        "usable CPUs, 1 on 2 cores; see mrlib.threads]",
+        help="torch threads for the CPU work, at most 4 x the usable CPUs [default: "
+        "OMP_NUM_THREADS if set, else half the usable CPUs, 1 on 2 cores; see mrlib.threads]",
     )
 
 
@@ -204,6 +218,22 @@ def with_sampler(model, args, guidance: bool = True):
     return model
 
 
+def warn_unfinished(model, checkpoint, command: str = "train") -> None:
+    """One line on stderr when ``model`` (a label model, or a speech model's) comes from
+    an unfinished run: where its training stopped and the command that finishes it. The
+    command goes on: a partly trained model samples, only not what the run would give."""
+    import sys
+
+    where = getattr(getattr(model, "model", model), "unfinished", lambda: None)()
+    if where:
+        print(
+            f"warning: {checkpoint} is from an unfinished run (stopped at {where}): its "
+            f"samples come from a partly trained model; finish it with `mrlib {command} "
+            f"--resume {checkpoint} --out {Path(checkpoint).parent}`",
+            file=sys.stderr,
+        )
+
+
 def sample_files(tag: str, args, count: int) -> list[dict[str, Path]]:
     """Per sample, the files to write: ``<tag>_seed<seed>_<i>`` and one suffix per format,
     joined as text (a tag such as ``walk-run-0.5`` or ``talk.v1`` keeps its dots: the name is
@@ -223,30 +253,35 @@ def sample_files(tag: str, args, count: int) -> list[dict[str, Path]]:
 
 
 def write_samples(motions, tag: str, args) -> int:
+    """Write every sample's files (:func:`sample_files`) in one output transaction: all of
+    them, or (a full disk, a file that cannot be replaced) none, ``--out`` as it was."""
     from mrlib.io import save_motion
     from mrlib.io.outputs import check_writable, write_bytes
+    from mrlib.io.transaction import make_folders, output_transaction, when_written
 
     motions = motions if isinstance(motions, list) else [motions]
-    args.out.mkdir(parents=True, exist_ok=True)
     files = sample_files(tag, args, len(motions))
     for paths in files:  # refuse before writing any, not after half of them
         for path in paths.values():
             check_writable(path, overwrite=args.overwrite)
-    for m, paths in zip(motions, files, strict=True):
-        for kind, path in paths.items():
-            if kind == ".png":
-                import imageio.v3 as iio
+    with output_transaction():
+        make_folders(args.out)
+        for m, paths in zip(motions, files, strict=True):
+            for kind, path in paths.items():
+                if kind == ".png":
+                    import imageio.v3 as iio
 
-                from mrlib.viz.meshes import evenly_spaced_frames, render_meshes
+                    from mrlib.viz.meshes import evenly_spaced_frames, render_meshes
 
-                image = render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
-                write_bytes(path, iio.imwrite("<bytes>", image, extension=".png"),
-                            overwrite=args.overwrite)  # fmt: skip
-            else:
-                save_motion(m, path, overwrite=args.overwrite)
-        stem = str(paths[".npz"])[: -len(".npz")]
-        kinds = "/".join(k for k in paths if k != ".png")
-        print(f"wrote {stem}{kinds}: {m}")
+                    image = render_meshes(m, frames=evenly_spaced_frames(len(m), 6))
+                    write_bytes(path, iio.imwrite("<bytes>", image, extension=".png"),
+                                overwrite=args.overwrite)  # fmt: skip
+                else:
+                    save_motion(m, path, overwrite=args.overwrite)
+            stem = str(paths[".npz"])[: -len(".npz")]
+            kinds = "/".join(k for k in paths if k != ".png")
+            # printed once the files exist (at the end of the command's transaction)
+            when_written(lambda line=f"wrote {stem}{kinds}: {m}": print(line))
     return 0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import parse_seed, preset_choices, preset_help
+from mrlib.app.cli.common import parse_seed, preset_choices, preset_help, progress_option
 
 
 def add_demo(sub) -> argparse.ArgumentParser:
@@ -41,6 +41,7 @@ def add_demo(sub) -> argparse.ArgumentParser:
         action="store_true",
         help="replace an earlier demo run in --out (refused without it)",
     )
+    progress_option(p)
     return p
 
 
@@ -55,5 +56,6 @@ def cmd_demo(args) -> int:
         samples=args.samples,
         seed=args.seed,
         overwrite=args.overwrite,
+        progress=not args.no_progress,
     )
     return 0

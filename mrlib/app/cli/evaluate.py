@@ -9,7 +9,9 @@ from mrlib.app.cli.common import (
     device_option,
     overwrite_option,
     parse_seed,
+    progress_option,
     sampler_options,
+    warn_unfinished,
     with_sampler,
 )
 from mrlib.errors import MrlibError
@@ -51,6 +53,7 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
     device_option(p)
     p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
     overwrite_option(p, "replace evaluation files already in --out")
+    progress_option(p)
     return p
 
 
@@ -66,12 +69,21 @@ EVALUATION_FILES = (
 def cmd_evaluate(args) -> int:
     from mrlib.evaluation.evaluate import evaluate_model, model_references
     from mrlib.io.outputs import check_writable
+    from mrlib.io.transaction import output_transaction, when_written
     from mrlib.model.trained import load_model
     from mrlib.viz.plots import plot_evaluation
 
     for name in EVALUATION_FILES:  # refused before the samples are drawn
         check_writable(Path(args.out) / name, overwrite=args.overwrite)
-    model = with_sampler(load_model(args.checkpoint, device=args.device), args)
+    model = load_model(args.checkpoint, device=args.device)
+    if model.generator.cond_dim != len(model.labels):
+        raise MrlibError(
+            f"{args.checkpoint} is a speech-conditioned model: `mrlib evaluate` scores label "
+            "models; score how its gestures follow speech with mrlib.speech."
+            "evaluate_speech_sync (bench/speech_sync.py runs it on held-out utterances)"
+        )
+    model = with_sampler(model, args)
+    warn_unfinished(model, args.checkpoint)
     baselines = None
     if args.baseline is not None:
         per_key = {}
@@ -95,10 +107,12 @@ def cmd_evaluate(args) -> int:
         seed=args.seed,
         calibration=not args.no_calibration,
         contacts="raw" if args.raw else "both",
+        progress=not args.no_progress,
     )
-    result.save(args.out, overwrite=args.overwrite)
-    plot_evaluation(result, Path(args.out) / "evaluation.png", overwrite=args.overwrite)
+    with output_transaction():  # the five files, or (one fails) none of them
+        result.save(args.out, overwrite=args.overwrite)
+        plot_evaluation(result, Path(args.out) / "evaluation.png", overwrite=args.overwrite)
+        when_written(lambda: print(f"\nwrote {args.out}/"))
     print(f"sampler: fine_noise={model.fine_noise:g}, guidance={model.guidance:g}\n")
     print(result.to_markdown())
-    print(f"\nwrote {args.out}/")
     return 0

@@ -11,6 +11,7 @@ from mrlib.app.cli.common import (
     parse_seed,
     parse_steps,
     sample_output_options,
+    warn_unfinished,
     with_sampler,
     write_samples,
 )
@@ -19,6 +20,7 @@ from mrlib.sampling.generation import MAX_SAMPLE_SECONDS
 
 
 def add_restyle(sub) -> argparse.ArgumentParser:
+    from mrlib.sampling.constraints.optimise import MAX_FIT_STEPS
     from mrlib.sampling.restyling import INVERT_STEPS, KEEP
 
     p = sub.add_parser(
@@ -61,9 +63,9 @@ def add_restyle(sub) -> argparse.ArgumentParser:
         default=0,
         metavar="N",
         help=f"fit the coarse levels' noise to the clip for N Adam steps (default when given "
-        f"without N: {INVERT_STEPS}) and restyle the model's own version of it; seconds "
-        "instead of milliseconds, and on the Bandai clips measured it kept less of the clip "
-        "(docs/notes/2026-12-04-restyle.md)",
+        f"without N: {INVERT_STEPS}; at most {MAX_FIT_STEPS}) and restyle the model's own "
+        "version of it; seconds instead of milliseconds, and on the Bandai clips measured it "
+        "kept less of the clip (docs/notes/2026-12-04-restyle.md)",
     )
     p.add_argument(
         "--no-align",
@@ -90,13 +92,17 @@ def add_restyle(sub) -> argparse.ArgumentParser:
 def cmd_restyle(args) -> int:
     from mrlib.io import load_motion
     from mrlib.model.trained import load_model
+    from mrlib.sampling.constraints.optimise import check_fit_steps
     from mrlib.sampling.restyling import restyle, restyle_level
 
+    if args.invert:  # bounded before anything is read
+        check_fit_steps(args.invert, "--invert", minimum=1)
     model = with_sampler(load_model(args.checkpoint, device=args.device), args)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(
             f"{args.checkpoint} is a speech-conditioned model; restyle takes a label model"
         )
+    warn_unfinished(model, args.checkpoint)
     level = restyle_level(model, args.level)
     if args.invert and args.keep != "coarse":
         raise MrlibError("--invert fits the coarse levels to the clip: it needs --keep coarse")

@@ -11,6 +11,7 @@ from mrlib.app.cli.common import (
     parse_seed,
     parse_steps,
     sample_output_options,
+    warn_unfinished,
     with_sampler,
     write_samples,
 )
@@ -268,6 +269,11 @@ def cmd_sample(args) -> int:
         raise MrlibError("--sharpen applies to --parts only")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
         raise MrlibError("--fit-steps applies to --keyframes and --continue only")
+    from mrlib.sampling.constraints.optimise import check_fit_steps
+
+    for flag, steps in (("--fit-steps", args.fit_steps), ("--sharpen", args.sharpen)):
+        if steps:  # bounded before the model is read
+            check_fit_steps(steps, flag)
     if args.audio is not None:
         if constrained and not args.path:
             raise MrlibError("with --audio only --path applies (keyframes, loops and "
@@ -281,6 +287,7 @@ def cmd_sample(args) -> int:
     model = with_sampler(load_model(args.checkpoint, device=args.device), args)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
+    warn_unfinished(model, args.checkpoint)
     length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
     if length is not None:
         _check_sample_frames(length, model.fps, args)
@@ -346,6 +353,7 @@ def _audio_samples(args):
     seconds = audio_duration(args.audio)  # the header only: refused before any work
     check_audio_seconds(seconds, args.audio, MAX_AUDIO_SECONDS)
     model = load_speech_model(args.checkpoint, device=args.device)
+    warn_unfinished(model, args.checkpoint, "train-speech")
     frames = round(seconds * model.fps)
     if frames * args.num > MAX_SAMPLE_FRAMES:
         raise MrlibError(

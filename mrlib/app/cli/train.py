@@ -247,11 +247,12 @@ def cmd_train(args) -> int:
         )
         return _report_training(res)
     fps = args.fps if args.fps is not None else _preset_fps(args.preset or "tutorial")
-    from mrlib.io import load_motion
+    from mrlib.io import joint_maps_for, load_motion
 
     with _retarget_check(args.accept_retarget_error):
         # TrainingSet.from_files, with the clips' lengths checked before they are resampled
-        motions = [load_motion(p, joint_map=args.joint_map) for p in args.clips]
+        maps = joint_maps_for(args.clips, args.joint_map)  # BVH files only
+        motions = [load_motion(p, joint_map=m) for p, m in zip(args.clips, maps, strict=True)]
         check_training_clips(motions, args.clips, fps)
         data = TrainingSet.from_motions(motions, args.labels, fps)
     print(
@@ -276,17 +277,23 @@ def cmd_train(args) -> int:
         # one folder per clip, named after the clip but never a path of its own: the name
         # comes from the file, so it is sanitised, and repeated names get distinct folders
         folders = unique_components(data.names, fallback="clip")
-        for k in range(data.num_clips):
+        outs = [inside(args.out, args.out / f) for f in folders]
+        for out in outs:  # every clip's folder, before any training
+            check_run_folder(out, overwrite=args.overwrite)
+        from mrlib.io.transaction import current_transaction
+        from mrlib.training.run import stage_run
+
+        # the command's transaction (mrlib.app.cli.main): each run trains in a scratch
+        # folder and all of them take their folders at the end, or (one fails) none
+        tx = current_transaction()
+        for k, out in enumerate(outs):
             one = _single_clip(data, k)
-            out = inside(args.out, args.out / folders[k])
             print(f"[{k + 1}/{data.num_clips}] {data.names[k]} -> {out}")
-            res = train(
-                one,
-                ganimator_mode(cfg),
-                out,
-                progress=not args.no_progress,
-                overwrite=args.overwrite,
-            )
+            where = out if tx is None else tx.scratch_folder(out)
+            res = train(one, ganimator_mode(cfg), where, progress=not args.no_progress,
+                        overwrite=args.overwrite or tx is not None)  # fmt: skip
+            if tx is not None:
+                stage_run(tx, where, out, overwrite=args.overwrite)
             if res.interrupted:
                 return 130
         return 0
@@ -298,6 +305,17 @@ def _report_training(res) -> int:
     state = "interrupted; resume with --resume" if res.interrupted else "done"
     print(f"{state} in {res.wall_time_s:.0f} s -> {res.checkpoint}")
     return 130 if res.interrupted else 0
+
+
+def parse_mismatch(text: str) -> float:
+    """``--max-mismatch``: seconds, finite, 0 to 60."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not math.isfinite(value) or not 0.0 <= value <= 60.0:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 60 seconds, got {text}")
+    return value
 
 
 # -- train-speech --------------------------------------------------------------------------
@@ -346,6 +364,14 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
         "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
     )
     p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
+    p.add_argument(
+        "--max-mismatch",
+        type=parse_mismatch,
+        default=None,
+        metavar="SECONDS",
+        help="accept pairs whose audio and motion durations differ by up to this many "
+        "seconds (longer: refused as a wrong pair) [default: 0.5]",
+    )
     run_options(
         p,
         out=Path("runs/speech"),
@@ -372,6 +398,7 @@ def cmd_train_speech(args) -> int:
                 "iterations": "--iterations",
                 "random_audio": "--random-audio",
                 "fps": "--fps",
+                "max_mismatch": "--max-mismatch",
                 "seed": "--seed",
             },
         )
@@ -394,7 +421,10 @@ def cmd_train_speech(args) -> int:
         wavlm = None if args.wavlm is None else str(args.wavlm)
         extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
         fps = 25.0 if args.fps is None else args.fps
-        data = SpeechTrainingSet.from_folders(args.paired, args.unpaired, extractor, fps=fps)
+        mismatch = 0.5 if args.max_mismatch is None else args.max_mismatch
+        data = SpeechTrainingSet.from_folders(
+            args.paired, args.unpaired, extractor, fps=fps, max_mismatch_s=mismatch
+        )
         print(data)
     res = speech_train(
         data,

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_args, check_text
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, UPPER_BODY_JOINTS
 
@@ -60,17 +60,32 @@ def part_joints(part: str | Sequence) -> tuple[int, ...]:
         if part in JOINT_NAMES:
             return (JOINT_NAMES.index(part),)
         raise MotionValueError(f"unknown body part {part!r}: use {sorted(PARTS)} or joint names")
+    if not isinstance(part, Sequence) or isinstance(part, bytes):
+        from mrlib.errors import ArgumentError, shown
+
+        raise ArgumentError(
+            f"a body part must be a name ({sorted(PARTS)}, a joint name) or a list of joint "
+            f"names or indices, got {shown(part)}"
+        )
     return joint_ids(part)
 
 
+@check_args(spec=check_text)
 def parse_parts(spec: str) -> dict[str, str]:
-    """``"upper=walk_happy,lower=walk_sad"`` -> ``{"upper": "walk_happy", ...}``."""
-    out = {}
+    """``"upper=walk_happy,lower=walk_sad"`` -> ``{"upper": "walk_happy", ...}``; a part
+    named twice is refused (the second would silently replace the first)."""
+    out: dict[str, str] = {}
     for item in str(spec).split(","):
         part, eq, cond = item.partition("=")
         if not eq or not part.strip() or not cond.strip():
             raise MotionValueError(f"--parts expects part=label[,part=label...], got {spec!r}")
-        out[part.strip()] = cond.strip()
+        part = part.strip()
+        if part in out:
+            raise MotionValueError(
+                f"--parts names the part '{part}' twice ({part}={out[part]}, "
+                f"{part}={cond.strip()}); give each part one label"
+            )
+        out[part] = cond.strip()
     return out
 
 

@@ -26,9 +26,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_text
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS
+from mrlib.sampling.arguments import check_parts, checked
 from mrlib.sampling.constraints.common import (
     part_joints,
 )
@@ -41,6 +42,18 @@ __all__ = [
     "arm_leg_coordination",
     "part_fidelity",
 ]
+
+
+def _motion_parts(name: str, value):
+    """``splice_parts``'s ``{part or joints: Motion}``."""
+    from mrlib.errors import ArgumentError, shown
+    from mrlib.representation.motion import check_motion
+
+    if not isinstance(value, Mapping) or not value:
+        raise ArgumentError(f"{name} must be a dict {{part or joints: Motion}}, got {shown(value)}")
+    for part, m in value.items():
+        check_motion(f"{name}[{part!r}]", m)
+    return value
 
 
 def _groups(parts: Mapping) -> list[tuple[tuple[int, ...], object]]:
@@ -68,6 +81,7 @@ def _channel_masks(groups) -> list[torch.Tensor]:
     return [torch.from_numpy(np.isin(owner, js).astype(np.float32)) for js, _ in groups]
 
 
+@checked(parts=check_parts)
 def generate_many_parts(
     model,
     parts: Mapping[str, str],
@@ -110,8 +124,9 @@ def generate_many_parts(
 
     if method not in ("film", "splice"):
         raise MotionValueError(f"method must be 'film' or 'splice', got {method!r}")
-    if isinstance(sharpen, bool) or not isinstance(sharpen, (int, np.integer)) or sharpen < 0:
-        raise MotionValueError(f"sharpen must be an integer >= 0 (steps), got {sharpen!r}")
+    from mrlib.sampling.constraints.optimise import check_fit_steps
+
+    sharpen = check_fit_steps(sharpen, "sharpen (steps)")
     groups = _groups(parts)
     tag = ",".join(f"{p}={c}" for p, c in parts.items())
     if method == "splice":
@@ -163,6 +178,7 @@ def generate_many_parts(
     return out
 
 
+@checked(parts=check_parts)
 def generate_parts(
     model,
     parts: Mapping[str, str],
@@ -215,6 +231,7 @@ def _forward_offsets(motion: Motion, body=None) -> np.ndarray:
     return body_frame_joints(motion, body)[..., 2]
 
 
+@checked()
 def arm_leg_coordination(motion: Motion, body=None) -> float:
     """How much the arms swing in step with the legs: the correlation over time of each
     wrist's forward offset from the pelvis with the opposite ankle's, averaged over the
@@ -231,6 +248,7 @@ def arm_leg_coordination(motion: Motion, body=None) -> float:
     return 0.5 * (corr("left_wrist", "right_ankle") + corr("right_wrist", "left_ankle"))
 
 
+@checked()
 def gait_phase(motion: Motion, body=None) -> np.ndarray | None:
     """``(T,)`` the gait phase of ``motion`` in radians, unwrapped and non-decreasing:
     the angle of the analytic signal (Hilbert transform) of its stride signal, the
@@ -270,6 +288,7 @@ def _frames_to_cover(model, base, other, frames: int, body=None) -> int:
     return int(np.ceil(1.5 * frames * max(1.0, ra / rb) + 2 * np.pi / rb))
 
 
+@checked()
 def phase_align(source: Motion, target: Motion, body=None) -> Motion | None:
     """``source`` retimed to ``target``'s gait: ``target.num_frames`` frames of it,
     frame ``t`` at the source time whose gait phase is ``target``'s at ``t`` (within
@@ -293,6 +312,7 @@ def phase_align(source: Motion, target: Motion, body=None) -> Motion | None:
     return source.at_frames(np.interp(want, ps[keep], frames[keep]))
 
 
+@checked(parts=_motion_parts, name=lambda n, v: check_text(n, v, optional=True))
 def splice_parts(
     parts: Mapping, name: str | None = None, *, align: bool = False, body=None
 ) -> Motion:
@@ -328,6 +348,7 @@ def splice_parts(
     )
 
 
+@checked(parts=check_parts)
 def part_fidelity(
     motions: Sequence[Motion], model, parts: Mapping[str, str], window: int = 30
 ) -> dict[str, float]:

@@ -12,13 +12,23 @@ import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.errors import (
+    ArgumentError,
+    MotionFileError,
+    MotionValueError,
+    check_flag,
+    check_list,
+    check_path,
+    shown,
+)
 from mrlib.io.npz import read_npy_header
 from mrlib.representation.motion import MAX_TRANSLATION_M, Motion
 from mrlib.representation.skeleton import NUM_JOINTS
+from mrlib.sampling.arguments import checked
 from mrlib.sampling.constraints.common import joint_ids
 
 __all__ = ["Keyframe", "save_keyframes", "load_keyframes", "MAX_KEYFRAMES"]
@@ -110,6 +120,18 @@ class Keyframe:
         return cls(frame, motion.poses[index], joints, motion.trans[index] if root else None)
 
 
+def check_keyframes(name: str, value: Any) -> list:
+    """A list of ``mrlib.sampling.constraints.Keyframe``."""
+
+    def one(n: str, v: Any) -> Any:
+        if not isinstance(v, Keyframe):
+            raise ArgumentError(f"{n} must be a Keyframe, got {shown(v)}")
+        return v
+
+    return check_list(name, value, one, what="a list of Keyframe")
+
+
+@checked(path=check_path, keyframes=check_keyframes, overwrite=check_flag)
 def save_keyframes(
     path: str | Path, keyframes: Sequence[Keyframe], *, overwrite: bool = True
 ) -> Path:
@@ -182,6 +204,7 @@ def _keyframe_arrays(path: Path) -> dict[str, np.ndarray]:
     return out
 
 
+@checked(path=check_path)
 def load_keyframes(path: str | Path) -> list[Keyframe]:
     """Keyframes written by :func:`save_keyframes` (no pickles are loaded).
 

@@ -39,12 +39,14 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_count
 from mrlib.representation.features import ROOT_SLICE
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import NUM_JOINTS
+from mrlib.sampling.arguments import checked
 from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis_rest
-from mrlib.sampling.constraints.keyframe_files import Keyframe
+from mrlib.sampling.constraints.keyframe_files import Keyframe, check_keyframes
+from mrlib.sampling.constraints.optimise import check_fit_steps
 
 __all__ = [
     "align_to_keyframes",
@@ -121,6 +123,7 @@ def _check_frames(motion: Motion, keyframes: Sequence[Keyframe]) -> None:
         raise MotionValueError(f"two keyframes at the same frame: {sorted(frames)}")
 
 
+@checked(keyframes=check_keyframes)
 def align_to_keyframes(motion: Motion, keyframes: Sequence[Keyframe], body=None) -> Motion:
     """``motion`` turned about the vertical and moved on the ground (one rigid motion)
     to fit the root keyframes: with two or more, the best fit of their ground positions;
@@ -166,6 +169,7 @@ def align_to_keyframes(motion: Motion, keyframes: Sequence[Keyframe], body=None)
     return motion.replace(poses=poses, trans=new_pel - J0)
 
 
+@checked(keyframes=check_keyframes)
 def apply_keyframes(
     motion: Motion, keyframes: Sequence[Keyframe], *, blend_s: float = BLEND_S
 ) -> Motion:
@@ -193,6 +197,7 @@ def apply_keyframes(
     return motion.replace(poses=poses, trans=trans, meta=meta)
 
 
+@checked(keyframes=check_keyframes)
 def keyframe_errors(motion: Motion, keyframes: Sequence[Keyframe]) -> dict[str, float]:
     """Largest error at the keyframes: ``rotation_deg`` (geodesic, over constrained
     joints) and ``trans_cm``."""
@@ -223,6 +228,7 @@ def _clips_jerk(model, body) -> float:
     return float(np.mean([mean_jerk(motion_kinematics(m, body)[0], model.fps) for m in clips]))
 
 
+@checked(keyframes=check_keyframes, length=check_count)
 def keyframe_objective(
     model, keyframes: Sequence[Keyframe], length: int, still: float = STILL, body=None
 ):
@@ -285,6 +291,7 @@ def keyframe_objective(
     return loss_fn
 
 
+@checked(keyframes=check_keyframes, length=check_count)
 def generate_with_keyframes(
     model,
     keyframes: Sequence[Keyframe],
@@ -308,6 +315,7 @@ def generate_with_keyframes(
     exact fit."""
     from mrlib.representation.body import resolve_body
 
+    steps = check_fit_steps(steps)
     body = resolve_body(body, shared=True)
     if length < 2:
         raise MotionValueError(f"length must be >= 2 frames, got {length}")
@@ -322,6 +330,7 @@ def generate_with_keyframes(
     return apply_keyframes(m, keyframes, blend_s=blend_s)
 
 
+@checked()
 def continue_motion(
     model,
     prefix: Motion,
@@ -338,11 +347,26 @@ def continue_motion(
     progress: bool = False,
 ) -> Motion:
     """``prefix`` followed by ``frames`` new frames in the model's style (method: module
-    docstring). The prefix is resampled to the model's frame rate first."""
+    docstring). The prefix is resampled to the model's frame rate first; a prefix and
+    ``frames`` longer together than ``MAX_SAMPLE_SECONDS`` there are refused before."""
     from mrlib.representation.body import resolve_body
     from mrlib.representation.rotations import axis_angle_to_matrix
     from mrlib.sampling.constraints.optimise import decode
+    from mrlib.sampling.generation import MAX_SAMPLE_SECONDS
 
+    steps = check_fit_steps(steps)
+    if not isinstance(prefix, Motion):
+        raise MotionValueError(f"prefix must be a Motion, got {type(prefix).__name__}")
+    K = prefix.resampled_frames(model.fps)
+    if K + frames > MAX_SAMPLE_SECONDS * model.fps + 1:
+        what = f"prefix {prefix.name!r}" if prefix.name else "prefix"
+        raise MotionValueError(
+            f"{what}: {prefix.num_frames} frames at {prefix.fps:g} fps are "
+            f"{K} frames at the model's {model.fps:g} fps; with {frames} more, "
+            f"{(K + frames) / model.fps:.4g} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s "
+            "mrlib generates in one sample; continue from the prefix's last seconds "
+            "(prefix.slice) or ask for fewer frames"
+        )
     body = resolve_body(body, shared=True)
     if abs(prefix.fps - model.fps) > 1e-6:
         prefix = prefix.resample(model.fps)

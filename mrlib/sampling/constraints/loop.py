@@ -23,8 +23,9 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, check_number
 from mrlib.representation.motion import Motion
+from mrlib.sampling.arguments import checked
 
 __all__ = ["generate_loop", "loop_seam", "tile_loop", "roll_loop"]
 
@@ -45,6 +46,7 @@ def _loop_motion(model, x: torch.Tensor, label: str, name: str) -> Motion:
     return m
 
 
+@checked()
 def tile_loop(motion: Motion, cycles: int) -> Motion:
     """``cycles`` copies of a loop one after the other, each moved on by
     ``meta["loop_offset"]``."""
@@ -60,6 +62,7 @@ def tile_loop(motion: Motion, cycles: int) -> Motion:
     )
 
 
+@checked(start=lambda n, v: check_number(n, v, integer=True))
 def roll_loop(motion: Motion, start: int) -> Motion:
     """The same loop begun at its frame ``start`` (the frames before it move to the end,
     one cycle on)."""
@@ -99,6 +102,7 @@ def _clean_loop(m: Motion, body) -> Motion:
     return mid.replace(trans=mid.trans - off, meta=dict(c.meta, loop_offset=m.meta["loop_offset"]))
 
 
+@checked()
 def generate_loop(
     model,
     condition=None,
@@ -153,6 +157,7 @@ def generate_loop(
     return m
 
 
+@checked()
 def loop_seam(motion: Motion, body=None) -> dict[str, float]:
     """How well a loop closes, on joint positions (metres): ``seam`` is the mean joint
     displacement from the last frame to the next cycle's first; ``p95`` and ``median``

@@ -11,16 +11,41 @@ of reach, which is why paths use bending by default (``mrlib.sampling.constraint
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from contextlib import contextmanager
+from numbers import Integral, Real
 
 import torch
 
+from mrlib.errors import MotionValueError
+from mrlib.progress import bar as progress_bar
 from mrlib.representation.features import ROOT_SLICE, ROT_SLICE, root_velocity_to_trans
 from mrlib.representation.rotations import sixd_to_matrix
 from mrlib.threads import with_policy
 
-__all__ = ["optimise_noise", "decode", "frozen"]
+__all__ = ["optimise_noise", "decode", "frozen", "check_fit_steps", "MAX_FIT_STEPS"]
+
+# Adam steps of one noise fit: 10 x the largest default (the keyframes' 300; restyle's
+# inversion 200, paths 150, continuation 100, sharpening 50). Each step runs the generator
+# forwards and back, ~10-50 ms on the CPU for a clip of seconds: 1e8 would run for weeks.
+MAX_FIT_STEPS = 3000
+
+
+def check_fit_steps(steps, name: str = "steps", minimum: int = 0) -> int:
+    """``steps`` as an int if it is a whole number in ``[minimum, MAX_FIT_STEPS]``, else a
+    one-line ``MotionValueError`` naming ``name`` (the argument or flag) and the cap."""
+    whole = isinstance(steps, Integral) or (
+        isinstance(steps, Real) and math.isfinite(steps) and float(steps).is_integer()
+    )
+    if isinstance(steps, bool) or not whole or steps < minimum:
+        raise MotionValueError(f"{name} must be an integer >= {minimum}, got {steps!r}")
+    if steps > MAX_FIT_STEPS:
+        raise MotionValueError(
+            f"{name}: {int(steps)} Adam steps are more than the {MAX_FIT_STEPS} of one noise "
+            f"fit (the defaults are 50-300 and take seconds); pass at most {MAX_FIT_STEPS}"
+        )
+    return int(steps)
 
 
 @contextmanager
@@ -79,8 +104,7 @@ def optimise_noise(
     Returns:
         The optimised noise maps and the loss after each step.
     """
-    from tqdm.auto import tqdm
-
+    steps = check_fit_steps(steps)
     gen = model.generator
     # each sample's noise whitened by its own scale
     scale = [z.detach().std(dim=(1, 2), keepdim=True).clamp_min(1e-6) for z in noises]
@@ -93,9 +117,7 @@ def optimise_noise(
     opt = torch.optim.Adam(eps, lr=lr)
     history = []
     with frozen(gen), torch.enable_grad():
-        for _ in tqdm(
-            range(int(steps)), desc="optimising noise", disable=not progress, leave=False
-        ):
+        for _ in progress_bar(range(steps), desc="optimising noise", enabled=progress, leave=False):
             opt.zero_grad()
             x = gen.run_batch(
                 [e * s for e, s in zip(eps, scale, strict=True)], conds, circular=circular

@@ -28,14 +28,17 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
 from scipy.ndimage import gaussian_filter1d
 
-from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.errors import ArgumentError, MotionFileError, MotionValueError, check_number, shown
 from mrlib.representation.motion import Motion
+from mrlib.sampling.arguments import checked
 from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis_rest
+from mrlib.sampling.constraints.optimise import check_fit_steps
 
 __all__ = [
     "GroundPath",
@@ -312,6 +315,19 @@ def _check_size(name: str, value: float) -> None:
         raise MotionValueError(f"{name} must be a positive number of metres, got {value:g}")
 
 
+def check_path_spec(name: str, value: Any) -> Any:
+    """A ground path: a ``GroundPath``, a spec such as ``"circle:2"`` or a CSV file."""
+    import os
+
+    if isinstance(value, (str, os.PathLike, GroundPath)):
+        return value
+    raise ArgumentError(
+        f"{name} must be a GroundPath, a spec such as 'circle:2' or 'line:5', or a CSV "
+        f"file, got {shown(value)}"
+    )
+
+
+@checked(spec=check_path_spec)
 def parse_path(spec: str | Path | GroundPath) -> GroundPath:
     """A path from ``"circle:R"``, ``"circle-right:R"``, ``"eight:R"``, ``"line:L"``
     (metres) or a CSV file (:meth:`GroundPath.from_csv`)."""
@@ -344,6 +360,7 @@ def parse_path(spec: str | Path | GroundPath) -> GroundPath:
 
 
 # -- following ----------------------------------------------------------------------------
+@checked()
 def ground_track(motion: Motion, body=None, smooth_s: float = 0.5) -> dict[str, np.ndarray]:
     """The pelvis on the ground and its travel: ``pelvis (T, 2)``, ``travel (T, 2)``
     (low-passed, ``smooth_s`` seconds), ``heading (T,)`` of travel (unwrapped; held
@@ -373,6 +390,7 @@ def ground_track(motion: Motion, body=None, smooth_s: float = 0.5) -> dict[str, 
     return {"pelvis": pel, "travel": travel, "heading": h, "arc": arc, "speed": speed}
 
 
+@checked(path=check_path_spec)
 def follow_path(
     motion: Motion,
     path: GroundPath | str,
@@ -443,6 +461,7 @@ def follow_path(
     return out
 
 
+@checked(path=check_path_spec)
 def path_error(motion: Motion, path: GroundPath | str, body=None) -> dict[str, float]:
     """Distance of the pelvis ground projection to ``path``: ``mean_m``, ``max_m``."""
     from mrlib.representation.body import resolve_body
@@ -454,6 +473,7 @@ def path_error(motion: Motion, path: GroundPath | str, body=None) -> dict[str, f
     return {"mean_m": float(d.mean()), "max_m": float(d.max())}
 
 
+@checked()
 def natural_pace(model, condition=None, *, conditions=None, blend=None, seed: int = 0) -> float:
     """Ground speed (m/s) of the model's own motion under a condition: the travel
     speed of a 10 s raw sample."""
@@ -465,6 +485,7 @@ def natural_pace(model, condition=None, *, conditions=None, blend=None, seed: in
     return float(ground_track(m)["arc"][-1] / m.duration)
 
 
+@checked(path=check_path_spec)
 def path_seconds(
     model, path: GroundPath | str, condition=None, *, conditions=None, blend=None
 ) -> tuple[float, float | None]:
@@ -478,6 +499,10 @@ def path_seconds(
     return float(path.length / max(pace, MIN_TRAVEL_SPEED)), pace
 
 
+@checked(
+    path=check_path_spec,
+    max_seconds=lambda n, v: check_number(n, v, low=0, open_low=True, optional=True),
+)
 def generate_on_path(
     model,
     path: GroundPath | str,
@@ -512,6 +537,7 @@ def generate_on_path(
 
     if method not in ("bend", "optimise"):
         raise MotionValueError(f"method must be 'bend' or 'optimise', got {method!r}")
+    steps = check_fit_steps(steps)
     path = parse_path(path)
     pace = None
     implied = seconds is None

@@ -36,6 +36,7 @@ import numpy as np
 import torch
 
 from mrlib.errors import MotionValueError
+from mrlib.sampling.arguments import check_parts, checked
 
 __all__ = [
     "MARGIN",
@@ -84,6 +85,7 @@ def _nearest(g: torch.Tensor, r: torch.Tensor) -> torch.Tensor:
     return best
 
 
+@checked(parts=check_parts)
 def label_margin_objective(
     model, parts: Mapping[str, str], *, margin: float = MARGIN, window: int = 30,
     push: bool = False,
@@ -161,6 +163,16 @@ def sharpened_features(
         return model.generator.run_batch(noises, cs)
 
 
+def _part_names(name: str, value):
+    """``generate_sharpened``'s parts: a list of part names (or of joint lists)."""
+    from mrlib.errors import check_list
+
+    return check_list(
+        name, value, lambda n, v: v, what="a list of part names, e.g. ['upper', 'lower']"
+    )
+
+
+@checked(parts=_part_names)
 def generate_sharpened(
     model,
     condition: str,
@@ -186,10 +198,10 @@ def generate_sharpened(
     planted)."""
     from mrlib.representation.features import features_to_motions
     from mrlib.sampling.constraints.common import part_joints
+    from mrlib.sampling.constraints.optimise import check_fit_steps
     from mrlib.sampling.generation import generate_many, label_inputs, label_weights, sampler_record
 
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
-        raise MotionValueError(f"steps must be an integer >= 0, got {steps!r}")
+    steps = check_fit_steps(steps)
     if steps == 0:
         return generate_many(model, condition, length=length, seed=seed,
                              num_samples=num_samples, fix_contacts=False)  # fmt: skip
