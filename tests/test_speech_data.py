@@ -230,28 +230,29 @@ def test_paired_loader_errors(tmp_path):
 
 
 def test_max_mismatch_on_the_command_line(tmp_path, monkeypatch, capsys):
-    """Audio a little longer than its motion (as BEAT2's usually is): refused at the
-    default 0.5 s with the flag named, accepted with --max-mismatch."""
+    """Audio 1.5 s longer than its motion: refused at the default 1 s with the flag
+    named, accepted (and cut to the motion) with --max-mismatch 2."""
     import mrlib.speech
     from mrlib.app.cli import main
 
     d = tmp_path / "paired"
-    _write_pair(d, "talk", seconds=2.8, motion_seconds=2.0)
+    _write_pair(d, "talk", seconds=3.5, motion_seconds=2.0)
     args = ["train-speech", str(d), "--preset", "speech_demo", "--iterations", "1"]
     assert main(args + ["--out", str(tmp_path / "a"), "--no-progress"]) == 1
     err = capsys.readouterr().err
-    assert "lasts 2.00 s but talk.wav lasts 2.80 s" in err and "--max-mismatch" in err
+    assert "lasts 2.00 s but talk.wav lasts 3.50 s" in err and "--max-mismatch" in err
 
     class Reached(BaseException):  # past the loading, into training
         pass
 
     def stop(data, *a, **k):
         assert data.num_paired == 1
+        assert abs(data.paired_features[0].shape[0] / 50 - 2.0) < 0.05  # cut to the motion
         raise Reached
 
     monkeypatch.setattr(mrlib.speech, "speech_train", stop)
     with pytest.raises(Reached):
-        main(args + ["--out", str(tmp_path / "b"), "--max-mismatch", "1"])
+        main(args + ["--out", str(tmp_path / "b"), "--max-mismatch", "2"])
     for bad in ("-1", "nan", "x", "1e9"):
         with pytest.raises(SystemExit):
             main(args + ["--out", str(tmp_path / "c"), "--max-mismatch", bad])

@@ -303,8 +303,10 @@ def load_motion(
             or ``{smpl: bvh}`` dict.
         body: body model (default: mrlib's), used for the rest joints.
         up_axis: the source's up axis, ``x y z -x -y -z`` or ``"auto"``. Defaults: BVH
-            ``"auto"`` (from the skeleton), npz the file's ``up_axis`` key or ``"z"``
-            (AMASS), EasyMocap ``"auto"`` (from the body's orientation).
+            ``"auto"`` (from the skeleton), npz the file's ``up_axis`` key, else told from
+            the body (AMASS comes out ``"z"``, BEAT2 ``"y"``; ``mrlib.io.npz``), EasyMocap
+            ``"auto"`` (from the body). npz files without the key and EasyMocap folders
+            are also put on the floor (``meta["floor_shift_m"]``).
         unit: BVH only: metres per file unit or ``"auto"``.
         person: EasyMocap only: the person ``id`` to read.
         label: ``"auto"``: BVH files read a Bandai Namco JSON next to the file, npz

@@ -10,10 +10,19 @@ AMASS-style npz keys (https://amass.is.tue.mpg.de/):
 * ``trans`` ``(T, 3)`` metres; ``betas`` (any length; the first 10 are kept, since the
   shape spaces of different body models do not correspond anyway);
   ``mocap_framerate`` or ``mocap_frame_rate`` (frames per second).
-* ``up_axis``: not an AMASS key. AMASS is **Z up**, so files without it are read as
-  ``"z"``; mrlib's own files store ``up_axis="y"``. The rotation to mrlib's Y-up frame
-  is applied to the global orientation and to the translation (about the body's rest
-  pelvis: ``mrlib.io.retarget.change_up_axis``).
+* ``up_axis``: not an AMASS key; mrlib's own files store ``up_axis="y"``. Files without
+  it come Z up (AMASS) or Y up (BEAT2, most SMPL-X tools), so their axis is **told from
+  the body** (:func:`detect_npz_up_axis`): the world direction of the pelvis's own up
+  axis and of the pelvis-to-head vector, averaged over the clip, must agree on one
+  signed axis by a clear margin, else the file is refused in one line naming
+  ``up_axis=`` / ``--up-axis``. The rotation to mrlib's Y-up frame is applied to the
+  global orientation and to the translation (about the body's rest pelvis:
+  ``mrlib.io.axes.change_up_axis``).
+* The floor: files without ``up_axis`` place the body as *their* body model does
+  (SMPL-X's pelvis sits lower than SMPL's), so their feet can float or sink on mrlib's
+  body. They are moved vertically so that the feet stand on ``y = 0``: the median
+  height of the lowest foot vertex over the frames with a foot in contact
+  (``meta["floor_shift_m"]`` records the move; mrlib's own files are left as written).
 
 mrlib's npz (``save_npz``) uses the same keys with ``poses (T, 72)``, ``up_axis="y"`` and
 optionally ``contacts (T, 6)``, ``label``, ``name`` and ``meta_json``.
@@ -44,9 +53,16 @@ from mrlib.io.outputs import atomic_write
 from mrlib.io.paths import read_text_bounded
 from mrlib.representation.motion import NUM_BETAS, Motion, check_rotations
 from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
-from mrlib.representation.skeleton import NUM_CONTACTS, NUM_JOINTS
+from mrlib.representation.skeleton import JOINT_NAMES, NUM_CONTACTS, NUM_JOINTS
 
-__all__ = ["load_npz", "save_npz", "load_easymocap", "read_npy_header", "POSE_WIDTHS"]
+__all__ = [
+    "load_npz",
+    "save_npz",
+    "load_easymocap",
+    "read_npy_header",
+    "detect_npz_up_axis",
+    "POSE_WIDTHS",
+]
 
 # Pose vector widths and the body model they come from.
 POSE_WIDTHS = {72: "SMPL", 156: "SMPL-H", 165: "SMPL-X"}
@@ -142,6 +158,84 @@ def _to_y_up(poses, trans, betas, up_axis, body) -> tuple[np.ndarray, np.ndarray
     return poses, trans
 
 
+FLOOR_TOLERANCE_M = 0.005  # a floor closer than this to y = 0 is left where it is
+# how clearly the body's up directions must pick one axis: the mean up vector's largest
+# component at least this long, and this many times the next largest
+_UP_MIN, _UP_MARGIN = 0.5, 2.0
+
+
+def detect_npz_up_axis(poses, trans, betas, body=None, *, source=None) -> tuple[str, str]:
+    """The up axis of SMPL parameters ``poses (T, 24, 3)``, ``trans (T, 3)`` in an unknown
+    world, and the reason in words: the signed world axis that both the pelvis's own up
+    axis (SMPL's rest body stands along +Y) and the pelvis-to-head vector (posed on
+    ``body``) point along, on average over the clip (up to 500 frames, evenly spaced).
+
+    Raises:
+        MotionFileError: the two disagree, or neither points clearly along one axis (a
+            clip lying down, or upside down and tumbling), naming ``up_axis=``.
+    """
+    from mrlib.representation.body import resolve_body
+
+    body = resolve_body(default_body() if body is None else body)
+    T = len(poses)
+    idx = np.unique(np.linspace(0, T - 1, min(T, 500)).round().astype(int))
+    R = axis_angle_to_matrix(torch.from_numpy(np.asarray(poses[idx], np.float64)))
+    pelvis_up = R[:, 0, :, 1].numpy()  # the pelvis's +Y in the world, (T', 3)
+    with torch.no_grad():
+        out = body.forward(R.to(body.device, body.dtype), None, _betas_for(body, betas))
+    J = out.joints.double().cpu().numpy()
+    head = J[:, JOINT_NAMES.index("head")] - J[:, 0]
+    head /= np.maximum(np.linalg.norm(head, axis=-1, keepdims=True), 1e-9)
+    votes = {}
+    for name, v in (("the pelvis's up axis", pelvis_up), ("the pelvis-to-head direction", head)):
+        m = v.mean(0)
+        order = np.argsort(-np.abs(m))
+        clear = abs(m[order[0]]) >= _UP_MIN and abs(m[order[0]]) >= _UP_MARGIN * abs(m[order[1]])
+        votes[name] = (detect_up_axis(v) if clear else None, m)
+    axes = {a for a, _ in votes.values()}
+    shown = "; ".join(
+        f"{n} averages ({', '.join(f'{x:+.2f}' for x in m)})" for n, (_, m) in votes.items()
+    )
+    if len(axes) != 1 or None in axes:
+        raise MotionFileError(
+            source if source is not None else "<poses>",
+            f"cannot tell the up axis from the body ({shown}): pass up_axis= "
+            "(--up-axis on the command line), e.g. 'z' for AMASS, 'y' for BEAT2",
+        )
+    axis = axes.pop()
+    return axis, f"told from the body: {shown}"
+
+
+def _betas_for(body, betas) -> torch.Tensor | None:
+    if betas is None:
+        return None
+    from mrlib.representation.body import fit_betas
+
+    return torch.as_tensor(fit_betas(betas, body.num_betas), dtype=body.dtype).to(body.device)
+
+
+def _floor_height(poses, trans, betas, fps: float, body=None) -> float | None:
+    """Height (m) the feet of a Y-up clip stand at: the median, over frames with a foot
+    vertex slower than the contact threshold, of the lowest such vertex; None when no
+    frame has one."""
+    from mrlib.representation.body import resolve_body
+    from mrlib.representation.contacts import contacts_from_velocity, finite_difference_velocity
+
+    if len(poses) < 2:
+        return None
+    body = resolve_body(default_body() if body is None else body)
+    R = axis_angle_to_matrix(torch.from_numpy(np.asarray(poses, np.float64)))
+    t = torch.from_numpy(np.asarray(trans, np.float64))
+    with torch.no_grad():
+        out = body.forward(R.to(body.device, body.dtype), t.to(body.device, body.dtype),
+                           _betas_for(body, betas), vertex_ids=list(body.foot_vertex_ids))  # fmt: skip
+    F = out.vertices.double().cpu()
+    c = contacts_from_velocity(finite_difference_velocity(F, fps)) > 0.5
+    y = F[..., 1].numpy()
+    lows = np.where(c, y, np.inf).min(1)[c.any(1)]
+    return float(np.median(lows)) if len(lows) else None
+
+
 def _check_axis(path, axis: str) -> str:
     try:
         up_axis_rotation(axis)
@@ -163,8 +257,9 @@ def load_npz(
         path: the ``.npz`` file.
         fps: resample to this frame rate (the file's own rate is used when None); if the
             file has no frame-rate key, ``fps`` is required and taken as its rate.
-        up_axis: the file's up axis, overriding its ``up_axis`` key (default ``"z"``,
-            AMASS's, when the file has none).
+        up_axis: the file's up axis (``x y z -x -y -z``), overriding its ``up_axis`` key;
+            ``"auto"`` or None on a file without the key: told from the body
+            (:func:`detect_npz_up_axis`; ``meta["up_axis_reason"]`` says how).
         body: body model for the rest pelvis used by the up-axis conversion (default:
             mrlib's); only needed for files that are not Y up.
 
@@ -238,11 +333,23 @@ def load_npz(
         )
     else:
         rate = float(fps)
-    axis = up_axis if up_axis is not None else (_text_value(data, "up_axis") or "z")
-    axis = _check_axis(path, axis)
-    meta["up_axis"] = axis
+    declared = _text_value(data, "up_axis")
     _check_rotations(path, "'poses'", poses)  # before the turn to Y up hides the root's
+    if up_axis is not None and str(up_axis).lower() != "auto":
+        axis, why = _check_axis(path, up_axis), "as given"
+    elif declared is not None and up_axis is None:
+        axis, why = _check_axis(path, declared), "the file's up_axis key"
+    else:
+        axis, why = detect_npz_up_axis(poses, trans, betas, body, source=path)
+    meta["up_axis"] = axis
+    meta["up_axis_reason"] = why
     poses, trans = _to_y_up(poses, trans, betas, axis, body)
+    if declared is None:  # placed by another body model: stand the feet on y = 0
+        height = _floor_height(poses, trans, betas, rate, body)
+        if height is not None and abs(height) > FLOOR_TOLERANCE_M:
+            trans = trans.copy()
+            trans[:, 1] -= height
+            meta["floor_shift_m"] = round(-height, 4)
     contacts = None
     if "contacts" in data:
         contacts = _array(path, data, "contacts", ndim=2)
@@ -385,12 +492,21 @@ def load_easymocap(
     R_h = axis_angle_to_matrix(torch.from_numpy(Rh)).numpy()
     G = R_h @ axis_angle_to_matrix(torch.from_numpy(poses[:, 0])).numpy()  # (T, 3, 3)
     trans = R_h @ J0 + Th - J0  # SMPL's transl for EasyMocap's rigid (Rh, Th)
+    poses[:, 0] = matrix_to_axis_angle(torch.from_numpy(G)).numpy()  # in EasyMocap's world
     if up_axis == "auto":
-        up_axis = detect_up_axis(G[:, :, 1])  # the pelvis's rest up (Y) axis in the world
-    axis = _check_axis(folder, up_axis)
+        axis, why = detect_npz_up_axis(poses, trans, betas, body, source=folder)
+    else:
+        axis, why = _check_axis(folder, up_axis), "as given"
     G, trans = change_up_axis(G, trans, J0, axis)
     poses[:, 0] = matrix_to_axis_angle(torch.from_numpy(G)).numpy()
-    meta = {"source": str(folder), "format": "easymocap", "up_axis": axis, "person": person}
+    meta = {"source": str(folder), "format": "easymocap", "up_axis": axis,
+            "up_axis_reason": why, "person": person}  # fmt: skip
+    # EasyMocap's world is a camera's frame, whose floor is anywhere: feet on y = 0
+    height = _floor_height(poses, trans, betas, float(fps), body)
+    if height is not None and abs(height) > FLOOR_TOLERANCE_M:
+        trans = trans.copy()
+        trans[:, 1] -= height
+        meta["floor_shift_m"] = round(-height, 4)
     try:
         return Motion(
             poses=poses, trans=trans, fps=float(fps), betas=betas, name=folder.name, meta=meta

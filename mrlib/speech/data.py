@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import torch
@@ -120,10 +120,11 @@ def load_paired_folder(
     *,
     motion_dir: str | Path | None = None,
     motion_fps: float | None = None,
-    max_mismatch_s: float = 0.5,
+    max_mismatch_s: float = 1.0,
     min_seconds: float = 1.0,
     strict: bool = True,
     body=None,
+    up_axis: str | None = None,
 ) -> list[SpeechMotionPair]:
     """Paired speech and motion: every ``<stem>.wav`` in ``folder`` with the motion
     file of the same stem (``<stem>.npz``: SMPL/AMASS-style or mrlib's, or
@@ -133,8 +134,11 @@ def load_paired_folder(
         extractor: a ``SpeechFeatureExtractor`` (default: WavLM).
         motion_fps: resample motion to this rate (the paper uses 25 fps); None keeps it.
         max_mismatch_s: refuse pairs whose audio and motion durations differ by more
-            (a sign of a wrong pairing or a cut recording).
+            (a sign of a wrong pairing or a cut recording); within it, both are cut to
+            the shorter from their start (BEAT2's audio runs ~0.6 s past its motion).
         strict: raise on an unpaired file; False skips it with a warning.
+        up_axis: the motion files' up axis (``mrlib.io.load_motion``; default: an npz's
+            key, else told from the body).
     Raises:
         AudioFileError / MotionFileError: missing partner file (strict), a stem with
             both ``.npz`` and ``.bvh``, unreadable or too short files, mismatched
@@ -174,7 +178,7 @@ def load_paired_folder(
                 motions[stem][0], f"ambiguous partner: {[p.name for p in motions[stem]]}"
             )
         mpath = motions[stem][0]
-        motion = load_motion(mpath, motion_fps, body=body)
+        motion = load_motion(mpath, motion_fps, body=body, up_axis=up_axis)
         clip = _clip(audio[stem], ex, min_seconds)
         gap = abs(clip.duration - motion.duration)
         if gap > max_mismatch_s:
@@ -185,8 +189,22 @@ def load_paired_folder(
                 "or a cut recording? (to accept: --max-mismatch SECONDS on the command line, "
                 "max_mismatch_s= in Python)",
             )
+        clip, motion = _trim_to_common(clip, motion)
         out.append(SpeechMotionPair(**vars(clip), motion=motion, motion_path=mpath))
     return out
+
+
+def _trim_to_common(clip: SpeechClip, motion: Motion) -> tuple[SpeechClip, Motion]:
+    """Audio and motion cut to the shorter of the two, both from their start (BEAT2's
+    audio usually runs ~0.6 s past its motion; recordings start together)."""
+    seconds = min(clip.duration, motion.duration)
+    if clip.duration > seconds:
+        frames = max(1, int(round((seconds - clip.frame_offset_s) * clip.fps)) + 1)
+        clip = replace(clip, features=clip.features[:frames], duration=seconds)
+    frames = int(round(seconds * motion.fps))
+    if motion.num_frames > frames >= 2:
+        motion = motion.slice(0, frames)
+    return clip, motion
 
 
 # -- the training set ----------------------------------------------------------------------
@@ -315,7 +333,8 @@ class SpeechTrainingSet:
         fps: float = 25.0,
         body=None,
         downsample: str = "area",
-        max_mismatch_s: float = 0.5,
+        max_mismatch_s: float = 1.0,
+        up_axis: str | None = None,
     ) -> SpeechTrainingSet:
         """``paired_dir``: ``<stem>.wav`` + ``<stem>.npz|.bvh`` (``load_paired_folder``,
         which refuses a pair whose durations differ by more than ``max_mismatch_s``);
@@ -324,8 +343,9 @@ class SpeechTrainingSet:
         paper uses 25)."""
         ex = extractor if extractor is not None else SpeechFeatureExtractor()
         pairs = load_paired_folder(
-            paired_dir, ex, motion_fps=fps, body=body, max_mismatch_s=max_mismatch_s
-        )
+            paired_dir, ex, motion_fps=fps, body=body, max_mismatch_s=max_mismatch_s,
+            up_axis=up_axis,
+        )  # fmt: skip
         unpaired = [] if unpaired_dir is None else load_unpaired_folder(unpaired_dir, ex)
         return cls.from_clips(pairs, unpaired, ex.config, fps=fps, body=body, downsample=downsample)
 

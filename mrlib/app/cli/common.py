@@ -117,12 +117,27 @@ def threads_option(p) -> None:
 
 
 def joint_map_option(p) -> None:
+    """``--joint-map`` and ``--up-axis``: how a motion file is read."""
     p.add_argument(
         "--joint-map",
         default=None,
         metavar="MAP",
         help="BVH only: a shipped map name or a JSON file {smpl_joint: bvh_joint} (default: "
         "the shipped map that fits, else one recognised from the skeleton)",
+    )
+    up_axis_option(p)
+
+
+UP_AXES = ("auto", "x", "y", "z", "-x", "-y", "-z")
+
+
+def up_axis_option(p) -> None:
+    p.add_argument(
+        "--up-axis",
+        choices=UP_AXES,
+        default=None,
+        help="the motion files' up axis [default: an npz's own up_axis key, else told from "
+        "the body (AMASS: z, BEAT2: y); a BVH's from its skeleton]",
     )
 
 

@@ -29,7 +29,7 @@ def cmd_export(args) -> int:
     from mrlib.io.outputs import check_writable
 
     check_writable(args.dst, overwrite=args.overwrite)  # before reading anything
-    m = load_motion(args.src, fps=args.fps, joint_map=args.joint_map)
+    m = load_motion(args.src, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis)
     save_motion(m, args.dst, overwrite=args.overwrite)
     print(f"wrote {args.dst} ({m.num_frames} frames @ {m.fps:g} fps)")
     return 0

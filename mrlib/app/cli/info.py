@@ -42,7 +42,7 @@ def cmd_info(args) -> int:
         from mrlib.io.outputs import check_writable
 
         check_writable(args.write_map, overwrite=args.overwrite)
-    m = load_motion(args.path, fps=args.fps, joint_map=args.joint_map)
+    m = load_motion(args.path, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis)
     print(m)
     print(f"  duration     {m.duration:.2f} s")
     print(f"  label        {m.label}")

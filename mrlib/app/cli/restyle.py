@@ -106,7 +106,7 @@ def cmd_restyle(args) -> int:
     level = restyle_level(model, args.level)
     if args.invert and args.keep != "coarse":
         raise MrlibError("--invert fits the coarse levels to the clip: it needs --keep coarse")
-    clip = load_motion(args.clip, joint_map=args.joint_map)
+    clip = load_motion(args.clip, joint_map=args.joint_map, up_axis=args.up_axis)
     if clip.duration > MAX_SAMPLE_SECONDS:
         raise MrlibError(
             f"{args.clip}: {clip.duration:.0f} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s "

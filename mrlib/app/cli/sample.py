@@ -11,6 +11,7 @@ from mrlib.app.cli.common import (
     parse_seed,
     parse_steps,
     sample_output_options,
+    up_axis_option,
     warn_unfinished,
     with_sampler,
     write_samples,
@@ -169,6 +170,7 @@ def add_sample(sub) -> argparse.ArgumentParser:
         metavar="MOTION",
         help="continue this motion file for --seconds more",
     )
+    up_axis_option(p)
     p.add_argument(
         "--seconds",
         type=_seconds,
@@ -247,7 +249,7 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
 
             if args.seconds is None:
                 raise MrlibError("--continue needs --seconds (how much to add)")
-            prefix = load_motion(args.prefix)
+            prefix = load_motion(args.prefix, up_axis=args.up_axis)
             frames = max(1, round(args.seconds * model.fps))
             # the prefix is resampled to the model's rate: its duration counts, not its frames
             _check_sample_frames(round(prefix.duration * model.fps) + frames, model.fps, args)

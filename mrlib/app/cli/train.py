@@ -17,6 +17,7 @@ from mrlib.app.cli.common import (
     preset_help,
     progress_option,
     run_options,
+    up_axis_option,
 )
 from mrlib.errors import MrlibError
 
@@ -252,7 +253,10 @@ def cmd_train(args) -> int:
     with _retarget_check(args.accept_retarget_error):
         # TrainingSet.from_files, with the clips' lengths checked before they are resampled
         maps = joint_maps_for(args.clips, args.joint_map)  # BVH files only
-        motions = [load_motion(p, joint_map=m) for p, m in zip(args.clips, maps, strict=True)]
+        motions = [
+            load_motion(p, joint_map=m, up_axis=args.up_axis)
+            for p, m in zip(args.clips, maps, strict=True)
+        ]
         check_training_clips(motions, args.clips, fps)
         data = TrainingSet.from_motions(motions, args.labels, fps)
     print(
@@ -364,13 +368,14 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
         "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
     )
     p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
+    up_axis_option(p)
     p.add_argument(
         "--max-mismatch",
         type=parse_mismatch,
         default=None,
         metavar="SECONDS",
         help="accept pairs whose audio and motion durations differ by up to this many "
-        "seconds (longer: refused as a wrong pair) [default: 0.5]",
+        "seconds, cutting both to the shorter (more: refused as a wrong pair) [default: 1]",
     )
     run_options(
         p,
@@ -399,6 +404,7 @@ def cmd_train_speech(args) -> int:
                 "random_audio": "--random-audio",
                 "fps": "--fps",
                 "max_mismatch": "--max-mismatch",
+                "up_axis": "--up-axis",
                 "seed": "--seed",
             },
         )
@@ -421,10 +427,11 @@ def cmd_train_speech(args) -> int:
         wavlm = None if args.wavlm is None else str(args.wavlm)
         extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
         fps = 25.0 if args.fps is None else args.fps
-        mismatch = 0.5 if args.max_mismatch is None else args.max_mismatch
+        mismatch = 1.0 if args.max_mismatch is None else args.max_mismatch
         data = SpeechTrainingSet.from_folders(
-            args.paired, args.unpaired, extractor, fps=fps, max_mismatch_s=mismatch
-        )
+            args.paired, args.unpaired, extractor, fps=fps, max_mismatch_s=mismatch,
+            up_axis=args.up_axis,
+        )  # fmt: skip
         print(data)
     res = speech_train(
         data,
