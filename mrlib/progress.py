@@ -102,7 +102,12 @@ class LineProgress:
         if self.n == self.initial and self.n != 0:
             return  # nothing happened in this task (a resumed block already done)
         seconds = time.perf_counter() - self._t0
-        count = _count(self.n) if self.total is None else f"{_count(self.n)}/{_count(self.total)}"
+        if self.total is None:
+            count = _count(self.n)
+        elif float(self.total).is_integer():
+            count = f"{_count(self.n)}/{_count(self.total)}"
+        else:  # a weighted total (the demo's work units): a share reads better
+            count = f"{100 * self.n / self.total:.0f}%" if self.total else _count(self.n)
         line = f"{self.desc + ': ' if self.desc else ''}{count} in {seconds:.1f} s"
         if self.postfix:
             line += f", {self.postfix}"
