@@ -424,9 +424,11 @@ def test_audio_drives_the_motion_and_the_control_is_computed(trained, body):
     assert not np.allclose(a.poses[:, 16:22], b.poses[:, 16:22])  # same noise, other speech
     utts = [(bursts(3.0, s), SR) for s in (1, 2)]
     res = evaluate_speech_sync(model, utts, seeds=(0,), body=body)
-    keys = {f"{k}_{w}" for k in ("r", "beat", "lift") for w in ("model", "shuffled")}
+    keys = {f"{k}_{w}" for k in res.KEYS for w in ("model", "shuffled")}
+    assert set(res.KEYS) == {"r", "beat", "lift", "pause", "speed"}
     assert len(res.rows) == 2 and set(res.summary()) == keys
     assert all(-1 <= r["lift_model"] <= 1 and 0 <= r["beat_shuffled"] <= 1 for r in res.rows)
+    assert all(r["speed_model"] > 0 for r in res.rows)
     assert "other utterance" in res.to_markdown() and "paired" in res.to_markdown()
     mean, se, wins, n = res.paired("r")
     d = [r["r_model"] - r["r_shuffled"] for r in res.rows]

@@ -16,7 +16,18 @@ the beat alignment score.
   60 fps; we average over speech onsets (every stressed syllable should meet a beat) and
   give sigma in seconds, default 0.05 s (their 3 frames at 60 fps).
 
-``evaluate_speech_sync`` scores a trained model with all three on held-out utterances,
+Phrase-level measures, which real speech can judge where the frame-level ones cannot
+(on a minute of BEAT2 capture the real motion's own energy / hand-speed r was 0.025 and
+its beat alignment 0.21 against 0.21 for another clip's onsets, the issue that asked for
+these measures):
+
+* ``wrist_lift`` against ``phrase_loudness``: arms up while talking (``lift``);
+* ``voice_activity`` and ``speech_pause_ratio``: the wrists' mean speed while the
+  speaker talks over their mean speed in pauses of at least 0.3 s (``pause``): people
+  gesture while they speak and rest in pauses;
+* the mean wrist speed itself (``speed``), to hold against the real clip's.
+
+``evaluate_speech_sync`` scores a trained model with all of them on held-out utterances,
 against the same model driven by another utterance's audio.
 
 The score has a floor that depends on how dense the motion beats are (with a beat every
@@ -52,6 +63,8 @@ __all__ = [
     "beat_alignment_score",
     "wrist_lift",
     "phrase_loudness",
+    "voice_activity",
+    "speech_pause_ratio",
     "SyncResult",
     "evaluate_speech_sync",
 ]
@@ -259,6 +272,47 @@ def phrase_loudness(
     return gaussian_filter1d(e, smooth_s * fps, mode="nearest")
 
 
+def voice_activity(
+    wav: np.ndarray, sr: int, fps: float, num_frames: int, *, min_pause_s: float = 0.3
+) -> np.ndarray:
+    """``(num_frames,)`` bool: the speaker is talking. A frame is loud when its energy
+    (``energy_envelope``, dB under the clip's loudest) lies above the midpoint of the
+    clip's 10th and 90th percentiles (so the level of the recording does not matter);
+    quiet stretches shorter than ``min_pause_s`` (the gaps between words) count as
+    talking, so what is left out are pauses."""
+    e = energy_envelope(wav, sr, fps, num_frames).astype(np.float64)
+    lo, hi = np.percentile(e, [10, 90])
+    loud = e > (lo + hi) / 2
+    shortest = max(1, int(round(min_pause_s * fps)))
+    out = loud.copy()
+    t = 0
+    while t < len(out):  # fill quiet runs shorter than a pause
+        if out[t]:
+            t += 1
+            continue
+        end = t
+        while end < len(out) and not out[end]:
+            end += 1
+        if end - t < shortest and t > 0 and end < len(out):
+            out[t:end] = True
+        t = end
+    return out
+
+
+def speech_pause_ratio(talking: np.ndarray, speed: np.ndarray, *, min_frames: int = 5) -> float:
+    """Mean wrist speed while talking over mean wrist speed in pauses (``talking`` from
+    :func:`voice_activity`, ``speed`` from :func:`hand_speed`, the same frames); NaN
+    when either has fewer than ``min_frames`` frames or the pauses are still."""
+    talking = np.asarray(talking, bool)
+    speed = np.asarray(speed, np.float64)
+    if len(talking) != len(speed):
+        raise MotionValueError(f"{len(talking)} voice frames for {len(speed)} motion frames")
+    if talking.sum() < min_frames or (~talking).sum() < min_frames:
+        return float("nan")
+    rest = float(speed[~talking].mean())
+    return float(speed[talking].mean() / rest) if rest > 0 else float("nan")
+
+
 @dataclass
 class SyncResult:
     """What :func:`evaluate_speech_sync` measured.
@@ -267,20 +321,28 @@ class SyncResult:
         rows: one dict per (utterance, seed) with ``utterance``, ``seed`` and, for the
             model driven by its own audio (``_model``) and by another utterance's
             (``_shuffled``): ``r`` energy / hand-speed correlation, ``beat`` beat
-            alignment, ``lift`` phrase-loudness / wrist-height correlation; ``_data``
+            alignment, ``lift`` phrase-loudness / wrist-height correlation, ``pause``
+            wrist speed talking / in pauses, ``speed`` mean wrist speed (m/s); ``_data``
             versions for utterances with a reference motion.
     """
 
     rows: list[dict]
 
-    KEYS = ("r", "beat", "lift")
+    KEYS = ("r", "beat", "lift", "pause", "speed")
+    NAMES = {
+        "r": "energy / hand-speed r",
+        "beat": "beat alignment",
+        "lift": "phrase loudness / wrist-height r",
+        "pause": "wrist speed talking / pauses",
+        "speed": "mean wrist speed m/s",
+    }
 
     def mean(self, key: str) -> float:
-        vals = [r[key] for r in self.rows if key in r]
+        vals = [r[key] for r in self.rows if key in r and np.isfinite(r[key])]
         return float(np.mean(vals)) if vals else float("nan")
 
     def std(self, key: str) -> float:
-        vals = [r[key] for r in self.rows if key in r]
+        vals = [r[key] for r in self.rows if key in r and np.isfinite(r[key])]
         return float(np.std(vals)) if vals else float("nan")
 
     def paired(self, key: str) -> tuple[float, float, int, int]:
@@ -289,6 +351,7 @@ class SyncResult:
         d = np.array(
             [r[f"{key}_model"] - r[f"{key}_shuffled"] for r in self.rows if f"{key}_model" in r]
         )
+        d = d[np.isfinite(d)]
         if len(d) == 0:
             return float("nan"), float("nan"), 0, 0
         se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan")
@@ -304,8 +367,8 @@ class SyncResult:
             return f"{self.mean(key):.3f} +- {self.std(key):.3f}"
 
         lines = [
-            "| | energy / hand-speed r | beat alignment | phrase loudness / wrist-height r |",
-            "|---|---|---|---|",
+            "| | " + " | ".join(self.NAMES[k] for k in self.KEYS) + " |",
+            "|---" * (len(self.KEYS) + 1) + "|",
         ]
         for who, name in (
             ("model", "model, own audio"),
@@ -345,7 +408,10 @@ def evaluate_speech_sync(
       coupling;
     * ``beat``: ``beat_alignment_score`` of k's onsets against the motion beats;
     * ``lift``: correlation of k's :func:`phrase_loudness` and the :func:`wrist_lift`
-      (best lag within ``max_lag_s``): phrase-level coupling, arms up while talking.
+      (best lag within ``max_lag_s``): phrase-level coupling, arms up while talking;
+    * ``pause``: :func:`speech_pause_ratio` of k's :func:`voice_activity` and the hand
+      speed: more gesture while talking than in pauses;
+    * ``speed``: the mean wrist speed (m/s), to compare with the real clip's.
 
     ``references`` (e.g. the held-out pairs' own motions) are scored the same way once.
 
@@ -369,7 +435,9 @@ def evaluate_speech_sync(
         phrase = phrase_loudness(wav, sr, motion.fps, T)
         lift = lagged_correlation(phrase, wrist_lift(motion, body), motion.fps, lag).r
         beat = beat_alignment_score(onsets, motion, body, speed=v)
-        return {f"r_{tag}": r, f"beat_{tag}": beat, f"lift_{tag}": lift}
+        pause = speech_pause_ratio(voice_activity(wav, sr, motion.fps, T), v)
+        return {f"r_{tag}": r, f"beat_{tag}": beat, f"lift_{tag}": lift,
+                f"pause_{tag}": pause, f"speed_{tag}": float(v.mean())}  # fmt: skip
 
     rows = []
     for k, (wav, sr) in enumerate(utterances):
