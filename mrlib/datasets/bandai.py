@@ -16,10 +16,8 @@ redistribute it. Where the clips come from, first match wins:
    ``mrlib/assets/bandai_registry.txt`` before it is kept. ``$MRLIB_DATA_URL`` replaces
    the download prefix up to and including the commit (a mirror, or a local server).
 
-Every download is bounded: it is stopped (and its temporary file removed) as soon as the
-body passes the size the registry gives for the file, a server that sends nothing for
-``TIMEOUT_S`` seconds is reported at once (no second try), and a file that has not
-arrived within ``file_deadline`` seconds (a server that trickles) is given up.
+Every download is bounded (a size cap from the registry, ``TIMEOUT_S`` of silence,
+``file_deadline`` in all; ``mrlib.datasets.fetching``, shared with ``beat2``).
 
 ``mrlib data fetch bandai`` fetches the clips the notebooks use ahead of time
 (``--all``: the whole dataset, 40 MB). :func:`tutorial_clips` is what the notebooks
@@ -31,14 +29,19 @@ from __future__ import annotations
 
 import os
 import re
-import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-from mrlib.errors import MrlibError
-from mrlib.io.paths import CACHE_ENV, DATA_DIR_ENV, SHARED_DATA_DIR, cache_root
-from mrlib.progress import bar as progress_bar
+from mrlib.datasets import fetching
+from mrlib.datasets.fetching import (
+    TIMEOUT_S,
+    DataFetchError,
+    FetchHints,
+    file_deadline,
+    registry_rows,
+)
+from mrlib.io.paths import DATA_DIR_ENV, SHARED_DATA_DIR, cache_root
 
 __all__ = [
     "BANDAI_REF",
@@ -70,15 +73,10 @@ ATTRIBUTION = (
 )
 DATA_SAMPLES = Path(__file__).resolve().parents[2] / "data_samples"
 _REGISTRY = Path(__file__).resolve().parents[1] / "assets" / "bandai_registry.txt"
-# seconds a server may stay silent (connecting, before the headers, between reads of the
-# body): one that never answers is reported after this, not tried again
-TIMEOUT_S = 10.0
-MIN_RATE = 100_000  # bytes a second: a file slower than this (plus 20 s) is given up
-CHUNK = 64 * 1024
 # the cap of a file the registry gives no size for (a registry of an older mrlib)
 CAP_BY_SUFFIX = {".bvh": 16 * 2**20, ".json": 64 * 2**10, ".txt": 64 * 2**10}
 CAP_OTHER = 1 * 2**20
-STALE_TEMP_S = 15 * 60  # a temporary file this old in the cache is a killed download's
+HINTS = FetchHints(DATA_URL_ENV, DATA_DIR_ENV, "mrlib data fetch bandai")
 
 # The clips the notebooks load: the four walks they train on, second takes and other
 # contents for the calibration rows, and the resting poses of the speech notebook.
@@ -90,28 +88,18 @@ NOTEBOOK_CLIPS = tuple(
 )
 
 
-class DataFetchError(MrlibError, OSError):
-    """A dataset file could not be fetched (no network, a bad file, an unwritable cache)."""
-
-
-def _registry_rows() -> list[list[str]]:
-    rows = _REGISTRY.read_text().splitlines()
-    return [line.split() for line in rows if line.strip() and not line.startswith("#")]
-
-
 def bandai_registry() -> dict[str, str]:
     """``{relative path: "sha256:<hex>"}`` of every file mrlib can fetch (paths relative
     to the dataset folder: ``data/<clip>.bvh``, ``data/<clip>.json``, ``cfg/*.txt``,
     ``LICENSE``)."""
-    return {row[0]: row[1] for row in _registry_rows()}
+    return fetching.registry_hashes(registry_rows(_REGISTRY))
 
 
 def bandai_sizes(registry: dict[str, str] | None = None) -> dict[str, int]:
     """``{relative path: size in bytes}`` of the files :func:`bandai_registry` lists (the
     registry's third column); with ``registry``, of the files whose hash there is the one
     the size belongs to (another file's size is no cap for it)."""
-    rows = [row for row in _registry_rows() if len(row) > 2]
-    return {r[0]: int(r[2]) for r in rows if registry is None or registry.get(r[0]) == r[1]}
+    return fetching.registry_sizes(registry_rows(_REGISTRY), registry)
 
 
 def download_cap(name: str, sizes: dict[str, int] | None = None) -> int:
@@ -121,12 +109,6 @@ def download_cap(name: str, sizes: dict[str, int] | None = None) -> int:
     if name in sizes:
         return sizes[name]
     return CAP_BY_SUFFIX.get(Path(name).suffix, CAP_OTHER)
-
-
-def file_deadline(cap: int) -> float:
-    """Seconds a download of at most ``cap`` bytes may take in all: 20 s plus the time
-    it takes at ``MIN_RATE``."""
-    return 20.0 + cap / MIN_RATE
 
 
 def bandai_local_dir() -> Path | None:
@@ -170,92 +152,13 @@ def _base_url() -> str:
     return f"{prefix.rstrip('/')}/{BANDAI_SUBDIR}/"
 
 
-_RETRY = (
-    f"run `mrlib data fetch bandai` again later, set ${DATA_URL_ENV} to another mirror, or "
-    f"${DATA_DIR_ENV} to a downloaded copy"
-)
+class CappedDownloader(fetching.CappedDownloader):
+    """``mrlib.datasets.fetching.CappedDownloader`` whose messages name the Bandai
+    dataset's ways around (``$MRLIB_DATA_URL``, ``$MRLIB_DATA_DIR``)."""
 
-
-class CappedDownloader:
-    """A pooch downloader (``downloader(url, output_file, pooch)``) of one file that
-    stops as soon as the body passes ``cap`` bytes (a ``Content-Length`` above it is
-    refused before the body is read), reports a server silent for ``TIMEOUT_S`` seconds
-    at once, and gives up a file that has not arrived within ``deadline`` seconds. Its
-    refusals are ``DataFetchError`` (pooch neither retries them nor keeps the temporary
-    file); a dropped connection is a ``requests`` error, which pooch retries."""
-
-    def __init__(self, name: str, cap: int, deadline: float) -> None:
-        self.name, self.cap, self.deadline = name, int(cap), float(deadline)
-
-    def __call__(self, url: str, output_file, pooch=None, check_only: bool = False) -> None:
-        import requests
-
-        start = time.monotonic()
-        try:
-            with requests.get(url, stream=True, timeout=(TIMEOUT_S, TIMEOUT_S)) as r:
-                r.raise_for_status()
-                length = r.headers.get("Content-Length", "").strip()
-                if length.isdigit() and int(length) > self.cap:
-                    raise self._too_big(url, f"the server announces {int(length)} bytes, more than")
-                read1 = getattr(r.raw, "read1", None)  # one recv a call: a trickle is seen
-                if read1 is not None:
-                    chunks = iter(lambda: read1(CHUNK, decode_content=True), b"")
-                else:  # pragma: no cover - urllib3 < 2
-                    chunks = r.iter_content(CHUNK)
-                got = 0
-                with open(output_file, "wb") as fh:
-                    for chunk in chunks:
-                        got += len(chunk)
-                        if got > self.cap:
-                            raise self._too_big(url, "the body ran past")
-                        if time.monotonic() - start > self.deadline:
-                            raise DataFetchError(
-                                f"{url}: {got} of {self.cap} bytes in {self.deadline:.0f} s "
-                                f"(slower than {MIN_RATE // 1000} KB/s), so the download was "
-                                f"stopped and nothing kept; {_RETRY}"
-                            )
-                        fh.write(chunk)
-        except DataFetchError:
-            raise
-        except Exception as exc:
-            if isinstance(exc, requests.exceptions.Timeout) or re.search(
-                r"timed? ?out", str(exc), re.IGNORECASE
-            ):
-                raise DataFetchError(
-                    f"{url}: download failed (no answer within {TIMEOUT_S:g} s); {_RETRY}"
-                ) from None
-            if isinstance(exc, (requests.RequestException, OSError)):
-                raise
-            # urllib3's own (a connection dropped mid-body): what pooch retries
-            raise requests.exceptions.ConnectionError(f"{type(exc).__name__}: {exc}") from exc
-
-    def _too_big(self, url: str, what: str) -> DataFetchError:
-        return DataFetchError(
-            f"{url}: {what} the {self.cap} bytes mrlib's registry gives for {self.name}, so "
-            f"the download was stopped and nothing kept; a mirror set in "
-            f"${DATA_URL_ENV} may serve other files: unset it or point it at a copy of the "
-            "dataset, then fetch again"
-        )
-
-
-def _remove_stale_temporaries(cache: Path) -> None:
-    """Remove the temporary files a killed download left in the cache (pooch's
-    ``tmp********``), once they are older than any download may take."""
-    for folder in (cache, cache / "data", cache / "cfg"):
-        try:
-            entries = list(folder.iterdir())
-        except OSError:
-            continue
-        for p in entries:
-            try:
-                if (
-                    re.fullmatch(r"tmp[a-z0-9_]{8}", p.name)
-                    and p.is_file()
-                    and time.time() - p.stat().st_mtime > STALE_TEMP_S
-                ):
-                    p.unlink()
-            except OSError:
-                pass
+    def __init__(self, name: str, cap: int, deadline: float, *, timeout: float | None = None):
+        timeout = TIMEOUT_S if timeout is None else timeout
+        super().__init__(name, cap, deadline, hints=HINTS, timeout=timeout)
 
 
 def fetch_bandai(
@@ -273,88 +176,20 @@ def fetch_bandai(
     Raises:
         DataFetchError: one line naming the file, the URL and what to do.
     """
-    import pooch
-
     registry = bandai_registry()
     sizes = bandai_sizes(registry)
     cache = bandai_cache_dir()
     wanted = ["LICENSE", "cfg/content_label.txt", "cfg/style_label.txt"]
     wanted += list(registry) if everything else _clip_files(clips or (), registry)
-    wanted = list(dict.fromkeys(wanted))
-    missing = [f for f in wanted if not _cached_ok(cache / f, registry[f])]
-    if not missing:
-        return cache
     first = not (cache / "LICENSE").exists()
-    _remove_stale_temporaries(cache)
-    pooch.get_logger().setLevel("WARNING")  # mrlib's own bar and messages say it instead
-    store = pooch.create(path=cache, base_url=_base_url(), registry=registry, retry_if_failed=1)
-    show = bool(progress) and len(missing) > 1
-    bar = progress_bar(missing, desc="Bandai Namco clips", unit="file", enabled=show, leave=False)
-    for f in bar:
-        url = store.get_url(f)
-        cap = download_cap(f, sizes)
-        try:
-            store.fetch(f, downloader=CappedDownloader(f, cap, file_deadline(cap)))
-        except DataFetchError:
-            raise  # the downloader's own: one line already
-        except ValueError as exc:  # pooch: hash mismatch (the download is not kept)
-            raise DataFetchError(
-                f"{url}: the file's SHA-256 does not match mrlib's registry, so it was not "
-                f"kept ({str(exc).splitlines()[0][:120]}); a mirror set in ${DATA_URL_ENV} "
-                "may serve other files: unset it, or fetch again"
-            ) from None
-        except PermissionError as exc:
-            raise DataFetchError(
-                f"{cache}: cannot write the cache ({exc.strerror or exc}); set "
-                f"${CACHE_ENV} to a writable folder, or ${DATA_DIR_ENV} to a copy of the dataset"
-            ) from None
-        except OSError as exc:
-            raise DataFetchError(
-                f"{url}: download failed ({_reason(exc)}); check the network, set "
-                f"${DATA_URL_ENV} to a mirror, or ${DATA_DIR_ENV} to a downloaded copy"
-            ) from None
-        except Exception as exc:  # requests' errors (connection, HTTP status, timeout)
-            raise DataFetchError(
-                f"{url}: download failed ({_reason(exc)}); check the network, set "
-                f"${DATA_URL_ENV} to a mirror, or ${DATA_DIR_ENV} to a downloaded copy"
-            ) from None
-    if first:
+    fetched = fetching.fetch_files(
+        wanted, registry=registry, cache=cache, base_url=_base_url(),
+        cap=lambda f: download_cap(f, sizes), hints=HINTS, desc="Bandai Namco clips",
+        progress=progress, timeout=TIMEOUT_S, deadline=file_deadline,
+    )  # fmt: skip
+    if fetched and first:
         print(ATTRIBUTION.format(license=cache / "LICENSE"), flush=True)
     return cache
-
-
-_CAUSES = (
-    (
-        r"resolve|Name or service not known|nodename nor servname|getaddrinfo",
-        "host not found: no network?",
-    ),
-    (r"Connection refused", "connection refused"),
-    (r"timed? ?out", f"no answer within {TIMEOUT_S:g} s"),
-    (r"Connection reset|RemoteDisconnected|aborted", "connection dropped"),
-    (r"SSL|certificate", "TLS error"),
-)
-
-
-def _reason(exc: BaseException) -> str:
-    """The cause of a failed download in a few words (HTTP status, refused, no network)."""
-    text = " ".join(str(exc).split())
-    status = getattr(getattr(exc, "response", None), "status_code", None)
-    if status is not None:
-        return f"HTTP {status}"
-    for pattern, words in _CAUSES:
-        if re.search(pattern, text, re.IGNORECASE):
-            return words
-    return re.sub(r"\(Caused by .*", "", text).strip()[:160] or type(exc).__name__
-
-
-def _cached_ok(path: Path, digest: str) -> bool:
-    """A cached file counts when it exists with the registry's size-independent hash; a
-    file that fails the check is fetched again (pooch replaces it atomically)."""
-    if not path.is_file():
-        return False
-    import pooch
-
-    return pooch.file_hash(str(path)) == digest.split(":", 1)[-1]
 
 
 def bandai_clip(name: str, *, fetch: bool = True) -> Path:

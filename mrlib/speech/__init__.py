@@ -17,6 +17,7 @@ onsets), ``features`` (WavLM and the log-mel fallback), ``align`` (motion frame 
 levels, residuals, normalisation), ``data`` (folders of paired and unpaired clips, the
 training set), ``train`` (the trainer), ``sample`` (generation from audio),
 ``evaluate`` (hand speed, lagged correlation, beat alignment, synchrony of a model);
+``beat2`` (a training set from the BEAT2 files of ``mrlib.datasets.beat2`` in one call);
 ``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``) and
 rule-based gestures (``gestures``).
 """
@@ -52,6 +53,7 @@ from mrlib.speech.audio import (
     resample_audio,
     to_mono,
 )
+from mrlib.speech.beat2 import BEAT2_HELD_OUT, beat2_training_set
 from mrlib.speech.data import (
     SPEECH_LABEL,
     SpeechClip,
@@ -151,6 +153,8 @@ __all__ = [
     "load_paired_folder",
     "load_unpaired_folder",
     "SpeechTrainingSet",
+    "BEAT2_HELD_OUT",
+    "beat2_training_set",
     # training
     "speech_paper",
     "speech_tutorial",

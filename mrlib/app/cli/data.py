@@ -1,4 +1,4 @@
-"""``mrlib data``: fetch or locate the public motion data the notebooks use."""
+"""``mrlib data``: fetch or locate the public data the notebooks and speech training use."""
 
 from __future__ import annotations
 
@@ -10,39 +10,75 @@ from mrlib.app.cli.common import progress_option
 def add_data(sub) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "data",
-        help="fetch or locate the public motion data the notebooks use",
-        description="The Bandai Namco Research Motion Dataset 1 (CC BY-NC 4.0) is read from "
-        "$MRLIB_DATA_DIR or ../shared when such a folder exists, else fetched on first use "
-        "into mrlib's cache ($MRLIB_CACHE_DIR, default ~/.cache/mrlib) and checked against "
-        "SHA-256 hashes. 'fetch' downloads ahead of time; 'where' says which folder is used.",
+        help="fetch or locate the public data the notebooks and speech training use",
+        description="bandai: the Bandai Namco Research Motion Dataset 1 (CC BY-NC 4.0), read "
+        "from $MRLIB_DATA_DIR or ../shared when such a folder exists.\nbeat2: five files of the "
+        "BEAT2 co-speech dataset (CC BY-NC 4.0; speaker 2: one clip with motion and audio, "
+        "three with audio), read from $MRLIB_BEAT2_DIR or ../shared/data/beat2-sample; only "
+        "the files of mrlib's registry can be fetched (no choice of speakers or minutes), and "
+        "BEAT2's download address ($MRLIB_BEAT2_URL replaces it) is not verified.\nOtherwise "
+        "fetched on first use into mrlib's cache ($MRLIB_CACHE_DIR, default ~/.cache/mrlib) "
+        "and checked against SHA-256 hashes. 'fetch' downloads ahead of time; 'where' says "
+        "which folder is used; 'list' names what can be fetched.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n  mrlib data fetch bandai          # the clips the notebooks use\n"
-        "  mrlib data fetch bandai --all    # all 174 clips (40 MB)\n  mrlib data where bandai",
+        "  mrlib data fetch bandai --all    # all 174 clips (40 MB)\n  mrlib data where bandai\n"
+        "  mrlib data fetch beat2           # the 5 BEAT2 files mrlib knows (13 MB)\n"
+        "  mrlib data list beat2",
     )
     p.add_argument("action", choices=["fetch", "where", "list"])
-    p.add_argument("dataset", choices=["bandai"])
-    p.add_argument("--all", action="store_true", help="fetch: every clip, not only the notebooks'")
+    p.add_argument("dataset", choices=["bandai", "beat2"])
     p.add_argument(
-        "--clips", nargs="+", default=None, metavar="CLIP", help="fetch: these clips only"
+        "--all", action="store_true", help="fetch: every clip, not only the notebooks' (bandai)"
     )
+    p.add_argument(
+        "--clips", nargs="+", default=None, metavar="CLIP",
+        help="fetch: these clips only (beat2: stems such as 2_scott_0_1_1; only the registry's "
+        "files can be fetched, see 'list')",
+    )  # fmt: skip
     progress_option(p)
     return p
 
 
-def _cache_dir(datasets):
+def _cache_dir(cache):
     """The dataset's cache folder, refused (one line) where no folder can be: a file in
     its place, or a file above it (``$MRLIB_CACHE_DIR`` set to a file)."""
     from mrlib.errors import MrlibError
     from mrlib.io.paths import CACHE_ENV, folder_problem
 
-    cache = datasets.bandai_cache_dir()
     problem = folder_problem(cache)
     if problem is not None:
         raise MrlibError(f"mrlib's cache folder {cache}: {problem}; set ${CACHE_ENV} to a folder")
     return cache
 
 
+def _beat2(args) -> int:
+    from mrlib.datasets import beat2
+
+    if args.action == "list":
+        for stem, files in beat2.beat2_clips().items():
+            print(f"{stem}  {'motion + audio' if len(files) > 1 else 'audio'}")
+        return 0
+    if args.action == "where":
+        local = beat2.beat2_local_dir()
+        print(local if local is not None else f"{_cache_dir(beat2.beat2_cache_dir())} (cache)")
+        return 0
+    _cache_dir(beat2.beat2_cache_dir())  # refused before any download
+    local = beat2.beat2_local_dir()
+    if local is not None:
+        print(f"note: a local copy at {local} is read first; fetching into the cache anyway")
+    from mrlib.io.transaction import outside_transactions
+
+    with outside_transactions():
+        root = beat2.fetch_beat2(args.clips, progress=not args.no_progress)
+    n = sum((root / f).is_file() for f in beat2.beat2_registry())
+    print(f"{n} files in {root}")
+    return 0
+
+
 def cmd_data(args) -> int:
+    if args.dataset == "beat2":
+        return _beat2(args)
     from mrlib.datasets import bandai as datasets
 
     if args.action == "list":
@@ -52,9 +88,9 @@ def cmd_data(args) -> int:
         return 0
     if args.action == "where":
         local = datasets.bandai_local_dir()
-        print(local if local is not None else f"{_cache_dir(datasets)} (cache)")
+        print(local if local is not None else f"{_cache_dir(datasets.bandai_cache_dir())} (cache)")
         return 0
-    _cache_dir(datasets)  # refused before any download
+    _cache_dir(datasets.bandai_cache_dir())  # refused before any download
     local = datasets.bandai_local_dir()
     if local is not None:
         print(f"note: a local copy at {local} is read first; fetching into the cache anyway")
