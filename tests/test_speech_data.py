@@ -257,3 +257,29 @@ def test_max_mismatch_on_the_command_line(tmp_path, monkeypatch, capsys):
         with pytest.raises(SystemExit):
             main(args + ["--out", str(tmp_path / "c"), "--max-mismatch", bad])
         assert "--max-mismatch" in capsys.readouterr().err
+
+
+def test_a_file_without_its_partner_can_be_skipped_from_the_command_line(
+    tmp_path, monkeypatch, capsys
+):
+    import mrlib.speech
+    from mrlib.app.cli import main
+
+    d = tmp_path / "paired"
+    _write_pair(d, "a")
+    _write_pair(d, "b", motion_seconds=False)  # audio without its motion
+    args = ["train-speech", str(d), "--preset", "speech_demo", "--iterations", "1", "--no-progress"]
+    assert main(args + ["--out", str(tmp_path / "x")]) == 1
+    assert "--skip-unpaired-files" in capsys.readouterr().err
+
+    class Reached(BaseException):
+        pass
+
+    def stop(data, *a, **k):
+        assert data.num_paired == 1
+        raise Reached
+
+    monkeypatch.setattr(mrlib.speech, "speech_train", stop)
+    with pytest.raises(Reached):
+        main(args + ["--out", str(tmp_path / "y"), "--skip-unpaired-files"])
+    assert "skipped, no motion file b.npz" in capsys.readouterr().err

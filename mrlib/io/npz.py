@@ -251,7 +251,8 @@ def load_npz(
     elif fps is None:
         raise MotionFileError(
             path,
-            "missing key 'mocap_framerate' (or 'mocap_frame_rate'); pass fps= to give the rate",
+            "missing key 'mocap_framerate' (or 'mocap_frame_rate'): give the rate with --fps on "
+            "the command line, fps= in Python",
         )
     else:
         rate = float(fps)

@@ -164,7 +164,11 @@ def load_paired_folder(
         if strict:
             path, why = problems[0]
             more = f" (and {len(problems) - 1} more unpaired files)" if len(problems) > 1 else ""
-            raise MotionFileError(path, f"missing partner: {why}{more}; pass strict=False to skip")
+            raise MotionFileError(
+                path,
+                f"missing partner: {why}{more}; to train on the pairs alone: "
+                "--skip-unpaired-files on the command line, strict=False in Python",
+            )
         for path, why in problems:
             warnings.warn(f"{path}: skipped, {why}", stacklevel=2)
     stems = sorted(set(audio) & set(motions))
@@ -335,6 +339,7 @@ class SpeechTrainingSet:
         downsample: str = "area",
         max_mismatch_s: float = 1.0,
         up_axis: str | None = None,
+        strict: bool = True,
     ) -> SpeechTrainingSet:
         """``paired_dir``: ``<stem>.wav`` + ``<stem>.npz|.bvh`` (``load_paired_folder``,
         which refuses a pair whose durations differ by more than ``max_mismatch_s``);
@@ -344,7 +349,7 @@ class SpeechTrainingSet:
         ex = extractor if extractor is not None else SpeechFeatureExtractor()
         pairs = load_paired_folder(
             paired_dir, ex, motion_fps=fps, body=body, max_mismatch_s=max_mismatch_s,
-            up_axis=up_axis,
+            up_axis=up_axis, strict=strict,
         )  # fmt: skip
         unpaired = [] if unpaired_dir is None else load_unpaired_folder(unpaired_dir, ex)
         return cls.from_clips(pairs, unpaired, ex.config, fps=fps, body=body, downsample=downsample)

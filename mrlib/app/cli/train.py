@@ -370,6 +370,12 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
     p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
     up_axis_option(p)
     p.add_argument(
+        "--skip-unpaired-files",
+        action="store_true",
+        help="train on the audio/motion pairs of PAIRED and skip, with a warning, a file "
+        "there without its partner (refused otherwise)",
+    )
+    p.add_argument(
         "--max-mismatch",
         type=parse_mismatch,
         default=None,
@@ -405,6 +411,7 @@ def cmd_train_speech(args) -> int:
                 "fps": "--fps",
                 "max_mismatch": "--max-mismatch",
                 "up_axis": "--up-axis",
+                "skip_unpaired_files": "--skip-unpaired-files",
                 "seed": "--seed",
             },
         )
@@ -430,7 +437,7 @@ def cmd_train_speech(args) -> int:
         mismatch = 1.0 if args.max_mismatch is None else args.max_mismatch
         data = SpeechTrainingSet.from_folders(
             args.paired, args.unpaired, extractor, fps=fps, max_mismatch_s=mismatch,
-            up_axis=args.up_axis,
+            up_axis=args.up_axis, strict=not args.skip_unpaired_files,
         )  # fmt: skip
         print(data)
     res = speech_train(
