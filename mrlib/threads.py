@@ -19,7 +19,8 @@ The policy (:func:`apply_policy`), in order:
 1. a count passed explicitly (``mrlib ... --threads N``, ``apply_policy(N)``);
 2. the user's own choice: ``OMP_NUM_THREADS`` or ``MKL_NUM_THREADS`` set, or
    ``torch.set_num_threads`` called after mrlib was imported (a count other than the
-   one torch started with, or other than the one mrlib last set) -- kept as it is;
+   one torch started with, or other than the one mrlib last set) -- kept as it is, up to
+   4 x the usable CPUs like ``--threads`` (above that: a warning, once, and that cap);
 3. otherwise :func:`default_threads`: half the CPUs this process may use (at least one,
    at most torch's own starting count), so that as many other busy threads as mrlib
    runs fit beside it. On 2 cores that is one thread; counts above 2 CPUs follow the
@@ -54,6 +55,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
+import warnings
 from collections.abc import Callable, Iterator
 from typing import TypeVar
 
@@ -84,16 +86,37 @@ class _State:
 
 
 _state = _State()
+_warned: set[tuple[str, int]] = set()  # the counts above the cap already warned about
 
 F = TypeVar("F", bound=Callable)
 
 
-def _env_threads() -> int | None:
+def _env_choice() -> tuple[str, int] | None:
+    """The variable and count ``OMP_NUM_THREADS`` / ``MKL_NUM_THREADS`` sets (the first of
+    an OpenMP list such as ``4,2``), else None (unset, empty, or no positive integer)."""
     for name in ENV_VARS:
-        text = os.environ.get(name, "").strip()
+        text = os.environ.get(name, "").split(",")[0].strip()
         if text.isdigit() and int(text) > 0:
-            return int(text)
+            return name, int(text)
     return None
+
+
+def _capped(n: int, source: str) -> int:
+    """A count the user chose outside mrlib (environment, ``torch.set_num_threads``), at
+    most the 4 x usable CPUs an explicit ``--threads`` may ask for: above that a warning,
+    and the cap (``OMP_NUM_THREADS=10000`` only adds threads that wait on each other)."""
+    cap = 4 * usable_cpus()
+    if n <= cap:
+        return n
+    if (source, n) in _warned:
+        return cap
+    _warned.add((source, n))  # once a process: the policy is applied around every call
+    warnings.warn(
+        f"{source}: {n} threads are more than the {cap} mrlib runs here (4 x the "
+        f"{usable_cpus()} usable CPUs); capped at {cap} (set it <= {cap}, or pass --threads N)",
+        stacklevel=3,
+    )
+    return cap
 
 
 def usable_cpus() -> int:
@@ -140,11 +163,15 @@ def _set(n: int) -> None:
 def user_threads() -> int | None:
     """The count the user chose (environment or ``torch.set_num_threads``), else None."""
     current = torch.get_num_threads()
-    if _env_threads() is not None:
+    if _state.explicit:  # --threads N / apply_policy(N), checked when it was set
         return current
+    env = _env_choice()
+    if env is not None:  # torch may have lowered the count already; the larger is checked
+        name, n = env
+        return min(current, _capped(max(n, current), f"{name}={n}"))
     reference = _START if _state.last_set is None else _state.last_set
-    if current != reference or _state.explicit:
-        return current
+    if current != reference:
+        return _capped(current, "torch.set_num_threads")
     return None
 
 
@@ -162,6 +189,7 @@ def apply_policy(threads: int | None = None) -> int:
         return n
     chosen = user_threads()
     if chosen is not None:
+        _set(chosen)  # the cap, where the user's count was above it
         return chosen
     n = default_threads()
     _set(n)

@@ -321,10 +321,10 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             1,
             "applies to BVH files only",
         ),
-        "export at 0.005 fps to BVH": (
+        "export at 0.005 fps to BVH": (  # 3 s at 0.005 fps: one frame left, refused
             ["export", str(clip), str(tmp / "slow.bvh"), "--fps", "0.005"],
             1,
-            "makes no BVH",
+            "would leave 1 frame, no motion",
         ),
     }
 

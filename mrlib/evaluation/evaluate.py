@@ -53,7 +53,12 @@ from mrlib.errors import (
     shown,
 )
 from mrlib.evaluation.calibration import CALIBRATION_METHODS, calibration_rows, load_counterparts
-from mrlib.evaluation.results import CALIB_PREFIX, EvaluationResult, EvaluationSettings
+from mrlib.evaluation.results import (
+    CALIB_PREFIX,
+    MAX_EVAL_FRAMES,
+    EvaluationResult,
+    EvaluationSettings,
+)
 from mrlib.metrics import paper as mt
 from mrlib.metrics import plausibility as pl
 from mrlib.model.trained import check_label_model
@@ -272,6 +277,14 @@ def evaluate(
         if not isinstance(ref, Motion):
             raise MotionValueError(
                 f"references[{label!r}] must be a Motion, got {type(ref).__name__}"
+            )
+        frames = max(1, round(settings.length_factor * ref.num_frames)) * settings.num_samples
+        if frames > MAX_EVAL_FRAMES:
+            raise MotionValueError(
+                f"references[{label!r}]: {settings.num_samples} samples of "
+                f"{settings.length_factor:g} x its {ref.num_frames} frames are {frames} frames, "
+                f"more than the {MAX_EVAL_FRAMES} mrlib scores per sequence; pass fewer "
+                "num_samples (--samples), or a shorter clip"
             )
         need = max(settings.coverage_window, 2 * settings.tmin - 1, settings.local_window)
         if ref.num_frames < need:

@@ -21,12 +21,21 @@ from mrlib.metrics import plausibility as pl
 
 __all__ = [
     "CALIB_PREFIX",
+    "MAX_EVAL_FRAMES",
+    "MAX_EVAL_SAMPLES",
     "EvaluationSettings",
     "METRIC_COLUMNS",
     "CSV_COLUMNS",
     "PLOT_COLUMNS",
     "EvaluationResult",
 ]
+
+# Bounds checked before anything is drawn: 1000 samples is the most `mrlib sample --num`
+# writes too (each takes a generation and a clean-up: minutes for the tutorial model), and
+# the samples of one sequence are held together (about 2 KB a frame while scored).
+MAX_EVAL_SAMPLES = 1000
+MAX_LENGTH_FACTOR = 20.0  # generated length / training length (GANimator's is 2)
+MAX_EVAL_FRAMES = 1_000_000  # num_samples x the generated length, per sequence (~2 GB)
 
 # Names of the calibration rows, in the order they are reported.
 CALIB_PREFIX = "calib: "  # method name of a calibration row: CALIB_PREFIX + row name
@@ -60,6 +69,17 @@ class EvaluationSettings:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise MotionValueError(f"{name} must be a positive number, got {v!r}")
+        if self.num_samples > MAX_EVAL_SAMPLES:
+            raise MotionValueError(
+                f"num_samples (--samples): {self.num_samples} samples per sequence are more "
+                f"than the {MAX_EVAL_SAMPLES} mrlib evaluates; pass at most {MAX_EVAL_SAMPLES} "
+                "(the paper's table uses 200)"
+            )
+        if self.length_factor > MAX_LENGTH_FACTOR:
+            raise MotionValueError(
+                f"length_factor: {self.length_factor:g} x the training length is more than "
+                f"the {MAX_LENGTH_FACTOR:g} mrlib evaluates (GANimator's is 2)"
+            )
         if self.feature_kind not in ("6d", "rotmat"):
             raise MotionValueError(
                 f"feature_kind must be '6d' or 'rotmat', got {self.feature_kind!r}"

@@ -171,7 +171,7 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
             "(mrlib checkpoints never do); it is not loaded, since unpickling it could run code",
         ) from exc
     except Exception as exc:  # torch raises several types for corrupt files
-        raise CheckpointError(path, f"cannot read checkpoint: {str(exc).splitlines()[0]}") from exc
+        raise CheckpointError(path, _unreadable(path)) from exc
     if not isinstance(state, dict) or state.get("format") != FORMAT:
         raise CheckpointError(path, "not an mrlib checkpoint (missing 'format' key)")
     if "checksum" not in state:
@@ -194,6 +194,31 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         )
     _check_labels(path, state)
     return state
+
+
+def _unreadable(path: Path) -> str:
+    """Why torch could not read ``path``, in mrlib's words (torch's own messages name
+    its zip reader's internals, or are a bare key such as '101')."""
+    import zipfile
+
+    try:
+        size = path.stat().st_size
+        names = zipfile.ZipFile(path).namelist() if zipfile.is_zipfile(path) else None
+    except (OSError, zipfile.BadZipFile, ValueError):
+        size, names = None, None
+    if size == 0:
+        return (
+            "cannot read checkpoint: the file is empty; pass the checkpoint.pt a training run wrote"
+        )
+    if names and all(n.endswith(".npy") for n in names):
+        return (
+            "not a checkpoint: it is a NumPy .npz archive (a motion or data file?); pass the "
+            "checkpoint.pt a training run wrote"
+        )
+    return (
+        "cannot read checkpoint: the file is truncated or damaged, or is no PyTorch checkpoint "
+        "(retrain, or take an earlier copy of the checkpoint.pt a training run wrote)"
+    )
 
 
 def _check_labels(path: Path, state: dict[str, Any]) -> None:

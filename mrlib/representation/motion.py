@@ -197,6 +197,12 @@ class Motion:
         if abs(fps - self.fps) < 1e-9:
             return self.replace()
         T = self.num_frames
+        if n_out < 2 <= T:  # 8 s at 0.001 fps: one pose "lasting" 1000 s, the motion lost
+            raise MotionValueError(
+                f"resampling {self.name or 'the clip'} ({T} frames, {self.duration:.4g} s) "
+                f"from {self.fps:g} to {fps:g} fps would leave {n_out} frame, no motion; "
+                f"choose {self.fps / (T - 1):.4g} fps or more"
+            )
         if n_out > max(MAX_RESAMPLE_FRAMES, T):
             raise MotionValueError(
                 f"resampling {self.name or 'the clip'} ({T} frames, {self.duration:.4g} s) "

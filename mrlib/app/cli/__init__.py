@@ -69,7 +69,23 @@ def build_parser() -> argparse.ArgumentParser:
     add_data(sub).set_defaults(func=_cmd_data)
     for command in sub.choices.values():
         threads_option(command)
+        for action in command._actions:  # an empty value is refused, never taken for "."
+            if action.nargs != 0:
+                action.type = _not_empty(action.type)
     return parser
+
+
+def _not_empty(kind):
+    """``kind`` (an argparse ``type``, or None for text) refusing an empty or blank value:
+    ``--out ""`` would write to the current folder, ``--path ""`` would be no path."""
+
+    def convert(text):
+        if isinstance(text, str) and not text.strip():
+            raise argparse.ArgumentTypeError(f"wants a value, got {text!r}")
+        return text if kind is None else kind(text)
+
+    convert.__name__ = getattr(kind, "__name__", "value")  # argparse's "invalid <name> value"
+    return convert
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -98,9 +114,10 @@ def main(argv: list[str] | None = None) -> int:
 
         # a command's outputs are all written or none (a training run's checkpoints,
         # which must reach the disk as it goes, are written outside it)
-        with policy(args.threads), output_transaction(), warnings.catch_warnings():
+        with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning  # restored when the command ends
-            return int(args.func(args) or 0)
+            with policy(args.threads), output_transaction():
+                return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130

@@ -300,11 +300,17 @@ def write_samples(motions, tag: str, args) -> int:
     return 0
 
 
+def one_line(text: str) -> str:
+    """``text`` on one line: a newline, tab or other control character (in a file name,
+    say) is shown escaped (``\\n``), as Python writes it in a string."""
+    return "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)
+
+
 def describe(e: BaseException) -> str:
     """One line for an error: the file, the problem, and for OS errors what failed."""
     if isinstance(e, OSError) and not isinstance(e, MrlibError):
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""
-        return f"{where}{e.strerror or e}"
+        return one_line(f"{where}{e.strerror or e}")
     if isinstance(e, MemoryError):
         return "out of memory (try a shorter clip, fewer samples or a lower --fps)"
-    return str(e) or type(e).__name__  # mrlib's errors name the file or flag themselves
+    return one_line(str(e) or type(e).__name__)  # mrlib's errors name the file or flag
