@@ -204,3 +204,31 @@ def test_cli_evaluate_refuses_a_billion_samples(checkpoint, tmp_path, capsys):
     )
     assert code == 1 and err.count("\n") == 1 and "--samples" in err, err
     assert not (tmp_path / "e").exists()
+
+
+@pytest.mark.parametrize("flag", ["--fine-noise", "--guidance"])
+@pytest.mark.parametrize("value", ["1e30", "11", "inf"])
+def test_sampler_settings_beyond_their_bound_are_usage_errors(flag, value, capsys):
+    """A value past the sampler's bound names the flag (it blamed units or NaN before)."""
+    from mrlib.app.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["sample", "model.pt", flag, value])
+    err = capsys.readouterr().err
+    assert flag in err and "\n" not in err.strip().splitlines()[-1]
+
+
+def test_the_sampler_bounds_hold_in_python_too(plumbing_model):
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.errors import MotionValueError
+    from mrlib.sampling.generation import MAX_FINE_NOISE, MAX_GUIDANCE, generate
+
+    model = plumbing_model([synthetic_walk("walk_sad", seconds=2.0, fps=15.0)], "bounds")
+    for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
+        old = getattr(model, name)
+        try:
+            setattr(model, name, bound * 10)
+            with pytest.raises(MotionValueError, match=f"{name} must be in"):
+                generate(model, "walk_sad", seed=0)
+        finally:
+            setattr(model, name, old)

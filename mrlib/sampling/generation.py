@@ -25,6 +25,7 @@ from mrlib.threads import with_policy
 
 # one sample: a 10-minute walk stays within mrlib.representation.motion's 1000 m
 MAX_SAMPLE_SECONDS = 600.0
+MAX_GUIDANCE = MAX_FINE_NOISE = 10.0  # sampler settings: 1 already leaves the training poses
 MAX_SAMPLE_FRAMES = 200_000  # all samples of one call or command (~0.5 GB while generating)
 
 __all__ = [
@@ -100,8 +101,8 @@ def guided_weights(model: GenerativeModel, W: torch.Tensor) -> torch.Tensor:
     sum to one; with g > 0 some weights are negative, which the linear label embedding
     takes as extrapolation beyond the label. A one-label model has nothing to push from."""
     g = float(model.guidance)
-    if not (np.isfinite(g) and g >= 0):
-        raise MotionValueError(f"guidance must be a number >= 0, got {model.guidance!r}")
+    if not (np.isfinite(g) and 0 <= g <= MAX_GUIDANCE):
+        raise MotionValueError(f"guidance must be in [0, {MAX_GUIDANCE:g}], got {model.guidance!r}")
     if g == 0:
         return W
     return W + g * (W - 1.0 / W.shape[-1])
@@ -113,8 +114,10 @@ def noise_amplitude(model: GenerativeModel, W: torch.Tensor | None = None) -> to
     level's label mix ``W (L, K)`` (:func:`label_weights`; default: the first label),
     the finest level's scaled by ``model.fine_noise``."""
     fine = float(model.fine_noise)
-    if not (np.isfinite(fine) and fine >= 0):
-        raise MotionValueError(f"fine_noise must be a number >= 0, got {model.fine_noise!r}")
+    if not (np.isfinite(fine) and 0 <= fine <= MAX_FINE_NOISE):
+        raise MotionValueError(
+            f"fine_noise must be in [0, {MAX_FINE_NOISE:g}], got {model.fine_noise!r}"
+        )
     sigma = model.sigma.float()  # (K, L)
     amp = sigma[0].clone() if W is None else (W.float() * sigma.T).sum(1)
     amp[-1] = amp[-1] * fine

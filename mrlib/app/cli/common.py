@@ -79,6 +79,22 @@ def parse_non_negative(text: str) -> float:
     return value
 
 
+def _sampler_setting(limit_name: str):
+    """``--fine-noise`` / ``--guidance``: a number in [0, the sampler's bound]."""
+
+    def parse(text: str) -> float:
+        from mrlib.sampling import generation
+
+        value = parse_non_negative(text)
+        limit = getattr(generation, limit_name)
+        if value > limit:
+            raise argparse.ArgumentTypeError(f"must be at most {limit:g}, got {text!r}")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
 def parse_threads(text: str) -> int:
     """A positive count (its cap, 4 x the usable CPUs, is ``mrlib.threads``'s check)."""
     try:
@@ -186,7 +202,7 @@ def sampler_options(p) -> None:
     """``--fine-noise`` and ``--guidance`` (applied by :func:`with_sampler`)."""
     p.add_argument(
         "--fine-noise",
-        type=parse_non_negative,
+        type=_sampler_setting("MAX_FINE_NOISE"),
         default=None,
         metavar="S",
         help="the finest level's noise as a share of its training sigma [default: 1, the "
@@ -195,7 +211,7 @@ def sampler_options(p) -> None:
     )
     p.add_argument(
         "--guidance",
-        type=parse_non_negative,
+        type=_sampler_setting("MAX_GUIDANCE"),
         default=None,
         metavar="G",
         help="label models: exaggerate the label, each level's condition pushed G times "
