@@ -52,46 +52,20 @@ def _cache_dir(cache):
     return cache
 
 
-def _beat2(args) -> int:
-    from mrlib.datasets import beat2
-
+def _act(args, names, local_dir, cache_dir, fetch) -> int:
+    """``list`` / ``where`` / ``fetch`` of one dataset: ``names()`` its clips' lines,
+    ``local_dir()`` a local copy or None, ``cache_dir()`` its cache, ``fetch()`` the
+    download, returning the line that reports it."""
     if args.action == "list":
-        for stem, files in beat2.beat2_clips().items():
-            print(f"{stem}  {'motion + audio' if len(files) > 1 else 'audio'}")
+        for line in names():
+            print(line)
         return 0
     if args.action == "where":
-        local = beat2.beat2_local_dir()
-        print(local if local is not None else f"{_cache_dir(beat2.beat2_cache_dir())} (cache)")
+        local = local_dir()
+        print(local if local is not None else f"{_cache_dir(cache_dir())} (cache)")
         return 0
-    _cache_dir(beat2.beat2_cache_dir())  # refused before any download
-    local = beat2.beat2_local_dir()
-    if local is not None:
-        print(f"note: a local copy at {local} is read first; fetching into the cache anyway")
-    from mrlib.io.transaction import outside_transactions
-
-    with outside_transactions():
-        root = beat2.fetch_beat2(args.clips, progress=not args.no_progress)
-    n = sum((root / f).is_file() for f in beat2.beat2_registry())
-    print(f"{n} files in {root}")
-    return 0
-
-
-def cmd_data(args) -> int:
-    if args.dataset == "beat2":
-        return _beat2(args)
-    from mrlib.datasets import bandai as datasets
-
-    if args.action == "list":
-        for name in datasets.bandai_registry():
-            if name.endswith(".bvh"):
-                print(name[len("data/dataset-1_") : -len(".bvh")])
-        return 0
-    if args.action == "where":
-        local = datasets.bandai_local_dir()
-        print(local if local is not None else f"{_cache_dir(datasets.bandai_cache_dir())} (cache)")
-        return 0
-    _cache_dir(datasets.bandai_cache_dir())  # refused before any download
-    local = datasets.bandai_local_dir()
+    _cache_dir(cache_dir())  # refused before any download
+    local = local_dir()
     if local is not None:
         print(f"note: a local copy at {local} is read first; fetching into the cache anyway")
     from mrlib.io.transaction import outside_transactions
@@ -99,10 +73,36 @@ def cmd_data(args) -> int:
     # the cache is no output of this command: each file is kept once it arrives and its
     # hash is checked (the downloader reads it back), not held for the command's end
     with outside_transactions():
-        root = datasets.fetch_bandai(
-            args.clips or datasets.NOTEBOOK_CLIPS, everything=args.all,
-            progress=not args.no_progress,
-        )  # fmt: skip
-    n = len(list((root / "data").glob("*.bvh")))
-    print(f"{n} clips in {root}")
+        print(fetch())
     return 0
+
+
+def cmd_data(args) -> int:
+    progress = not args.no_progress
+    if args.dataset == "beat2":
+        from mrlib.datasets import beat2
+
+        def fetch_beat2() -> str:
+            root = beat2.fetch_beat2(args.clips, progress=progress)
+            return f"{sum((root / f).is_file() for f in beat2.beat2_registry())} files in {root}"
+
+        listing = lambda: [  # noqa: E731
+            f"{stem}  {'motion + audio' if len(files) > 1 else 'audio'}"
+            for stem, files in beat2.beat2_clips().items()
+        ]
+        return _act(args, listing, beat2.beat2_local_dir, beat2.beat2_cache_dir, fetch_beat2)
+    from mrlib.datasets import bandai
+
+    def fetch_bandai() -> str:
+        clips = args.clips or bandai.NOTEBOOK_CLIPS
+        root = bandai.fetch_bandai(clips, everything=args.all, progress=progress)
+        return f"{len(list((root / 'data').glob('*.bvh')))} clips in {root}"
+
+    listing = (
+        lambda: [  # noqa: E731
+            name[len("data/dataset-1_") : -len(".bvh")]
+            for name in bandai.bandai_registry()
+            if name.endswith(".bvh")
+        ]
+    )
+    return _act(args, listing, bandai.bandai_local_dir, bandai.bandai_cache_dir, fetch_bandai)
