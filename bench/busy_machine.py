@@ -14,7 +14,7 @@ warm-up iteration per block (``mrlib.training.trainer.Trainer.step``), then ``--
 foot-contact cleaned samples of a training clip's length (``mrlib.sampling.generation.generate``).
 Every measurement runs in a fresh process:
 
-* ``policy``: mrlib as it is, ``mrlib.threads.apply_policy()`` with no thread variable
+* ``policy``: mrlib as it is, ``mrlib.threads.use()`` with no thread variable
   set: the count a training run fixes at its start (``mrlib.threads.run_threads``), what
   ``mrlib train`` and ``Trainer.fit`` do;
 * ``torch``: the same code on PyTorch's own thread count (one per physical core), kept
@@ -61,7 +61,7 @@ def _mask_every_call() -> None:
     """The skeleton convolution as it was: the weight masked by a product at every call."""
     import torch.nn.functional as F
 
-    from mrlib.model.networks import SkeletonConv1d
+    from mrlib.model.skeleton_conv import SkeletonConv1d
 
     def forward(self, x, pad_index=None, circular=False):
         if pad_index is None:
@@ -76,15 +76,15 @@ def _mask_every_call() -> None:
 def measure(blocks, iterations, samples, adam: str, mask_copy: bool, compile_: bool) -> dict:
     import torch
 
-    from mrlib.model.config import PRESET_FPS, get_preset
-    from mrlib.threads import apply_policy
+    from mrlib.model.presets import get_preset
+    from mrlib.threads import use
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import Trainer
 
-    threads = apply_policy()  # mrlib's policy; keeps OMP_NUM_THREADS where it is set
+    threads = use()  # mrlib's policy; keeps OMP_NUM_THREADS where it is set
     if mask_copy:
         _mask_every_call()
-    data = TrainingSet.from_files(CLIPS, fps=PRESET_FPS["demo"])
+    data = TrainingSet.from_files(CLIPS, fps=get_preset("demo").fps)
     tr = Trainer(data, get_preset("demo"), "/tmp/mrlib-bench-busy-unused")
     out: dict = {"threads": threads, "adam": adam, "mask_copy": mask_copy, "compile": compile_}
     out["blocks"] = {}
@@ -119,15 +119,17 @@ def measure(blocks, iterations, samples, adam: str, mask_copy: bool, compile_: b
     if samples:
         from mrlib.model.trained import model_from_trainer
         from mrlib.sampling.generation import generate
+        from mrlib.sampling.sampler import Sampler
 
         tr.done = True
         model = model_from_trainer(tr)
         for key, clean in (("raw_ms", False), ("cleaned_ms", True)):
-            generate(model, model.labels[0], seed=0, fix_contacts=clean)  # warm-up
+            sampler = Sampler(fix_contacts=clean)
+            generate(model, model.labels[0], seed=0, sampler=sampler)  # warm-up
             times = []
             for k in range(samples):
                 t0 = time.perf_counter()
-                generate(model, model.labels[k % len(model.labels)], seed=k, fix_contacts=clean)
+                generate(model, model.labels[k % len(model.labels)], seed=k, sampler=sampler)
                 times.append(1000 * (time.perf_counter() - t0))
             out[key] = statistics.median(times)
     return out

@@ -1,7 +1,7 @@
 """Does the foot-contact clean-up leave motion natural? Issue #37, part 3.
 
 Trains (or reuses, ``outputs/cleanup_natural/demo_seed<S>/``) the ``demo`` preset on the
-four Bandai walks at the preset's frame rate (``PRESET_FPS["demo"]``, 15 fps), draws
+four Bandai walks at the preset's frame rate (``demo().fps``, 15 fps), draws
 ``--samples`` raw samples per walk of twice the clip's length (seeds 0..n-1), and scores
 them raw, after the clean-up with its defaults and after each ``--method`` with
 ``mrlib.evaluation.evaluate.score_motions`` (the evaluation's own code: coverage at
@@ -12,11 +12,12 @@ is the label's). The training clip played twice is the last row, the real-captur
 
     python bench/cleanup_natural.py [--seed 0] [--samples 5] [--method old,new,'smooth_s=0.2;pin_weight=100']
 
-Methods (``methods()``): ``raw``, ``old`` (the previous default clean-up:
-``style="pin"``, pinned runs blended over ``BLEND_S``, the root low-passed over
-``ROOT_SMOOTH_S``), ``new`` (``cleanup_foot_contacts()``'s default, ``style="smooth"``)
-and ablations of it; any other name ``key=value;key=value`` is the clean-up with
-those options. Prints a Markdown table per walk and the
+Methods (``methods()``): ``raw``, ``old`` (the previous default clean-up, pinned runs
+blended over ``BLEND_S``, the root low-passed over ``ROOT_SMOOTH_S``:
+``experiments/cleanup_studies.py``'s ``cleanup_pinned``), ``new``
+(``cleanup_foot_contacts()``, the smooth solve) and ablations of it; any other name
+``key=value;key=value`` is the clean-up with those options (its keywords, or fields of
+``mrlib.sampling.planting.PlantOptions``). Prints a Markdown table per walk and the
 mean, and appends the means as a JSON row to ``bench/results/cleanup_natural.jsonl``.
 """
 
@@ -56,46 +57,58 @@ def float_cm(motions, ref_feet, body) -> float:
 def methods():
     """name -> ``fn(motion, body, floor) -> Motion`` (None: the raw sample); ``floor`` is
     the training clip's (``generation.training_floor``), as ``generate`` passes it."""
+    from experiments.cleanup_studies import cleanup_pinned
+
     from mrlib.sampling.cleanup import cleanup_foot_contacts as clean
+    from mrlib.sampling.planting import PlantOptions
 
     return {
         "raw": None,
-        "old": lambda m, body, floor: clean(m, body, style="pin"),  # the previous default
+        "old": lambda m, body, floor: cleanup_pinned(m, body),  # the previous default
         "new": lambda m, body, floor: clean(m, body, floor=floor),
         "new, floor from the sample": lambda m, body, floor: clean(m, body),
         "new, no floor clamp": lambda m, body, floor: clean(m, body, floor_clamp=False),
         "new, root kept": lambda m, body, floor: clean(m, body, floor=floor, move_root=False),
         "new, no jitter filter": lambda m, body, floor: clean(m, body, floor=floor, jitter=0),
         "new, solved once (reweight=0)": lambda m, body, floor: clean(
-            m, body, floor=floor, reweight=0
+            m, body, floor=floor, options=PlantOptions(reweight=0)
         ),
     }
 
 
 def custom(spec: str):
-    """``key=value;key=value``: ``cleanup_foot_contacts(m, body, key=value, ...)``."""
-    from mrlib.sampling.cleanup import cleanup_foot_contacts as clean
+    """``key=value;key=value``: ``cleanup_foot_contacts(m, body, key=value, ...)``, a key
+    that is a field of ``PlantOptions`` in its ``options``."""
+    from dataclasses import fields
 
-    kw = {}
+    from mrlib.sampling.cleanup import cleanup_foot_contacts as clean
+    from mrlib.sampling.planting import PlantOptions
+
+    kw, opts = {}, {}
     for item in filter(None, spec.split(";")):
         k, v = item.split("=")
         try:
-            kw[k] = float(v) if k != "style" else v
+            value = float(v)
         except ValueError:
-            kw[k] = v
+            value = v
+        (opts if k in {f.name for f in fields(PlantOptions)} else kw)[k] = value
     for k in ("floor_clamp", "move_root"):
         if k in kw:
             kw[k] = bool(kw[k])
-    return lambda m, body, floor: clean(m, body, **{"floor": floor, **kw})
+    for k in ("reweight", "iterations"):
+        if k in opts:
+            opts[k] = int(opts[k])
+    options = PlantOptions(**opts)
+    return lambda m, body, floor: clean(m, body, **{"floor": floor, **kw, "options": options})
 
 
 def train_model(seed: int, body):
     import mrlib
-    from mrlib.model.config import PRESET_FPS
+    from mrlib.model.presets import demo
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
 
-    fps = PRESET_FPS["demo"]
+    fps = demo().fps
     cfg = mrlib.get_preset("demo").replace(seed=seed)
     clips = [mrlib.load_motion(p, fps=fps) for p in bandai_clips(TUTORIAL_CLIPS)]
     data = TrainingSet.from_motions(clips, body=body)
@@ -130,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     from mrlib.evaluation.evaluate import _ReferenceCache, model_references, score_motions
     from mrlib.evaluation.results import EvaluationSettings
     from mrlib.sampling.generation import generate, training_floor
+    from mrlib.sampling.sampler import Sampler
 
     body = mrlib.load_body_model()
     model = train_model(a.seed, body) if a.checkpoint is None else mrlib.load_model(a.checkpoint)
@@ -152,8 +166,8 @@ def main(argv: list[str] | None = None) -> int:
     for label, ref in refs.items():
         n = round(2 * ref.num_frames)
         floor = training_floor(model, [model.labels.index(label)], body)
-        raw = [generate(model, label, length=n, seed=s, fix_contacts=False, body=body)
-               for s in range(a.samples)]  # fmt: skip
+        raw = [generate(model, label, length=n, seed=s, body=body,
+                        sampler=Sampler(fix_contacts=False)) for s in range(a.samples)]  # fmt: skip
         for name in names:
             fn = table[name]
             t0 = time.perf_counter()

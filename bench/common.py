@@ -63,11 +63,11 @@ def describe(m: dict | None = None) -> str:
 
 
 def set_threads(n: int | None = None) -> int:
-    """Torch's intra-op thread count through mrlib's policy (``mrlib.threads.apply_policy``):
+    """Torch's intra-op thread count through mrlib's policy (``mrlib.threads.use``):
     ``n`` explicitly, so mrlib's own calls keep it; ``None``: mrlib's default. Returns it."""
-    from mrlib.threads import apply_policy
+    from mrlib.threads import use
 
-    return apply_policy(n)
+    return use(n)
 
 
 # -- results ----------------------------------------------------------------------------------

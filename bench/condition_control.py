@@ -49,7 +49,8 @@ from common import (
 
 from mrlib.evaluation import crossover as control
 from mrlib.evaluation import fidelity
-from mrlib.model.config import get_preset
+from mrlib.model.presets import get_preset
+from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
 
 LEVELS = (2, 4)
 
@@ -71,11 +72,11 @@ def main(argv=None) -> int:
     add_iterations_arg(p, "iterations per block, one value for all blocks or one per block")
     p.add_argument(
         "--fine-noise", type=float, default=None,
-        help="sample with this GenerativeModel.fine_noise [default: mrlib's]",
+        help="sample with this Sampler fine_noise [default: mrlib's]",
     )  # fmt: skip
     p.add_argument(
         "--guidance", type=float, default=None,
-        help="sample with this GenerativeModel.guidance [default: mrlib's]",
+        help="sample with this Sampler guidance [default: mrlib's]",
     )  # fmt: skip
     p.add_argument("--device", default="cpu")
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
@@ -113,18 +114,27 @@ def main(argv=None) -> int:
     note = f"preset {a.preset}, seed {a.seed}, {loss}\nrun folder {out}"
     model, record, _ = trained_model(cfg, TUTORIAL_CLIPS, out, note=note)
     how = "reused a finished run" if record.reused else "trained"
-    if a.fine_noise is not None:
-        model.fine_noise = a.fine_noise
-    if a.guidance is not None:
-        model.guidance = a.guidance
-    print(f"sampling with fine_noise={model.fine_noise:g}, guidance={model.guidance:g}")
+    sampler = Sampler(
+        fine_noise=FINE_NOISE if a.fine_noise is None else a.fine_noise,
+        guidance=GUIDANCE if a.guidance is None else a.guidance,
+        fix_contacts=False,
+    )
+    print(f"sampling with fine_noise={sampler.fine_noise:g}, guidance={sampler.guidance:g}")
     print(f"{how}: {record.wall_time_s:.0f} s of training", flush=True)
 
     t = time.perf_counter()
-    fid = fidelity.condition_fidelity_of_model(model, num_samples=10, seed=0)
+    fid = fidelity.condition_fidelity_of_model(model, num_samples=10, seed=0, sampler=sampler)
     print("\n" + fid.to_markdown() + "\n")
     cases = [
-        control.crossover_evidence(model, ca, fi, lv, num_samples=6, seed=0)
+        control.crossover_evidence(
+            model,
+            ca,
+            fi,
+            lv,
+            num_samples=6,
+            seed=0,
+            options=control.CrossoverOptions(sampler=sampler),
+        )  # fmt: skip
         for ca in model.labels
         for fi in model.labels
         if ca != fi
@@ -136,7 +146,7 @@ def main(argv=None) -> int:
     )
     cov = {
         eps: fidelity.coverage_per_sequence(
-            model, num_samples=20, length_factor=2.0, seed=0, eps=eps
+            model, num_samples=20, length_factor=2.0, seed=0, eps=eps, sampler=sampler
         )
         for eps in (2.0, 1.0)
     }
@@ -159,8 +169,8 @@ def main(argv=None) -> int:
         "iterations": a.iterations,
         "train_s": record.wall_time_s,
         "reused": record.reused,
-        "fine_noise": model.fine_noise,
-        "guidance": model.guidance,
+        "fine_noise": sampler.fine_noise,
+        "guidance": sampler.guidance,
         "fidelity": fid.overall,
         "fidelity_per_label": fid.per_label,
         "crossover": [

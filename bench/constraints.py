@@ -5,8 +5,9 @@ normal / happy / sad / angry_001, 30 fps), trained there or here on first use an
 after (``mrlib.training.trainer.train_or_reuse``, same folder). Prints, per constraint:
 
 * **path**: a 20 s circle (r = 2 m) and a 20 s figure-eight (r = 2 m) for every walk
-  label and ``--samples`` seeds, by ``bend`` (the default) and ``optimise`` (noise
-  optimisation, networks frozen): pelvis-to-path distance (mean / max), coverage of the
+  label and ``--samples`` seeds, by ``bend`` (``generate_on_path``) and ``optimise``
+  (noise optimisation, networks frozen: ``experiments/path_optimise.py``, reference
+  code): pelvis-to-path distance (mean / max), coverage of the
   label's training clip (30-frame windows, eps = 2) and foot skating (share of contact
   vertex-frames above the speed threshold) beside the training clip's;
 * **keyframes**: in-betweening from the first frame of one walk to the last frame of
@@ -18,7 +19,8 @@ after (``mrlib.training.trainer.train_or_reuse``, same folder). Prints, per cons
   (``--key-steps`` Adam steps of the fit, ``--joint-jerk`` that term's weight of the
   joint positions; ``--no-clean`` leaves the feet unplanted);
 * **parts**: upper body from one label, lower body from another, for every ordered
-  pair, by ``film`` and ``splice``: condition fidelity per part; and the same measure
+  pair, by ``film`` (``experiments/film_parts.py``, reference code) and ``splice``
+  (``generate_parts``): condition fidelity per part; and the same measure
   on each label's second capture take, which the model never saw;
 * **sharpen**: each label's samples with the noise fitted towards that label on one
   part (``mrlib.sampling.constraints.sharpen``, what ``generate_parts(..., sharpen=N)`` splices),
@@ -48,7 +50,7 @@ import argparse
 import itertools
 import json
 import time
-from inspect import signature
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -63,11 +65,13 @@ from common import (
     with_iterations,
     write_json,
 )
+from experiments.film_parts import generate_film_parts
+from experiments.path_optimise import generate_on_path_optimised
 
 import mrlib
-from mrlib.metrics.paper import coverage, metric_features
+from mrlib.metrics import coverage, metric_features
 from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
-from mrlib.model.config import get_preset
+from mrlib.model.presets import get_preset
 from mrlib.representation.features import features_to_motion
 from mrlib.sampling import constraints as C
 from mrlib.sampling.generation import generate
@@ -92,7 +96,7 @@ def main() -> int:
     ap.add_argument("--still", type=float, default=C.keyframes.STILL,
                     help="keyframes: weight of the jerk term of the noise fit [mrlib's]")  # fmt: skip
     ap.add_argument("--guidance", type=float, default=None,
-                    help="sample with this GenerativeModel.guidance [mrlib's]")  # fmt: skip
+                    help="sample with this Sampler guidance [mrlib's]")  # fmt: skip
     ap.add_argument("--ramp", action="store_true",
                     help="keyframes: also condition the in-between on a label ramp from the "
                     "first keyframe's label to the last's")  # fmt: skip
@@ -143,11 +147,11 @@ def main() -> int:
         "constraints.json" if a.guidance is None else f"constraints_guidance{a.guidance:g}.json"
     )
     results: dict = json.loads(saved.read_text()) if saved.is_file() else {}
-    if a.guidance is not None:
-        model.guidance = a.guidance
+    a.sampler = mrlib.Sampler(guidance=0.0 if a.guidance is None else a.guidance)
     results.update(
-        model=str(out), samples=a.samples, fine_noise=model.fine_noise, guidance=model.guidance
-    )
+        model=str(out), samples=a.samples, fine_noise=a.sampler.fine_noise,
+        guidance=a.sampler.guidance,
+    )  # fmt: skip
     seeds = range(a.samples)
 
     # -- paths ----------------------------------------------------------------------------
@@ -160,7 +164,7 @@ def main() -> int:
     if "sharpen" in a.only:
         run_sharpen(model, body, a, results)
     if "loop" in a.only:
-        run_loops(model, body, seeds, results)
+        run_loops(model, body, seeds, results, a.sampler)
     write_json("constraints", results, saved)
     return 0
 
@@ -178,8 +182,13 @@ def run_paths(model, body, a, ref_feats, train_skate, seeds, results) -> None:
             for lab in model.labels:
                 for s in seeds:
                     t0 = time.perf_counter()
-                    m = C.generate_on_path(model, spec, lab, seconds=20.0, seed=s, method=method,
-                                           steps=a.steps, body=body)  # fmt: skip
+                    if method == "bend":
+                        m = C.generate_on_path(model, spec, lab, seconds=20.0, seed=s,
+                                               sampler=a.sampler, body=body)  # fmt: skip
+                    else:
+                        m = generate_on_path_optimised(model, spec, lab, seconds=20.0, seed=s,
+                                                       fit=C.NoiseFit(a.steps), sampler=a.sampler,
+                                                       body=body)  # fmt: skip
                     secs.append(time.perf_counter() - t0)
                     e = C.path_error(m, spec, body)
                     err.append(e["mean_m"])
@@ -236,7 +245,10 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
             ]
 
         control = np.asarray(
-            [around(generate(model, b_lab, length=N, seed=s, body=body)) for s in seeds]
+            [
+                around(generate(model, b_lab, length=N, seed=s, sampler=a.sampler, body=body))
+                for s in seeds
+            ]  # fmt: skip
         )
         own = mean_jerk(motion_kinematics(train[b_lab], body)[0], fps) / train_jerk
         cases = [(0, 0.0, False), (a.key_steps, 0.0, False), (a.key_steps, a.still, False)]
@@ -248,10 +260,12 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
                 t0 = time.perf_counter()
                 if ramp:
                     m = ramped_in_between(model, kfs, N, a_lab, b_lab, s, steps, still, body,
-                                          clean)  # fmt: skip
+                                          replace(a.sampler, fix_contacts=clean))  # fmt: skip
                 else:
-                    m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s, steps=steps,
-                                                  still=still, clean=clean, body=body)  # fmt: skip
+                    m = C.generate_with_keyframes(model, kfs, N, b_lab, seed=s,
+                                                  sampler=replace(a.sampler, fix_contacts=clean),
+                                                  fit=C.KeyframeFit(steps, still=still),
+                                                  body=body)  # fmt: skip
                 dt.append(time.perf_counter() - t0)
                 e = C.keyframe_errors(m, kfs)
                 rot.append(e["rotation_deg"])
@@ -272,31 +286,33 @@ def run_keyframes(model, body, a, train, train_jerk, seeds, results) -> None:
                   + f" | {own:.2f} | {row['seconds']:.1f} |", flush=True)  # fmt: skip
 
 
-def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body, clean=True):
+def ramped_in_between(model, kfs, N, a_lab, b_lab, seed, steps, still, body, sampler):
     """``generate_with_keyframes`` with the condition eased over time from ``a_lab`` (the
     first keyframe's clip) to ``b_lab`` (the last's), the noise of their mean sigma."""
-    from mrlib.sampling.constraints.common import fitted_motion
+    from mrlib.sampling.constraints.common import fitted_motion, planted
     from mrlib.sampling.generation import (
         check_conditions,
         draw_noise,
         guided_weights,
         label_inputs,
-        label_weights,
         noise_amplitude,
     )
 
-    Wa, Wb = label_weights(model, a_lab), label_weights(model, b_lab)
-    lengths, _, _ = label_inputs(model, Wb, N)
-    Ga, Gb = guided_weights(model, Wa), guided_weights(model, Wb)
+    Wa = mrlib.Condition.label(a_lab).weights(model)
+    Wb = mrlib.Condition.label(b_lab).weights(model)
+    lengths, _, _ = label_inputs(model, Wb, N, sampler)
+    Ga, Gb = guided_weights(Wa, sampler), guided_weights(Wb, sampler)
     conds = []
     for i, T in enumerate(lengths):
         u = torch.linspace(0, 1, T)[:, None]
         u = u * u * (3 - 2 * u)
         conds.append(((1 - u) * Ga[i] + u * Gb[i])[None])
-    noises = draw_noise(lengths, noise_amplitude(model, (Wa + Wb) / 2), seed, 1, model.device)
+    amp = noise_amplitude(model, (Wa + Wb) / 2, sampler)
+    noises = draw_noise(lengths, amp, seed, 1, model.device)
     loss_fn = C.keyframe_objective(model, kfs, N, still, body)
     m = fitted_motion(model, noises, check_conditions(model, conds, lengths), b_lab, "ramp",
-                      loss_fn, steps=steps, clean=clean, body=body)  # fmt: skip
+                      loss_fn, C.NoiseFit(steps))  # fmt: skip
+    m = planted(m, sampler, body)
     return C.apply_keyframes(C.align_to_keyframes(m, kfs, body), kfs)
 
 
@@ -315,8 +331,13 @@ def run_parts(model, body, a, seeds, results) -> None:
         row = {"upper": up, "lower": low}
         cells = []
         for key, (method, align) in methods.items():
-            ms = C.generate_many_parts(model, parts, length, seed=0, num_samples=a.samples,
-                                       method=method, align_gait=align, body=body)  # fmt: skip
+            if method == "film":
+                ms = generate_film_parts(model, parts, length, seed=0, num_samples=a.samples,
+                                         sampler=a.sampler, body=body)  # fmt: skip
+            else:
+                ms = C.generate_parts(model, mrlib.Condition.parts(parts, in_step=align),
+                                      length=length, seed=0, num=a.samples, sampler=a.sampler,
+                                      body=body)  # fmt: skip
             row[key] = C.part_fidelity(ms, model, parts)
             row[key]["coordination"] = float(np.mean([C.arm_leg_coordination(m, body) for m in ms]))
             f = row[key]
@@ -339,7 +360,7 @@ def run_parts(model, body, a, seeds, results) -> None:
 
 def run_sharpen(model, body, a, results) -> None:
     """Samples of each label fitted towards it on one part (module docstring)."""
-    from mrlib.metrics.paper import condition_fidelity, global_diversity
+    from mrlib.metrics import condition_fidelity, global_diversity
     from mrlib.sampling.constraints.compose import body_frame_joints
     from mrlib.sampling.constraints.sharpen import part_columns
 
@@ -350,8 +371,7 @@ def run_sharpen(model, body, a, results) -> None:
     refs = {lab: metric_features(m) for lab, m in clips.items()}
     pos = {lab: body_frame_joints(m, body) for lab, m in clips.items()}
     jerk = {lab: mean_jerk(motion_kinematics(m, body)[0], model.fps) for lab, m in clips.items()}
-    prior = {} if a.sharpen_prior is None else {"prior_centre": a.sharpen_prior}
-    centre = a.sharpen_prior or signature(C.generate_sharpened).parameters["prior_centre"].default
+    centre = a.sharpen_prior or C.Sharpening().prior_centre
     how = "pulled and pushed" if a.sharpen_push else "pulled"
     print(f"\n## Sharpened parts ({a.samples} samples of {length} frames per label and part, "
           f"windows {how}, margin {a.sharpen_margin:g}, prior centred on {centre})\n")  # fmt: skip
@@ -366,10 +386,10 @@ def run_sharpen(model, body, a, results) -> None:
         for lab in model.labels:
             for steps in steps_list:
                 t0 = time.perf_counter()
-                raw = C.generate_sharpened(model, lab, (part,), length, seed=0,
-                                           num_samples=a.samples, steps=steps,
-                                           push=a.sharpen_push, margin=a.sharpen_margin,
-                                           **prior)  # fmt: skip
+                raw = C.generate_sharpened(model, lab, (part,), length, seed=0, num=a.samples,
+                                           sampler=replace(a.sampler, fix_contacts=False),
+                                           fit=C.Sharpening(steps, a.sharpen_margin,
+                                                            a.sharpen_push, centre))  # fmt: skip
                 dt = (time.perf_counter() - t0) / a.samples
                 ms = [mrlib.sampling.cleanup_foot_contacts(m, body) for m in raw]
                 f = [metric_features(m)[:, cols] for m in ms]
@@ -403,7 +423,8 @@ def second_takes(model, body, results) -> None:
     """The same measure on capture the model never saw: each label's second Bandai take
     (``_002``), whole body and per part, against the model's training clips."""
     from mrlib.evaluation.fidelity import nearest_sequence_strip
-    from mrlib.metrics.paper import condition_fidelity, model_references
+    from mrlib.metrics.coverage import condition_fidelity
+    from mrlib.metrics.windows import model_references
 
     print("\n### The measure on each label's second capture take (not trained on)\n")
     print("| take | frames | whole body | upper | lower | nearest label, whole body |")
@@ -431,7 +452,7 @@ def second_takes(model, body, results) -> None:
               f"{100 * part['lower']:.1f} % | {top} ({100 * near[top]:.0f} %) |", flush=True)  # fmt: skip
 
 
-def run_loops(model, body, seeds, results) -> None:
+def run_loops(model, body, seeds, results, sampler) -> None:
     fps, labs = model.fps, model.labels
     print("\n## Loops (4 s): seam step / 95th percentile of own steps\n")
     print("| label | circular | circular, begun at the sample's frame 0 | crossfade "
@@ -446,13 +467,14 @@ def run_loops(model, body, seeds, results) -> None:
         for key, (method, start) in cases.items():
             r = []
             for s in seeds:
-                m = C.generate_loop(model, lab, N, seed=s, method=method, start=start, body=body)
+                m = C.generate_loop(model, lab, N, seed=s, method=method, start=start,
+                                    sampler=sampler, body=body)  # fmt: skip
                 sm = C.loop_seam(m, body)
                 r.append(sm["seam"] / sm["p95"])
             row[key] = r
         r = []
         for s in seeds:
-            m = generate(model, lab, length=N, seed=s, body=body)
+            m = generate(model, lab, length=N, seed=s, sampler=sampler, body=body)
             step = m.trans[-1] - m.trans[-2]
             m.meta["loop_offset"] = (m.trans[-1] - m.trans[0] + step).tolist()
             sm = C.loop_seam(m, body)

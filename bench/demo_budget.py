@@ -46,15 +46,15 @@ def main(argv: list[str] | None = None) -> int:
 
     import mrlib
     from mrlib.app.demo import DATA_SAMPLES, headline_table
-    from mrlib.evaluation.evaluate import evaluate_model
-    from mrlib.model.config import demo
+    from mrlib.evaluation.evaluate import EvaluationSettings, evaluate_model
+    from mrlib.model.presets import demo
     from mrlib.model.trained import load_model
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train
 
     set_threads(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     print(describe(), flush=True)
-    cfg = demo().replace(seed=args.seed)
+    cfg = demo().replace(seed=args.seed, fps=args.fps)
     if args.iterations:
         its = tuple(int(v) for v in args.iterations.split(","))
         cfg = cfg.replace(block_iterations=its * cfg.num_blocks if len(its) == 1 else its)
@@ -78,8 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     result = evaluate_model(
         model,
-        num_samples=args.samples,
-        seed=args.seed,
+        settings=EvaluationSettings(num_samples=args.samples, seed=args.seed),
         body=body,
         progress=False,
         contacts="both" if args.clean else "raw",

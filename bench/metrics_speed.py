@@ -1,4 +1,4 @@
-"""Speed and memory of mrlib.metrics.paper against the naive oracles.
+"""Speed and memory of mrlib.metrics (coverage, diversity) against the naive oracles.
 
 Run from the repository root::
 
@@ -52,8 +52,8 @@ from pathlib import Path
 import numpy as np
 from common import RESULTS, ROOT, describe, write_json
 
+from mrlib import metrics as mt
 from mrlib.metrics import oracles
-from mrlib.metrics import paper as mt
 
 DIM = 23 * 6 + 6
 

@@ -10,7 +10,7 @@ finds them)::
     python bench/restyle.py --seed 0 --guidance 0.5   # restyled with label guidance
 
 Model: the ``demo`` preset trained on ``walk_{normal,happy,sad,angry}_001`` resampled
-to 15 fps (``mrlib.model.config.PRESET_FPS["demo"]``), through ``mrlib.training.trainer.train_cached``
+to 15 fps (``mrlib.model.presets.demo().fps``), through ``mrlib.training.trainer.train_cached``
 (the same model as notebook 03's for seed 0, reused from mrlib's cache).
 
 Inputs the model never saw: the second takes ``walk_{style}_002`` and the side walks
@@ -33,10 +33,9 @@ every level ``k`` (seed 0, without the foot clean-up) and measured with
 * **source share**: ``mrlib.evaluation.restyle_evidence.RestyleShares.source_share``, mean
   over cases.
 
-Then, at ``--level``, the coarse gap of every input
-(``mrlib.evaluation.restyle_evidence.coarse_gap``) and the same measures with
-``invert=True`` (the coarse noise fitted), with its cost, also
-for two inputs far from walking; and the time per second of input of the direct route.
+Then the time per second of input, and that of a 120 s walk restyled at ``--level`` in
+one pass. (The inversion measured here until 2026-12-06, ``restyle(..., invert=True)``,
+did worse and was removed: ``docs/notes/2026-12-06-study-options.md``.)
 
 The quantity of the trained-model test (``tests/test_restyle.py``, recipe 4 of
 ``tests/trained_models.py``) over training seeds x thread counts, and on the recipe
@@ -47,7 +46,6 @@ untrained, is ``python tests/trained_test_matrix.py --recipe restyle`` (formerly
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import statistics
 import time
 from pathlib import Path
@@ -59,13 +57,12 @@ import mrlib
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import ClipTooShortError
 from mrlib.evaluation.restyle_evidence import (
-    coarse_gap,
     restyle_evidence,
     restyle_references,
     restyle_shares,
 )
-from mrlib.metrics.paper import metric_features
-from mrlib.model.config import PRESET_FPS, get_preset
+from mrlib.metrics.windows import metric_features
+from mrlib.model.presets import get_preset
 from mrlib.model.trained import load_model
 from mrlib.sampling.restyling import restyle, restyle_lengths
 from mrlib.training.data import TrainingSet
@@ -79,7 +76,6 @@ LABELLED = (
     + [f"walk-right_{s}_001" for s in STYLES]
 )
 OTHER = ["walk_tired_002", "walk_proud_002", "walk_old_002", "walk_active_002"]
-FAR = ["bow_normal_001", "byebye_normal_001"]  # not walks: the coarse gap is large
 
 
 def own_label(name: str) -> str | None:
@@ -104,9 +100,10 @@ def residual_nearest(model, motion, ref) -> str:
 
 
 def sweep(model, inputs: dict, body, levels, sampler=None) -> list[dict]:
-    """One row per (input, target, level); ``sampler``: the model view that restyles
-    (default ``model``; the references are always ``model``'s own samples)."""
-    sampler = model if sampler is None else sampler
+    """One row per (input, target, level); ``sampler``: the ``mrlib.Sampler`` that
+    restyles (default: the raw output; the references are always the model's own raw
+    samples)."""
+    sampler = mrlib.Sampler(fix_contacts=False) if sampler is None else sampler
     rows = []
     for name, clip in inputs.items():
         src = clip.resample(model.fps)
@@ -120,12 +117,13 @@ def sweep(model, inputs: dict, body, levels, sampler=None) -> list[dict]:
             ref = restyle_references(model, src.num_frames, k, num_samples=4)
             itself = residual_nearest(model, src, ref)
             made = {
-                lab: restyle(sampler, src, lab, k, seed=0, fix_contacts=False, body=body)
+                lab: restyle(model, src, lab, k, seed=0, sampler=sampler, body=body)
                 for lab in model.labels
             }
             evs = {lab: restyle_evidence(model, m, src, ref) for lab, m in made.items()}
             for lab, ev in evs.items():
-                shares = restyle_shares(sampler, src, lab, levels=[k], seed=0, body=body)
+                shares = restyle_shares(model, src, lab, levels=[k], seed=0, body=body,
+                                        sampler=sampler)  # fmt: skip
                 rows.append({
                     "input": name, "own": own, "target": lab, "level": k,
                     "cutoff_hz": ev.cutoff_hz, "path_cm": ev.trajectory_cm,
@@ -165,62 +163,14 @@ def level_table(rows: list[dict], L: int) -> str:
     return "\n".join(out)
 
 
-def inversion(model, inputs: dict, body, level: int, steps: int) -> tuple[list[dict], str]:
-    rows = []
-    for name, clip in inputs.items():
-        src = clip.resample(model.fps)
-        gap = coarse_gap(model, src, level, body=body)
-        ref = restyle_references(model, src.num_frames, level, num_samples=4)
-        for lab in model.labels:
-            for inv in (False, True):
-                t = time.perf_counter()
-                m = restyle(model, src, lab, level, seed=0, invert=inv, invert_steps=steps,
-                            fix_contacts=False, body=body)  # fmt: skip
-                dt = time.perf_counter() - t
-                ev = restyle_evidence(model, m, src, ref)
-                fit = m.meta["restyle"]["invert"] or {}
-                rows.append({
-                    "input": name, "own": own_label(name), "target": lab, "invert": inv,
-                    "gap": gap.ratio, "seconds": dt, "clip_s": src.duration,
-                    "rms_before": fit.get("rms_before"), "rms_after": fit.get("rms_after"),
-                    "path_cm": ev.trajectory_cm, "low_holds": ev.low_holds,
-                    "low_to_source": ev.low_to_source, "nearest": ev.nearest_label,
-                })  # fmt: skip
-    out = [
-        "| input | gap ratio | route | s per restyle | fit RMS before -> after | path cm | "
-        "low band kept | low to input | residual given |",
-        "|" + "---|" * 9,
-    ]
-    for name in inputs:
-        for inv in (False, True):
-            rr = [r for r in rows if r["input"] == name and r["invert"] == inv]
-            pos = [r for r in rr if r["target"] != r["own"]]
-            fit = (
-                f"{np.mean([r['rms_before'] for r in rr]):.3f} -> "
-                f"{np.mean([r['rms_after'] for r in rr]):.3f}"
-                if inv
-                else "-"
-            )
-            out.append(
-                f"| {name} | {rr[0]['gap']:.2f} | {'inverted' if inv else 'direct'} | "
-                f"{np.mean([r['seconds'] for r in rr]):.3f} | {fit} | "
-                f"{np.mean([r['path_cm'] for r in rr]):.1f} | {pct(r['low_holds'] for r in rr)} | "
-                f"{np.mean([r['low_to_source'] for r in rr]):.3f} | "
-                f"{pct(r['nearest'] == r['target'] for r in pos)} |"
-            )
-    return rows, "\n".join(out)
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=0, help="training seed [0]")
     add_iterations_arg(p, "iterations per block (overrides the demo preset's; 2: untrained)")
-    p.add_argument("--level", type=int, default=None, help="level of the inversion table [L//2]")
-    p.add_argument("--invert-steps", type=int, default=None, help="Adam steps of the fit")
-    p.add_argument("--no-inversion", action="store_true", help="skip the inversion table")
+    p.add_argument("--level", type=int, default=None, help="level of the 120 s restyle [L//2]")
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
     p.add_argument("--guidance", type=float, default=None,
-                   help="restyle with this GenerativeModel.guidance [the model's: 0]")  # fmt: skip
+                   help="restyle with this Sampler guidance [mrlib's: 0]")  # fmt: skip
     p.add_argument("--json", type=Path, default=None, help="also write the rows here")
     p.add_argument("--checkpoint", type=Path, default=None,
                    help="measure this checkpoint instead of the cached demo model")  # fmt: skip
@@ -228,7 +178,7 @@ def main(argv=None) -> int:
     set_threads(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
 
     body = mrlib.load_body_model()
-    fps = PRESET_FPS["demo"]
+    fps = get_preset("demo").fps
     clips = [c.resample(fps) for c in load(TRAIN).values()]
     data = TrainingSet.from_motions(clips, body=body)
     cfg, _ = with_iterations(get_preset("demo").replace(seed=a.seed), a.iterations)
@@ -247,9 +197,9 @@ def main(argv=None) -> int:
 
     inputs = load(LABELLED + OTHER)
     t = time.perf_counter()
-    sampler = model
+    sampler = mrlib.Sampler(fix_contacts=False)
     if a.guidance is not None:  # the restyles only: the references stay the model's own
-        sampler = dataclasses.replace(model, guidance=a.guidance)
+        sampler = mrlib.Sampler(guidance=a.guidance, fix_contacts=False)
         print(f"restyling with guidance {a.guidance:g}")
     rows = sweep(model, inputs, body, range(1, L), sampler)
     print(f"\nrestyled {len(rows)} cases in {time.perf_counter() - t:.0f} s "
@@ -259,25 +209,15 @@ def main(argv=None) -> int:
     speed = [r["ms_per_s"] for r in rows]
     long_walk = synthetic_walk("walk_normal", seconds=120.0, fps=fps, body=body)
     t = time.perf_counter()
-    restyle(model, long_walk, model.labels[0], level, seed=0, fix_contacts=False, body=body)
+    restyle(model, long_walk, model.labels[0], level, seed=0,
+            sampler=mrlib.Sampler(fix_contacts=False), body=body)  # fmt: skip
     long_ms = 1000 * (time.perf_counter() - t) / long_walk.duration
     print(f"direct route: median {statistics.median(speed):.1f} ms per second of input "
           f"(max {max(speed):.1f}); a 120 s clip in one pass: {long_ms:.1f} ms per "
           "second\n")  # fmt: skip
 
-    inv_rows = []
-    if not a.no_inversion:
-        from mrlib.sampling.restyling import INVERT_STEPS
-
-        steps = INVERT_STEPS if a.invert_steps is None else a.invert_steps
-        chosen = {n: inputs[n] for n in ("walk_sad_002", "walk-right_happy_001", "walk_old_002")}
-        chosen |= load(FAR)
-        inv_rows, table = inversion(model, chosen, body, level, steps)
-        print(f"inversion at level {level}, {steps} Adam steps (targets: every label)\n")
-        print(table + "\n", flush=True)
     if a.json is not None:
-        summary = {"seed": a.seed, "iterations": list(cfg.block_iterations), "rows": rows,
-                   "inversion": inv_rows}  # fmt: skip
+        summary = {"seed": a.seed, "iterations": list(cfg.block_iterations), "rows": rows}
         write_json("restyle", summary, a.json)
     return 0
 

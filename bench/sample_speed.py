@@ -7,7 +7,8 @@ samples in one batch, and for 1 and 2 torch threads, it prints the time per call
 ``mrlib.sampling.generation.generate`` next to the sampler it replaced (samples packed end to end and
 run through the training path with per-frame FiLM, each converted alone with roma), as
 ratios measured in the same run; then the clean-up of a one-minute walk with the analytic
-IK (the default) against the per-frame optimisation:
+IK (``cleanup_foot_contacts``) against the per-frame optimisation
+(``experiments/cleanup_studies.py``'s ``cleanup_optimised``):
 
     python bench/sample_speed.py [--fps 15] [--threads 1,2] [--repeats 3] [--checkpoint ckpt.pt]
 
@@ -24,6 +25,7 @@ import time
 from pathlib import Path
 
 from common import describe, set_threads, write_json
+from experiments.cleanup_studies import cleanup_optimised
 
 
 def _best(fn, repeats: int) -> float:
@@ -47,10 +49,10 @@ def _packed_generate(model, label: str, length: int, seed: int, num_samples: int
     from mrlib.representation.features import root_velocity_to_trans, split_features
     from mrlib.representation.motion import Motion
     from mrlib.representation.rotations import sixd_to_matrix
-    from mrlib.sampling.generation import label_weights
+    from mrlib.sampling.conditions import Condition
 
     L = model.num_levels
-    W = label_weights(model, label)
+    W = Condition.label(label).weights(model)
     pad = (model.config.model.kernel_size - 1) // 2
     lengths = pyramid_lengths(length, L, model.config.model.scale_factor, min_length=pad + 1)
     amp = (W * model.sigma.float().T).sum(1)
@@ -95,10 +97,11 @@ def main(argv: list[str] | None = None) -> int:
     import mrlib
     import mrlib.datasets.synthetic
     from mrlib.app.demo import DATA_SAMPLES
-    from mrlib.model.config import demo
+    from mrlib.model.presets import demo
     from mrlib.model.trained import load_model
     from mrlib.sampling.cleanup import cleanup_foot_contacts
-    from mrlib.sampling.generation import generate, generate_many
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import Sampler
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train
 
@@ -107,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         ckpt = args.checkpoint
         if ckpt is None:
             clips = [mrlib.load_motion(p, fps=args.fps) for p in sorted(DATA_SAMPLES.glob("*.npz"))]
-            cfg = demo().replace(block_iterations=(2, 2, 2, 2))
+            cfg = demo().replace(block_iterations=(2, 2, 2, 2), fps=args.fps)
             ckpt = train(
                 TrainingSet.from_motions(clips, body=body), cfg, tmp, body=body, progress=False
             ).checkpoint
@@ -121,8 +124,8 @@ def main(argv: list[str] | None = None) -> int:
         for n in (1, 8, 64):
             reps = args.repeats if n < 64 else max(1, args.repeats - 1)
             new = _best(
-                lambda n=n: generate_many(
-                    model, label, length=T, seed=0, num_samples=n, fix_contacts=False
+                lambda n=n: generate(
+                    model, label, length=T, seed=0, num=n, sampler=Sampler(fix_contacts=False)
                 ),
                 reps,
             )
@@ -137,10 +140,10 @@ def main(argv: list[str] | None = None) -> int:
         "walk_normal", seconds=60.0, fps=model.fps, body=body
     )
     m = m.replace(contacts=mrlib.representation.foot_contacts(m, body))
-    ik = _best(lambda: cleanup_foot_contacts(m, body, method="ik"), args.repeats)
-    opt = _best(lambda: cleanup_foot_contacts(m, body, method="optimise"), 1)
+    ik = _best(lambda: cleanup_foot_contacts(m, body), args.repeats)
+    opt = _best(lambda: cleanup_optimised(m, body), 1)
     both = _best(
-        lambda: generate(model, label, length=T, seed=0, fix_contacts=True, body=body),
+        lambda: generate(model, label, length=T, seed=0, body=body),
         args.repeats,
     )
     result.update(cleanup_ik_s=ik, cleanup_optimise_s=opt, generate_and_cleanup_s=both)

@@ -61,7 +61,7 @@ def main() -> None:
     import soundfile
 
     import mrlib
-    from mrlib.model.config import get_preset
+    from mrlib.model.presets import get_preset
     from mrlib.speech import (
         SpeechFeatureExtractor,
         SpeechTrainingSet,

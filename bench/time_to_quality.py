@@ -123,10 +123,10 @@ def load_clips(names, body):
 
 def clip_thresholds(name, ref, body, settings, targets: Targets) -> dict:
     """The per-clip bounds of the target, and the calibration rows they come from."""
+    from mrlib import metrics as mt
     from mrlib.evaluation.calibration import find_bandai_counterparts
     from mrlib.evaluation.evaluate import score_motions
     from mrlib.io import load_motion
-    from mrlib.metrics import paper as mt
     from mrlib.metrics import plausibility as pl
 
     kin = pl.motion_kinematics(ref, body)
@@ -161,7 +161,9 @@ def score_checkpoint(
     """Metrics of the current generator on every clip, and whether each meets the target
     (samples cleaned up by foot-contact IK when ``fix_contacts``)."""
     from mrlib.evaluation.evaluate import score_motions
-    from mrlib.sampling.generation import generate_many, reconstruct
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.generation import generate, reconstruct, training_floor
+    from mrlib.sampling.sampler import Sampler
 
     names = list(refs)
     multi = refs if len(refs) > 1 else None
@@ -170,10 +172,18 @@ def score_checkpoint(
         ref, th = refs[name], thresholds[name]
         label = model.labels[model.clip_labels[k]]
         length = round(settings.length_factor * ref.num_frames)
-        gen = generate_many(
-            model, label, length=length, seed=settings.seed, num_samples=settings.num_samples,
-            fix_contacts=fix_contacts, body=body,
+        gen = generate(
+            model, label, length=length, seed=settings.seed, num=settings.num_samples,
+            sampler=Sampler(fix_contacts=False), body=body,
         )  # fmt: skip
+        if fix_contacts:  # a clean-up method of its own: the raw samples cleaned as generate would
+            floor = training_floor(model, [model.clip_labels[k]], body)
+            if fix_contacts == "optimise":  # the per-frame optimisation (reference code)
+                from experiments.cleanup_studies import cleanup_optimised
+
+                gen = [cleanup_optimised(m, body) for m in gen]
+            else:
+                gen = [cleanup_foot_contacts(m, body, floor=floor) for m in gen]
         row = score_motions(
             gen, ref, settings=settings, body=body, label=name, all_references=multi,
             reconstruction=reconstruct(model, k),
@@ -354,7 +364,8 @@ def git_commit() -> str:
 # -- one set ---------------------------------------------------------------------------------
 def run_set(key: str, args, body, targets: Targets, out_root: Path) -> dict:
     from mrlib.evaluation.results import EvaluationSettings
-    from mrlib.model.config import config_to_json, training_config
+    from mrlib.model.config import config_to_json
+    from mrlib.model.presets import training_config
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train
 
@@ -453,8 +464,8 @@ def main(argv=None) -> int:
     p.add_argument(
         "--fix-contacts", nargs="?", const="optimise", default=False, metavar="METHOD",
         help="score samples after the foot-contact clean-up: 'optimise' (the per-frame "
-        "optimisation, as the README's figures were measured; the default with no METHOD) "
-        "or 'ik' (mrlib.sampling.cleanup)",
+        "optimisation of experiments/cleanup_studies.py, as the README's figures were "
+        "measured; the default with no METHOD) or 'ik' (mrlib.sampling.cleanup)",
     )  # fmt: skip
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [default: 1]")
     p.add_argument("--seed", type=int, default=0)

@@ -73,30 +73,32 @@ class NaiveStep:
         L = c.model.num_levels
         # one clip per forward: plain (unpacked) sequences, reflect-padded at both ends
         self.layouts = [
-            PackedLevels.from_table(t.lengths[k : k + 1], 0, t.device) for k in range(t.N)
+            PackedLevels.from_table(t.batches.lengths[k : k + 1], 0, t.device)
+            for k in range(t.batches.num_clips)
         ]
         adam = lambda m: torch.optim.Adam(m.parameters(), lr=c.lr, betas=c.betas)  # noqa: E731
         self.opt_g = {i: adam(t.generator.levels[i]) for i in t.block_levels}
         self.opt_d = {i: adam(t.critics[i]) for i in t.block_levels}
         self.reals = [
-            [t.rec_layout.unpack(t.real[i], i)[k][None] for i in range(L)] for k in range(t.N)
+            [t.batches.rec_layout.unpack(t.batches.levels[i].real, i)[k][None] for i in range(L)]
+            for k in range(t.batches.num_clips)
         ]
 
     def _generate(self, k: int, mode: str, stop: int):
         t = self.t
         lay = self.layouts[k]
-        lab = int(t.clip_labels[k])
-        onehot = torch.zeros(1, 1, t.cond_dim, device=t.device)
+        lab = int(t.signal.clip_labels[k])
+        onehot = torch.zeros(1, 1, t.signal.dim, device=t.device)
         onehot[..., lab] = 1
-        n = [int(x) for x in t.lengths[k, :stop]]
+        n = [int(x) for x in t.batches.lengths[k, :stop]]
         conds = [onehot.expand(1, s, -1) for s in n]
         if mode == "rec":
-            noises = [t.zstar[k][None].to(t.device)] + [
+            noises = [t.batches.zstar[k][None].to(t.device)] + [
                 torch.zeros(1, 1, s, device=t.device) for s in n[1:]
             ]
         else:
             noises = [
-                torch.randn(1, 1, s, generator=t.rng).to(t.device) * t.sigma[lab, i]
+                torch.randn(1, 1, s, generator=t.rng).to(t.device) * t.signal.sigma[lab, i]
                 for i, s in enumerate(n)
             ]
         return t.generator.run(lay, noises, conds, 0, stop, keep=True)  # with a graph, as GANimator
@@ -104,7 +106,6 @@ class NaiveStep:
     def __call__(self):
         from mrlib.model.losses import (
             backward_velocity,
-            body_kinematics,
             contact_consistency_loss,
             critic_loss,
             generator_adversarial_loss,
@@ -119,7 +120,7 @@ class NaiveStep:
         pad = t.generator.pad
         for step in range(c.n_critic + 2):
             mode = "d" if step < c.n_critic else ("g" if step == c.n_critic else "rec")
-            for k in range(t.N):
+            for k in range(t.batches.num_clips):
                 imgs = self._generate(k, "rec" if mode == "rec" else "random", hi + 1)
                 lay = self.layouts[k]
                 opts = self.opt_d if mode == "d" else self.opt_g
@@ -139,10 +140,12 @@ class NaiveStep:
                         loss = loss + w.gp * gp
                     elif mode == "g":
                         loss = w.adv * generator_adversarial_loss(D(fake, pidx), wts)
-                        fps = t.data.fps * int(t.lengths[k, i]) / int(t.lengths[k, -1])
-                        joints, feet, contacts = body_kinematics(
-                            fake, t.data_normalizer, fps, t.body, t.betas
+                        fps = (
+                            t.data.fps
+                            * int(t.batches.lengths[k, i])
+                            / int(t.batches.lengths[k, -1])
                         )
+                        joints, feet, contacts = t.kinematics(fake, fps)
                         w_vel = lay.weights(i, lay.trimmed(i, start=1))
                         vel = backward_velocity(feet, fps)
                         loss = loss + w.con * contact_consistency_loss(vel, contacts, w_vel)
@@ -168,7 +171,7 @@ def _current_rss_mib() -> float:
 
 # -- one measurement in a fresh process --------------------------------------------------------
 def measure(impl: str, n_clips: int, device: str, block: int, iters: int) -> dict:
-    from mrlib.model.config import paper
+    from mrlib.model.presets import paper
     from mrlib.training.trainer import Trainer
 
     set_threads(int(os.environ.get("BENCH_THREADS", torch.get_num_threads())))

@@ -8,6 +8,8 @@ The public API, in the order data flows through it::
     result = mrlib.train(data, mrlib.get_preset("demo"), "runs/x")
     model = mrlib.load_model(result.checkpoint)
     new = mrlib.generate(model, "walk_happy", length=600, seed=0)
+    mixed = mrlib.generate(model, mrlib.Condition.crossover("walk_sad", "walk_happy", 4),
+                           num=8, seed=0, sampler=mrlib.Sampler(fine_noise=0.5))
     sad = mrlib.restyle(model, "my_walk.bvh", "walk_sad", level=4, seed=0)
     table = mrlib.evaluate_model(model, "runs/x/eval")
     mrlib.save_motion(new, "new.bvh")
@@ -15,8 +17,8 @@ The public API, in the order data flows through it::
 The packages, bottom up (each imports only from those before it; ``python -m
 mrlib.tools.layers`` checks it): ``representation`` (skeleton, rotations, Motion, the
 SMPL body, features, contacts), ``io`` (files), ``datasets``, ``metrics``, ``model``
-(config and presets, pyramid, networks, losses), ``training``, ``sampling`` (generate,
-clean-up, restyle, ``constraints``), ``evaluation``, ``speech``, ``viz`` (plots, renders,
+(config and presets, pyramid, generator, critic, losses), ``sampling`` (conditions,
+generate, clean-up, restyle, ``constraints``), ``training``, ``evaluation``, ``speech``, ``viz`` (plots, renders,
 widgets), ``app`` (command line, demo). ``docs/architecture.md`` maps them onto the
 paper; conventions (metres, Y up, 6D = first two matrix columns) are stated in
 ``mrlib.representation.skeleton``.
@@ -42,9 +44,10 @@ from mrlib import datasets, errors, threads, viz
 from mrlib.errors import MrlibError
 from mrlib.evaluation import evaluate_model
 from mrlib.io import load_motion, save_motion
-from mrlib.model.config import PRESETS, TrainConfig, get_preset
+from mrlib.model.config import TrainConfig
+from mrlib.model.presets import PRESETS, get_preset
 from mrlib.representation import Motion, load_body_model
-from mrlib.sampling import constraints, generate, load_model, restyle
+from mrlib.sampling import Condition, Sampler, constraints, generate, load_model, restyle
 from mrlib.training import TrainingSet, train
 
 __version__ = "0.1.0"
@@ -61,6 +64,8 @@ __all__ = [
     "train",
     "load_model",
     "generate",
+    "Condition",
+    "Sampler",
     "restyle",
     "constraints",
     "evaluate_model",

@@ -6,17 +6,17 @@ that runs on several threads ends on a barrier, and when another process holds o
 the cores the kernel waits for a time slice of the thread that lost its core. PyTorch's
 default, one thread per physical core, leaves no core for anything else. Measured on a
 2-core x86-64 VM with no GPU (``python bench/busy_machine.py``,
-``docs/notes/2026-12-04-threads.md``): beside one CPU-bound process, two threads trained
+``docs/notes/2026-12-02-training-speed.md``): beside one CPU-bound process, two threads trained
 the ``demo`` preset 4.5-12x slower than on the idle machine, one thread 0.97-1.6x (the
 latter with other jobs on the cores too), and foot-contact cleaned samples took 960 ms
 instead of 89 on two threads, 101 instead of 100 on one. On the idle machine two threads
 were 18-35 % faster per block than one; one thread ran at 0.87x the speed two threads
 had before the fused Adam step (``mrlib.training.build.make_adam``) and the masked gradients of
-``mrlib.model.networks.SkeletonConv1d``, which made it about 13 % faster.
+``mrlib.model.skeleton_conv.SkeletonConv1d``, which made it about 13 % faster.
 
-The policy (:func:`apply_policy`), in order:
+The policy (:func:`use`), in order:
 
-1. a count passed explicitly (``mrlib ... --threads N``, ``apply_policy(N)``);
+1. a count passed explicitly (``mrlib ... --threads N``, ``use(N)``);
 2. the user's own choice: ``OMP_NUM_THREADS`` or ``MKL_NUM_THREADS`` set, or
    ``torch.set_num_threads`` called after mrlib was imported (a count other than the
    one torch started with, or other than the one mrlib last set) -- kept as it is, up to
@@ -38,26 +38,24 @@ else runs (``tests/test_threads.py`` trains beside a CPU-bound process and alone
 compares); across thread counts and CPUs results agree only to float rounding, and no
 test assumes more.
 
-The command line applies the policy around each command; ``mrlib.training.trainer.Trainer.fit``,
-``mrlib.sampling.generation.generate``, ``mrlib.evaluation.evaluate.evaluate_model``,
-``mrlib.sampling.cleanup.cleanup_foot_contacts``, ``mrlib.sampling.constraints.optimise.optimise_noise`` and
-``mrlib.speech.generate_from_audio`` run under :func:`policy`, which applies it for the
-call and restores the previous count after, so a script that trains with mrlib gets the
-same count as ``mrlib train`` and its own torch work keeps its setting. What cannot be
-told from torch's default: a count set with ``torch.set_num_threads`` before mrlib was
-imported (taken for torch's own, so capped at the default) and one set afterwards that
-equals torch's starting count; pass such a count to :func:`apply_policy` (or
+Who sets the count: the command line, around each command (a training run's count fixed
+as above), and :func:`use`, the one entry for a script or a notebook
+(``mrlib.threads.use()`` once at the top: the policy's count; ``use(4)``: four threads).
+No other mrlib function changes torch's count: a library call runs on the count the
+process has, so a script's own torch work keeps its setting, and a training run started
+from Python keeps that count from start to end (it records it in its checkpoints and warns
+when a resume runs on another). What cannot be told from torch's default: a count set
+with ``torch.set_num_threads`` before mrlib was imported (taken for torch's own) and one
+set afterwards that equals torch's starting count; pass such a count to :func:`use` (or
 ``--threads``).
 """
 
 from __future__ import annotations
 
 import contextlib
-import functools
 import os
 import warnings
-from collections.abc import Callable, Iterator
-from typing import TypeVar
+from collections.abc import Iterator
 
 import torch
 
@@ -65,13 +63,12 @@ from mrlib.errors import MrlibError
 
 __all__ = [
     "ENV_VARS",
-    "apply_policy",
+    "use",
     "default_threads",
     "policy",
     "run_threads",
     "usable_cpus",
     "user_threads",
-    "with_policy",
 ]
 
 # environment variables through which a user sets the thread count of torch's CPU kernels
@@ -87,8 +84,6 @@ class _State:
 
 _state = _State()
 _warned: set[tuple[str, int]] = set()  # the counts above the cap already warned about
-
-F = TypeVar("F", bound=Callable)
 
 
 def _env_choice() -> tuple[str, int] | None:
@@ -149,7 +144,7 @@ def _check(threads) -> int:
     if threads > 4 * cpus:
         raise MrlibError(
             f"threads: {threads} is more than the {4 * cpus} mrlib runs here (4 x the {cpus} "
-            f"usable CPUs); pass --threads N (apply_policy(N)) with N <= {4 * cpus}, or leave "
+            f"usable CPUs); pass --threads N (use(N)) with N <= {4 * cpus}, or leave "
             "it out for the default"
         )
     return threads
@@ -163,7 +158,7 @@ def _set(n: int) -> None:
 def user_threads() -> int | None:
     """The count the user chose (environment or ``torch.set_num_threads``), else None."""
     current = torch.get_num_threads()
-    if _state.explicit:  # --threads N / apply_policy(N), checked when it was set
+    if _state.explicit:  # --threads N / use(N), checked when it was set
         return current
     env = _env_choice()
     if env is not None:  # torch may have lowered the count already; the larger is checked
@@ -175,13 +170,14 @@ def user_threads() -> int | None:
     return None
 
 
-def apply_policy(threads: int | None = None) -> int:
-    """Set torch's intra-op thread count for mrlib's CPU work and return it.
+def use(threads: int | None = None) -> int:
+    """Set torch's intra-op thread count for mrlib's CPU work and return it: the one
+    function of mrlib that changes it outside the command line.
 
     ``threads``: an explicit count (wins over everything). Otherwise the user's own
     choice is kept (``OMP_NUM_THREADS`` / ``MKL_NUM_THREADS``, or a count set with
     ``torch.set_num_threads`` after importing mrlib), and else :func:`default_threads`
-    is set. Notebooks call ``mrlib.threads.apply_policy()`` once at the top."""
+    is set. Notebooks call ``mrlib.threads.use()`` once at the top."""
     if threads is not None:
         n = _check(threads)
         _set(n)
@@ -199,27 +195,16 @@ def apply_policy(threads: int | None = None) -> int:
 
 @contextlib.contextmanager
 def policy(threads: int | None = None) -> Iterator[int]:
-    """Apply the policy for the ``with`` block, then restore torch's previous count."""
+    """Apply the policy for the ``with`` block, then restore torch's previous count: how
+    the command line runs each command."""
     before = torch.get_num_threads()
     saved = (_state.last_set, _state.explicit)
-    n = apply_policy(threads)
+    n = use(threads)
     try:
         yield n
     finally:
         _set(before)
         _state.last_set, _state.explicit = saved
-
-
-def with_policy(fn: F) -> F:
-    """Decorator: run ``fn`` under :func:`policy` (the default count unless the user
-    chose one)."""
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        with policy():
-            return fn(*args, **kwargs)
-
-    return wrapper  # type: ignore[return-value]
 
 
 # -- the count of a training run ---------------------------------------------------------------

@@ -26,8 +26,9 @@ from mrlib.model.checkpoint import (
 )
 from mrlib.model.config import ModelConfig, TrainConfig
 from mrlib.model.trained import load_model
+from mrlib.sampling.conditions import Condition
 from mrlib.sampling.constraints.path import parse_path
-from mrlib.sampling.generation import generate, generate_many
+from mrlib.sampling.generation import generate
 from mrlib.sampling.restyling import restyle
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import Trainer, train
@@ -344,7 +345,7 @@ def test_cli_sweep(checkpoint, tmp_path, capsys):
 
 def test_cli_fine_noise_reaches_the_sampler(checkpoint, tmp_path):
     from mrlib.io import load_motion
-    from mrlib.model.trained import FINE_NOISE
+    from mrlib.sampling.sampler import FINE_NOISE
 
     default_value = f"{FINE_NOISE:g}"
     poses = {}
@@ -384,15 +385,15 @@ def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
 
     seen, plain = [], mrlib.sampling.generation.guided_weights
 
-    def spy(model, W):
-        seen.append(model.guidance)
-        return plain(model, W)
+    def spy(W, sampler):
+        seen.append(sampler.guidance)
+        return plain(W, sampler)
 
     monkeypatch.setattr(mrlib.sampling.generation, "guided_weights", spy)
     assert main(["sample", str(checkpoint), "--raw", "--out", str(tmp_path / "a")]) == 0
     argv = ["sample", str(checkpoint), "--raw", "--guidance", "0.5", "--out", str(tmp_path / "b")]
     assert main(argv) == 0
-    assert seen == [mrlib.model.trained.GUIDANCE, 0.5]
+    assert seen == [mrlib.sampling.sampler.GUIDANCE, 0.5]
 
 
 API_CASES = {
@@ -402,16 +403,17 @@ API_CASES = {
     "seed='abc'": (lambda m: generate(m, "walk_sad", seed="abc"), "seed must be an integer"),
     "seed=1.5": (lambda m: generate(m, "walk_sad", seed=1.5), "seed must be an integer"),
     "seed=-1": (lambda m: generate(m, "walk_sad", seed=-1), "seed must be an integer"),
-    "num_samples=2.5": (lambda m: generate_many(m, "walk_sad", num_samples=2.5), "num_samples"),
-    "num_samples=0": (lambda m: generate_many(m, "walk_sad", num_samples=0), "num_samples"),
-    "num_samples x length": (
-        lambda m: generate_many(m, "walk_sad", length=5000, num_samples=100),
+    "num=2.5": (lambda m: generate(m, "walk_sad", num=2.5), "num must be a positive"),
+    "num=0": (lambda m: generate(m, "walk_sad", num=0), "num must be a positive"),
+    "num x length": (
+        lambda m: generate(m, "walk_sad", length=5000, num=100),
         "generate them in smaller batches",
     ),
-    "condition=True": (lambda m: generate(m, True), "a label is one of"),
-    "condition=a dict": (lambda m: generate(m, {"walk_sad": 1}), "a label is one of"),
+    "condition=True": (lambda m: generate(m, True), "must be a label name or index"),
+    "condition=a dict": (lambda m: generate(m, {"walk_sad": 1}), "must be a label name or index"),
+    "condition=unknown index": (lambda m: generate(m, 7), "label index 7 out of range"),
     "blend weight 50": (
-        lambda m: generate(m, blend=("walk_sad", "walk_sad", 50.0)),
+        lambda m: generate(m, Condition.blend("walk_sad", "walk_sad", 50.0)),
         r"blend weights must be in \[0, 1\]",
     ),
     "path line:-5": (lambda m: parse_path("line:-5"), "length must be a positive"),

@@ -152,15 +152,15 @@ def fresh_policy(monkeypatch):
 def test_an_environment_count_above_the_cap_is_capped(fresh_policy, name, value):
     fresh_policy.setenv(name, value)
     with pytest.warns(UserWarning, match=f"{name}=.*more than the 8 mrlib runs here"):
-        n = threads.apply_policy()
+        n = threads.use()
     assert 1 <= n <= 8 and torch.get_num_threads() == n
-    threads.apply_policy()  # warned once, not at every call
+    threads.use()  # warned once, not at every call
 
 
 @pytest.mark.parametrize("value", ["8", "2", "4,2"])
 def test_an_environment_count_within_the_cap_is_kept(fresh_policy, value, recwarn):
     fresh_policy.setenv("OMP_NUM_THREADS", value)
-    assert threads.apply_policy() == torch.get_num_threads()
+    assert threads.use() == torch.get_num_threads()
     assert not [w for w in recwarn if "mrlib runs here" in str(w.message)]
 
 
@@ -195,7 +195,7 @@ def test_evaluation_frames_are_bounded_before_drawing():
         raise AssertionError("drew a sample")
 
     with pytest.raises(MrlibError, match="more than the 1000000 mrlib scores per sequence"):
-        evaluate(never, {"walk_sad": ref}, num_samples=1000, length_factor=2.0)
+        evaluate({"m": never}, {"walk_sad": ref}, EvaluationSettings(num_samples=1000))
 
 
 def test_cli_evaluate_refuses_a_billion_samples(checkpoint, tmp_path, capsys):
@@ -218,17 +218,10 @@ def test_sampler_settings_beyond_their_bound_are_usage_errors(flag, value, capsy
     assert flag in err and "\n" not in err.strip().splitlines()[-1]
 
 
-def test_the_sampler_bounds_hold_in_python_too(plumbing_model):
-    from mrlib.datasets.synthetic import synthetic_walk
+def test_the_sampler_bounds_hold_in_python_too():
     from mrlib.errors import MotionValueError
-    from mrlib.sampling.generation import MAX_FINE_NOISE, MAX_GUIDANCE, generate
+    from mrlib.sampling.sampler import MAX_FINE_NOISE, MAX_GUIDANCE, Sampler
 
-    model = plumbing_model([synthetic_walk("walk_sad", seconds=2.0, fps=15.0)], "bounds")
     for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
-        old = getattr(model, name)
-        try:
-            setattr(model, name, bound * 10)
-            with pytest.raises(MotionValueError, match=f"{name} must be in"):
-                generate(model, "walk_sad", seed=0)
-        finally:
-            setattr(model, name, old)
+        with pytest.raises(MotionValueError, match=f"{name} must be in"):
+            Sampler(**{name: bound * 10})

@@ -17,13 +17,15 @@ from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.sampling import constraints as C
 from mrlib.sampling.cleanup import contact_skating
+from mrlib.sampling.conditions import Condition
 from mrlib.sampling.generation import (
     generate,
-    generate_many,
     label_inputs,
-    label_weights,
     sample_features,
 )
+from mrlib.sampling.sampler import Sampler
+
+RAW = Sampler(fix_contacts=False)  # the generator's raw output
 
 
 @pytest.fixture(scope="module")
@@ -169,7 +171,8 @@ def test_keyframes_round_trip_and_refuse_bad_input(tmp_path, walk):
 def test_generate_with_keyframes_meets_them(model, clips, body):
     walk = clips[0]
     kfs = [C.Keyframe.from_motion(walk, 0, 0), C.Keyframe.from_motion(walk, -1, 29, root=False)]
-    m = C.generate_with_keyframes(model, kfs, 30, "walk_sad", seed=0, steps=5, body=body)
+    m = C.generate_with_keyframes(model, kfs, 30, "walk_sad", seed=0, fit=C.KeyframeFit(steps=5),
+                                  body=body)  # fmt: skip
     err = C.keyframe_errors(m, kfs)
     assert err["rotation_deg"] < 0.01 and err["trans_cm"] < 0.01
     raw = generate(model, "walk_sad", length=30, seed=0)
@@ -233,7 +236,8 @@ def test_the_jerk_term_weighs_the_joints_jitter_too(model, clips, body, monkeypa
 
 def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body):
     prefix = clips[0].slice(0, 20)
-    m = C.continue_motion(model, prefix, 20, "walk_sad", seed=0, steps=5, body=body)
+    m = C.continue_motion(model, prefix, 20, "walk_sad", seed=0, fit=C.NoiseFit(steps=5),
+                          body=body)  # fmt: skip
     assert m.num_frames == 40 and np.array_equal(m.poses[:20], prefix.poses)
     assert np.allclose(m.trans[:20], prefix.trans)
     # the seam step is no larger than the generated part's own steps; gluing the raw
@@ -252,8 +256,8 @@ def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body)
 
 # -- loops --------------------------------------------------------------------------------
 def test_circular_generation_is_periodic(model):
-    W = label_weights(model, "walk_sad")
-    lengths, amp, conds = label_inputs(model, W, 40)
+    W = Condition.label("walk_sad").weights(model)
+    lengths, amp, conds = label_inputs(model, W, 40, Sampler())
 
     def wrap_ratio(circular: bool) -> np.ndarray:
         x = sample_features(model, conds, lengths, amp, seed=3, num_samples=8, circular=circular)
@@ -280,7 +284,7 @@ def test_periodic_upsampling_wraps_around():
 
 
 def test_generate_loop_tiles_seamlessly(model, body):
-    m = C.generate_loop(model, "walk_sad", 40, seed=1, fix_contacts=False)
+    m = C.generate_loop(model, "walk_sad", 40, seed=1, sampler=RAW)
     assert m.num_frames == 40 and len(m.meta["loop_offset"]) == 3
     two = C.tile_loop(m, 2)
     assert two.num_frames == 80 and np.allclose(two.poses[40:], two.poses[:40])
@@ -291,8 +295,8 @@ def test_generate_loop_tiles_seamlessly(model, body):
 
 
 def test_loop_starts_at_its_calmest_frame(model, body):
-    raw = C.generate_loop(model, "walk_sad", 40, seed=1, start="sample", fix_contacts=False)
-    calm = C.generate_loop(model, "walk_sad", 40, seed=1, fix_contacts=False)
+    raw = C.generate_loop(model, "walk_sad", 40, seed=1, start="sample", sampler=RAW)
+    calm = C.generate_loop(model, "walk_sad", 40, seed=1, sampler=RAW)
     k = calm.meta["loop_start"]
     assert 0 < k < 40  # this draw's calmest step is not the wrap itself
     # the same cycle, begun k frames later, and still one cycle's travel per cycle
@@ -310,33 +314,28 @@ def test_loop_starts_at_its_calmest_frame(model, body):
 
 
 # -- body parts ---------------------------------------------------------------------------
-def test_film_parts_with_one_label_are_that_label(model):
-    same = C.generate_parts(model, {"upper": "walk_sad", "lower": "walk_sad"}, 30, seed=2,
-                            method="film", fix_contacts=False)  # fmt: skip
-    plain = generate(model, "walk_sad", length=30, seed=2, fix_contacts=False)
-    assert np.allclose(same.poses, plain.poses, atol=1e-5)
-    mixed = C.generate_parts(model, {"upper": "wave", "lower": "walk_sad"}, 30, seed=2,
-                             method="film", fix_contacts=False)  # fmt: skip
-    assert not np.allclose(mixed.poses, plain.poses, atol=1e-3)
-    assert mixed.label == "upper=wave,lower=walk_sad"
-
-
 def test_spliced_parts_take_each_group_from_its_own_label(model):
     parts = {"upper": "wave", "lower": "walk_sad"}
-    m = C.generate_parts(model, parts, 30, seed=2, method="splice", fix_contacts=False)
-    wave = generate(model, "wave", length=30, seed=2, fix_contacts=False)
-    sad = generate(model, "walk_sad", length=30, seed=2, fix_contacts=False)
+    m = C.generate_parts(model, parts, length=30, seed=2, sampler=RAW)
+    wave = generate(model, "wave", length=30, seed=2, sampler=RAW)
+    sad = generate(model, "walk_sad", length=30, seed=2, sampler=RAW)
     up, low = list(C.part_joints("upper")), list(C.part_joints("lower"))
     assert np.array_equal(m.poses[:, up], wave.poses[:, up])
     assert np.array_equal(m.poses[:, low], sad.poses[:, low])
     assert np.array_equal(m.trans, sad.trans)
     # in step: the legs (and root) are still the pelvis part's own sample, at its length
-    step = C.generate_parts(model, parts, 30, seed=2, align_gait=True, fix_contacts=False)
+    step = C.generate_parts(model, Condition.parts(parts, in_step=True), length=30, seed=2,
+                            sampler=RAW)  # fmt: skip
     assert step.num_frames == 30
     assert np.array_equal(step.poses[:, low], sad.poses[:, low])
     assert np.array_equal(step.trans, sad.trans)
     with pytest.raises(MotionValueError, match="overlap"):
-        C.generate_parts(model, {"upper": "wave", "left_arm": "walk_sad"}, 30)
+        C.generate_parts(model, {"upper": "wave", "left_arm": "walk_sad"}, length=30)
+    two = C.generate_parts(model, parts, length=30, seed=2, num=2, sampler=RAW)
+    assert isinstance(two, list) and len(two) == 2 and two[0].label == "upper=wave,lower=walk_sad"
+    assert np.abs(two[0].poses - m.poses).max() < 1e-3  # sample b: noise stream (seed, b)
+    with pytest.raises(MotionValueError, match="generate_parts"):
+        generate(model, Condition.parts(parts))
     with pytest.raises(MotionValueError, match="part=label"):
         C.parse_parts("upper")
 
@@ -368,7 +367,7 @@ def test_the_label_margin_is_zero_on_a_label_clip_and_not_under_another_label(mo
 
 def _own_distance(model, motion, part: str, label: str) -> float:
     """Mean squared distance of a part's windows to their nearest window of the label's clip."""
-    from mrlib.metrics.paper import metric_features, model_references, nearest_windows
+    from mrlib.metrics.windows import metric_features, model_references, nearest_windows
     from mrlib.sampling.constraints.sharpen import part_columns
 
     _, labels, feats = model_references(model)
@@ -383,8 +382,8 @@ def test_the_noise_prior_centred_on_the_draw_leaves_unneeded_noise_alone(model):
     from mrlib.sampling.constraints.optimise import optimise_noise
     from mrlib.sampling.generation import check_conditions, draw_noise
 
-    W = label_weights(model, "walk_sad")
-    lengths, amp, conds = label_inputs(model, W, 40)
+    W = Condition.label("walk_sad").weights(model)
+    lengths, amp, conds = label_inputs(model, W, 40, Sampler())
     noises = draw_noise(lengths, amp, 3, 2, model.device)
     cs = check_conditions(model, conds, lengths, 2)
 
@@ -406,10 +405,10 @@ def test_sharpened_parts_are_pulled_to_their_label_and_spliced_as_drawn(model):
     # is nearer the wave clip): the fit pulls them towards the walk_sad clip
     parts = {"upper": "walk_sad", "lower": "wave"}
     up = list(C.part_joints("upper"))
-    kw = dict(seed=2, num_samples=2)
-    plain = C.generate_sharpened(model, "walk_sad", ("upper",), 40, steps=0, **kw)
-    sharp = C.generate_sharpened(model, "walk_sad", ("upper",), 40, steps=15, **kw)
-    drawn = generate_many(model, "walk_sad", length=40, fix_contacts=False, **kw)
+    kw = dict(seed=2, num=2)
+    plain = C.generate_sharpened(model, "walk_sad", ("upper",), 40, fit=C.Sharpening(0), **kw)
+    sharp = C.generate_sharpened(model, "walk_sad", ("upper",), 40, fit=C.Sharpening(15), **kw)
+    drawn = generate(model, "walk_sad", length=40, sampler=RAW, **kw)
     for a, b in zip(plain, drawn, strict=True):  # no steps: the sampler's own draw
         assert np.array_equal(a.poses, b.poses)
     for a, b in zip(plain, sharp, strict=True):
@@ -419,20 +418,14 @@ def test_sharpened_parts_are_pulled_to_their_label_and_spliced_as_drawn(model):
         assert gain > 1.0  # of about 64
         assert b.meta["sampler"]["sharpen"]["steps"] == 15
     # the splice takes the upper body from the sample fitted on it alone
-    one = C.generate_sharpened(model, "walk_sad", ("upper",), 40, seed=2, steps=15)[0]
-    m = C.generate_parts(model, parts, 40, seed=2, sharpen=15, fix_contacts=False)
+    one = C.generate_sharpened(model, "walk_sad", ("upper",), 40, seed=2, fit=C.Sharpening(15))
+    m = C.generate_parts(model, parts, length=40, seed=2, sharpen=15, sampler=RAW)
     assert np.array_equal(m.poses[:, up], one.poses[:, up])
-    film = C.generate_parts(model, parts, 40, seed=2, method="film", fix_contacts=False)
-    film_sharp = C.generate_parts(model, parts, 40, seed=2, method="film", sharpen=15,
-                                  fix_contacts=False)  # fmt: skip
-    gain = sum(_own_distance(model, film, p, c) - _own_distance(model, film_sharp, p, c)
-               for p, c in parts.items())  # fmt: skip
-    assert gain > 0.5
     for bad in (-1, 1.5, True):
         with pytest.raises(MotionValueError, match="sharpen"):
-            C.generate_parts(model, parts, 40, sharpen=bad)
+            C.generate_parts(model, parts, length=40, sharpen=bad)
         with pytest.raises(MotionValueError, match="steps"):
-            C.generate_sharpened(model, "wave", ("upper",), 40, steps=bad)
+            C.Sharpening(steps=bad)
 
 
 def test_phase_align_puts_the_arms_in_step_with_the_legs(body):
@@ -461,7 +454,7 @@ def test_phase_align_puts_the_arms_in_step_with_the_legs(body):
     assert np.array_equal(kept.poses, C.splice_parts({"upper": arms, "lower": still}).poses)
 
 
-def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, body, monkeypatch):
+def test_parts_widget_guidance_reaches_the_parts(model, body, monkeypatch):
     pytest.importorskip("ipywidgets")
     import mrlib.viz.constraint_views as CV
 
@@ -471,21 +464,13 @@ def test_parts_widget_guidance_reaches_both_methods_and_leaves_the_model(model, 
     box, update = CV.interactive_parts(model, body=body, length=40)
     controls = {c.description: c for row in box.children[:-1] for c in row.children}
     assert controls["guidance"].value == 0.0
-    for method in ("splice", "film"):
-        controls["method"].value = method
-        controls["guidance"].value = 0.0
-        plain = update()
-        controls["guidance"].value = 0.5
-        pushed = update()
-        assert model.guidance == 0.0
-        assert np.abs(pushed.poses - plain.poses).max() > 1e-4, method
-        model.guidance = 0.5
-        try:
-            same = C.generate_parts(model, {"upper": "walk_sad", "lower": "wave"}, 40,
-                                    seed=0, method=method, body=body)  # fmt: skip
-        finally:
-            model.guidance = 0.0
-        assert np.allclose(same.poses, pushed.poses, atol=1e-5), method
+    plain = update()
+    controls["guidance"].value = 0.5
+    pushed = update()
+    assert np.abs(pushed.poses - plain.poses).max() > 1e-4
+    same = C.generate_parts(model, {"upper": "walk_sad", "lower": "wave"}, length=40, seed=0,
+                            sampler=Sampler(guidance=0.5), body=body)  # fmt: skip
+    assert np.allclose(same.poses, pushed.poses, atol=1e-5)
 
 
 # -- command line -------------------------------------------------------------------------
@@ -531,7 +516,7 @@ def test_sample_cli_constraints(tmp_path, clips):
     assert main(argv) == 0
     got = load_motion(next(bare.glob("*.npz")))
     want = C.generate_with_keyframes(load_model(ckpt), C.load_keyframes(kf), got.num_frames,
-                                     "walk_sad", seed=0, steps=0)  # fmt: skip
+                                     "walk_sad", seed=0, fit=C.KeyframeFit(steps=0))  # fmt: skip
     np.testing.assert_allclose(got.poses, want.poses, atol=1e-5)
     fitted = load_motion(next(p for p in out.glob("*.npz") if "keyframes" in p.name))
     assert np.abs(fitted.poses - got.poses).max() > 1e-3

@@ -11,6 +11,7 @@ import torch
 from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
 from mrlib.errors import MotionValueError
 from mrlib.evaluation.crossover import (
+    CrossoverOptions,
     _nn_distance,
     band_distances,
     crossover_blend,
@@ -26,14 +27,13 @@ from mrlib.evaluation.fidelity import (
 )
 from mrlib.io import default_data_dir
 from mrlib.metrics.bands import lowpass, rms_profile, split_bands
-from mrlib.metrics.paper import (
-    condition_fidelity,
-    local_diversity,
-    metric_features,
-    model_references,
-)
+from mrlib.metrics.coverage import condition_fidelity
+from mrlib.metrics.diversity import local_diversity
+from mrlib.metrics.windows import metric_features, model_references
 from mrlib.model.pyramid import level_fps, pyramid_lengths
-from mrlib.sampling.generation import generate, generate_many, label_weights
+from mrlib.sampling.conditions import Condition
+from mrlib.sampling.generation import generate
+from mrlib.sampling.sampler import Sampler
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train_or_reuse
 from mrlib.viz.control_plots import (
@@ -144,18 +144,18 @@ def test_crossover_cutoff_is_the_nyquist_frequency_of_the_level(model):
 
 
 def test_crossover_conditions_and_blend(model):
-    assert crossover_conditions(model, "walk_sad", "wave", 1) == [
-        ("walk_sad", (1, 1)),
-        ("wave", (2, 4)),
-    ]
+    one = crossover_conditions(model, "walk_sad", "wave", 1)  # levels 1..1 coarse, 2..4 fine
+    assert one == Condition.crossover("walk_sad", "wave", 1)
+    levels = Condition.levels([("walk_sad", (1, 1)), ("wave", (2, 4))])
+    assert torch.equal(one.weights(model), levels.weights(model))
     with pytest.raises(MotionValueError, match="unknown label"):
         crossover_conditions(model, "walk_sad", "jump", 2)
-    plain = label_weights(model, conditions=crossover_conditions(model, "walk_sad", "wave", 2))
-    full = label_weights(model, blend=crossover_blend(model, "walk_sad", "wave", 2, 1.0))
+    plain = crossover_conditions(model, "walk_sad", "wave", 2).weights(model)
+    full = crossover_blend(model, "walk_sad", "wave", 2, 1.0).weights(model)
     assert torch.equal(plain, full)  # weight 1 is the plain crossover
-    none = label_weights(model, blend=crossover_blend(model, "walk_sad", "wave", 2, 0.0))
-    assert torch.equal(none, label_weights(model, condition="walk_sad"))
-    half = label_weights(model, blend=crossover_blend(model, "walk_sad", "wave", 2, 0.25))
+    none = crossover_blend(model, "walk_sad", "wave", 2, 0.0).weights(model)
+    assert torch.equal(none, Condition.label("walk_sad").weights(model))
+    half = crossover_blend(model, "walk_sad", "wave", 2, 0.25).weights(model)
     assert half[:2].tolist() == [[1.0, 0.0], [1.0, 0.0]]
     assert half[2:].tolist() == [[0.75, 0.25], [0.75, 0.25]]
     with pytest.raises(MotionValueError, match="blend weight"):
@@ -182,8 +182,9 @@ def test_crossover_evidence_returns_finite_reproducible_distances(model):
     axes = plot_crossover_evidence(e)
     assert len(axes) == 2
     clips_ref = crossover_evidence(
-        model, 1, 0, 1, num_samples=1, seed=0, reference="clips", cutoff=2.0, window=3
-    )
+        model, 1, 0, 1, num_samples=1, seed=0,
+        options=CrossoverOptions(reference="clips", cutoff=2.0, window=3),
+    )  # fmt: skip
     assert clips_ref.fine_label == "walk_sad" and clips_ref.cutoff_hz == 2.0
     assert np.isfinite(clips_ref.per_sample).all()
 
@@ -192,11 +193,15 @@ def test_crossover_evidence_validates(model):
     with pytest.raises(MotionValueError, match="same"):
         crossover_evidence(model, "wave", "wave", 2, num_samples=1)
     with pytest.raises(MotionValueError, match="reference"):
-        crossover_evidence(model, "walk_sad", "wave", 2, num_samples=1, reference="data")
+        crossover_evidence(
+            model, "walk_sad", "wave", 2, num_samples=1, options=CrossoverOptions(reference="data")
+        )
     with pytest.raises(MotionValueError, match="num_samples"):
         crossover_evidence(model, "walk_sad", "wave", 2, num_samples=0)
     with pytest.raises(MotionValueError, match="cutoff"):
-        crossover_evidence(model, "walk_sad", "wave", 2, num_samples=1, cutoff=6.0)
+        crossover_evidence(
+            model, "walk_sad", "wave", 2, num_samples=1, options=CrossoverOptions(cutoff=6.0)
+        )
 
 
 # -- nearest sequence -------------------------------------------------------------------------
@@ -236,10 +241,10 @@ def test_condition_fidelity_of_model_matches_the_metric(model):
     f = condition_fidelity_of_model(model, num_samples=2, length=36, seed=1, window=10)
     assert set(f.per_label) == {"walk_sad", "wave"} and 0 <= f.overall <= 1
     assert f.overall == pytest.approx(np.mean(list(f.per_label.values())))
-    # the same number straight from mrlib.metrics.paper
+    # the same number straight from mrlib.metrics
     refs = model_references(model)
     references = dict(zip(refs[1], refs[2], strict=True))
-    samples = generate_many(model, "wave", length=36, seed=1, num_samples=2)
+    samples = generate(model, "wave", length=36, seed=1, num=2)
     assert f.per_label["wave"] == pytest.approx(condition_fidelity(samples, references, window=10))
     assert "**all**" in f.to_markdown()
     # the confusion matrix, from the nearest-sequence strips, agrees with the metric
@@ -266,19 +271,14 @@ def test_interactive_crossover_builds_and_its_callback_regenerates(model):
     view0 = update()
     pure = generate(model, "walk_sad", length=view0.motion.num_frames, seed=0)
     assert np.allclose(view0.motion.poses, pure.poses, atol=1e-5)
-    # fine noise and guidance: this view's sampler only, as the model's own setting
-    # would sample; the model itself is left as it was
+    # fine noise and guidance: this view's sampler, as generate samples with it
     for control, attr, value, default in (("fine noise", "fine_noise", 0.0, 1.0),
                                           ("guidance", "guidance", 0.5, 0.0)):  # fmt: skip
         controls[control].value = value
         seen = update().motion
-        assert getattr(model, attr) == default
         assert np.abs(seen.poses - view0.motion.poses).max() > 1e-4, control
-        setattr(model, attr, value)
-        try:
-            same = generate(model, "walk_sad", length=seen.num_frames, seed=0)
-        finally:
-            setattr(model, attr, default)
+        same = generate(model, "walk_sad", length=seen.num_frames, seed=0,
+                        sampler=Sampler(**{attr: value}))  # fmt: skip
         assert np.allclose(seen.poses, same.poses, atol=1e-5), control
         controls[control].value = default
     controls["crossover i"].value = 3
@@ -308,12 +308,12 @@ def test_interactive_crossover_mesh_view(model, body, monkeypatch):
 
 # -- coverage and training helpers ------------------------------------------------------------
 def test_coverage_per_sequence_matches_the_metric(model):
-    from mrlib.metrics.paper import coverage
+    from mrlib.metrics.coverage import coverage
 
     cov = coverage_per_sequence(model, num_samples=2, length_factor=1.5, seed=4, window=10)
     assert list(cov) == model.clip_names and all(0 <= v <= 1 for v in cov.values())
     refs = model_references(model)[2]
-    samples = generate_many(model, "wave", length=round(1.5 * len(refs[1])), seed=4, num_samples=2)
+    samples = generate(model, "wave", length=round(1.5 * len(refs[1])), seed=4, num=2)
     assert cov[model.clip_names[1]] == pytest.approx(coverage(samples, refs[1], window=10))
     with pytest.raises(MotionValueError, match="length_factor"):
         coverage_per_sequence(model, length_factor=0.0)

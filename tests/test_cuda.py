@@ -15,7 +15,9 @@ import torch
 from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.model.config import LossWeights, ModelConfig, TrainConfig
 from mrlib.model.trained import load_model
+from mrlib.sampling.conditions import Condition
 from mrlib.sampling.generation import generate
+from mrlib.sampling.sampler import Sampler
 from mrlib.speech import (
     SpeechClip,
     SpeechMotionPair,
@@ -91,8 +93,8 @@ def test_label_training_on_the_device_loads_and_samples_on_both(
     assert _finite_log(res.log) > 0
     on_gpu, on_cpu = load_model(res.checkpoint, DEVICE), load_model(res.checkpoint, "cpu")
     assert on_gpu.device.type == torch.device(DEVICE).type
-    a = generate(on_gpu, conditions=[("walk_sad", (1, 1)), ("walk_happy", (2, 3))], seed=4)
-    b = generate(on_cpu, conditions=[("walk_sad", (1, 1)), ("walk_happy", (2, 3))], seed=4)
+    a = generate(on_gpu, Condition.crossover("walk_sad", "walk_happy", 1), seed=4)
+    b = generate(on_cpu, Condition.crossover("walk_sad", "walk_happy", 1), seed=4)
     err = (torch.as_tensor(a.poses) - torch.as_tensor(b.poses)).abs().max().item()
     assert err < 1e-4, f"device and CPU samples differ by {err:.2e}"
 
@@ -155,9 +157,9 @@ def test_speech_training_on_cuda(tmp_path, body, walks):
 def test_the_noise_fits_run_on_the_device_as_on_the_cpu(tmp_path, full_precision):
     # the constraints' test-time fits (mrlib.sampling.constraints.optimise) build their targets on
     # the model's device, and the foot clean-up runs on a body model there: a part's label
-    # sharpened, an in-between fitted to keyframes, a continued prefix, a path by noise
-    # optimisation and both clean-ups give the CPU's motion (the label windows of 30
-    # frames need 4 s clips at 10 fps)
+    # sharpened, an in-between fitted to keyframes, a continued prefix, a path and the
+    # clean-up give the CPU's motion (the label windows of 30 frames need 4 s clips at
+    # 10 fps)
     from mrlib.representation.body import load_body_model
     from mrlib.sampling import constraints as C
     from mrlib.sampling.cleanup import cleanup_foot_contacts
@@ -174,16 +176,15 @@ def test_the_noise_fits_run_on_the_device_as_on_the_cpu(tmp_path, full_precision
     kfs = [C.Keyframe.from_motion(walks[0], 0, 0), C.Keyframe.from_motion(walks[1], -1, 29)]
     cases = {
         "sharpened": lambda m, b: C.generate_sharpened(m, "walk_sad", ("upper",), 40, seed=1,
-                                                       steps=5)[0],
+                                                       fit=C.Sharpening(5)),
         "keyframes": lambda m, b: C.generate_with_keyframes(m, kfs, 30, "walk_happy", seed=2,
-                                                            steps=5, body=b),
+                                                            fit=C.KeyframeFit(steps=5), body=b),
         "continued": lambda m, b: C.continue_motion(m, walks[2], 10, "walk_sad", seed=3,
-                                                    steps=5, body=b),
+                                                    fit=C.NoiseFit(steps=5), body=b),
         "path": lambda m, b: C.generate_on_path(m, "circle:1", "walk_normal", seconds=3.0,
-                                                seed=4, method="optimise", steps=5, body=b),
-        "clean-up by optimisation": lambda m, b: cleanup_foot_contacts(
-            generate(m, "walk_sad", seed=5, fix_contacts=False), b, iterations=5,
-            method="optimise"),
+                                                seed=4, body=b),
+        "clean-up": lambda m, b: cleanup_foot_contacts(
+            generate(m, "walk_sad", seed=5, sampler=Sampler(fix_contacts=False)), b),
     }  # fmt: skip
     on_device, on_cpu = load_model(res.checkpoint, DEVICE), load_model(res.checkpoint, "cpu")
     for name, make in cases.items():

@@ -14,7 +14,6 @@ from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.evaluation import calibration as cal
 from mrlib.evaluation import evaluate as ev
 from mrlib.io.paths import default_data_dir
-from mrlib.representation.body import load_body_model
 from mrlib.representation.motion import Motion
 from mrlib.viz.plots import plot_evaluation
 
@@ -22,11 +21,6 @@ DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
     not (DATA_DIR / "data").is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
 )
-
-
-@pytest.fixture(scope="module")
-def body():
-    return load_body_model()
 
 
 def noisy_crops(refs: dict[str, Motion], sigma: float = 0.01, log: list | None = None):
@@ -67,14 +61,15 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
     refs = {"arc": ref}
     log: list = []
     kw = dict(
-        num_samples=3, seed=5, calibration=True, calibration_others=None, body=body, progress=False
+        settings=ev.EvaluationSettings(num_samples=3, seed=5),
+        calibration=ev.CalibrationOptions(others=None),
+        body=body,
+        progress=False,
     )
     res = ev.evaluate(
-        noisy_crops(refs, 0.01, log),
+        {"dummy": noisy_crops(refs, 0.01, log), "noisier": noisy_crops(refs, 0.1)},
         refs,
-        extra_models={"noisier": noisy_crops(refs, 0.1)},
-        name="dummy",
-        reconstructions={"arc": ref},
+        reconstructions={"dummy": {"arc": ref}},
         **kw,
     )
     assert log == [("arc", 140, 5), ("arc", 140, 6), ("arc", 140, 7)]
@@ -90,7 +85,7 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
     assert by["calib: frozen first frame"]["jerk"] == 0.0
     # the same seeds give the same numbers
     again = ev.evaluate(
-        noisy_crops(refs, 0.01), refs, name="dummy", reconstructions={"arc": ref}, **kw
+        {"dummy": noisy_crops(refs, 0.01)}, refs, reconstructions={"dummy": {"arc": ref}}, **kw
     )
     assert again.rows[0] == res.rows[0]
     md = res.to_markdown()
@@ -103,21 +98,24 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
 
 def test_evaluate_validates_its_inputs(body):
     ref = turning_walk(70)
-    kw = dict(num_samples=1, calibration=False, body=body, progress=False)
+    kw = dict(
+        settings=ev.EvaluationSettings(num_samples=1),
+        calibration=ev.CalibrationOptions(enabled=False),
+        body=body,
+        progress=False,
+    )
     with pytest.raises(MotionValueError, match="non-empty"):
-        ev.evaluate(noisy_crops({}), {}, **kw)
+        ev.evaluate({"m": noisy_crops({})}, {}, **kw)
     with pytest.raises(ClipTooShortError, match="at least 59"):
-        ev.evaluate(noisy_crops({"a": ref}), {"a": ref.slice(0, 40)}, **kw)
+        ev.evaluate({"m": noisy_crops({"a": ref})}, {"a": ref.slice(0, 40)}, **kw)
     with pytest.raises(MotionValueError, match="expected a mrlib.Motion"):
-        ev.evaluate(lambda label, n, seed: np.zeros((n, 24, 3)), {"a": ref}, **kw)
+        ev.evaluate({"m": lambda label, n, seed: np.zeros((n, 24, 3))}, {"a": ref}, **kw)
     with pytest.raises(MotionValueError, match="resample"):
-        ev.evaluate(lambda label, n, seed: ref.resample(15.0), {"a": ref}, **kw)
-    with pytest.raises(MotionValueError, match="second method"):
-        ev.evaluate(noisy_crops({"a": ref}), {"a": ref}, extra_models={"model": print}, **kw)
+        ev.evaluate({"m": lambda label, n, seed: ref.resample(15.0)}, {"a": ref}, **kw)
+    with pytest.raises(MotionValueError, match="models must be a dict"):
+        ev.evaluate(noisy_crops({"a": ref}), {"a": ref}, **kw)
     with pytest.raises(MotionValueError, match="not callable"):
-        ev.evaluate(None, {"a": ref}, extra_models={"m": 3}, **kw)
-    with pytest.raises(MotionValueError, match="inside settings"):
-        ev.evaluate(None, {"a": ref}, settings=ev.EvaluationSettings(), **kw)
+        ev.evaluate({"m": 3}, {"a": ref}, **kw)
 
 
 # -- real data ----------------------------------------------------------------------------------
@@ -143,7 +141,10 @@ def test_frozen_real_frame_has_zero_coverage_and_zero_jitter(bandai, body):
 @needs_data
 def test_calibration_rows_order_sensibly_on_a_real_walk(bandai, body):
     ref = bandai["walk_happy_001"]
-    res = ev.evaluate(None, {"walk_happy": ref}, body=body, progress=False, data_dir=DATA_DIR)
+    res = ev.evaluate(
+        {}, {"walk_happy": ref}, body=body, progress=False,
+        calibration=ev.CalibrationOptions(data_dir=DATA_DIR),
+    )  # fmt: skip
     by = {r["method"].removeprefix("calib: "): r for r in res.rows}
     assert list(by) == list(ev.CALIBRATION_METHODS)
     twice, frozen = by["played twice"], by["frozen first frame"]
@@ -169,13 +170,12 @@ def test_evaluate_dummy_model_on_two_real_labels_writes_table_and_files(bandai, 
     refs = {"walk_happy": bandai["walk_happy_001"], "bow_normal": bandai["bow_normal_001"]}
     log: list = []
     res = ev.evaluate(
-        noisy_crops(refs, 0.003, log),
+        {"dummy": noisy_crops(refs, 0.003, log)},
         refs,
-        num_samples=2,
-        name="dummy",
+        ev.EvaluationSettings(num_samples=2),
+        calibration=ev.CalibrationOptions(data_dir=DATA_DIR),
         body=body,
         progress=False,
-        data_dir=DATA_DIR,
     )
     T = {k: m.num_frames for k, m in refs.items()}
     assert log == [(k, 2 * T[k], s) for k in refs for s in (0, 1)]

@@ -5,7 +5,6 @@ import pytest
 
 from mrlib.errors import BVHFormatError, MotionFileError
 from mrlib.io.bvh import (
-    _forward_kinematics_naive,
     bvh_forward_kinematics,
     bvh_local_transforms,
     euler_to_matrix,
@@ -16,6 +15,7 @@ from mrlib.io.bvh import (
     read_bvh,
     write_bvh,
 )
+from mrlib.io.bvh.kinematics import _forward_kinematics_naive
 
 # A root with 6 channels in ZXY order, a joint with 3 rotation channels in XYZ order and
 # one with a channel subset (only Yrotation) - plus End Sites.

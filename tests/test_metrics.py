@@ -1,5 +1,5 @@
-"""Tests for mrlib.metrics.paper: the fast metrics against their naive oracles, invariants,
-and error handling. Inputs are small and seeded."""
+"""Tests for mrlib.metrics.coverage, .diversity and .windows: the fast metrics against
+their naive oracles, invariants, and error handling. Inputs are small and seeded."""
 
 from __future__ import annotations
 
@@ -9,7 +9,10 @@ import torch
 
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.metrics import oracles
-from mrlib.metrics import paper as mt
+from mrlib.metrics import windows as win
+from mrlib.metrics.coverage import condition_fidelity, coverage, coverage_profile
+from mrlib.metrics.diversity import global_diversity, local_diversity
+from mrlib.metrics.windows import frame_distances, metric_features, reconstruction_error
 from mrlib.representation.motion import Motion
 
 
@@ -57,23 +60,23 @@ def segmentation_cost(g, r, seg, squared=False):
 # ---------------------------------------------------------------------------------------
 def test_metric_features_shapes_and_root_excluded():
     m = smooth_motion(20, 0)
-    f = mt.metric_features(m)
+    f = metric_features(m)
     assert f.shape == (20, 23 * 6 + 6) and f.dtype == np.float64
-    assert mt.metric_features(m, contacts=False).shape == (20, 138)
-    assert mt.metric_features(m.replace(contacts=None)).shape == (20, 138)
-    assert mt.metric_features(m, kind="rotmat").shape == (20, 23 * 9 + 6)
+    assert metric_features(m, contacts=False).shape == (20, 138)
+    assert metric_features(m.replace(contacts=None)).shape == (20, 138)
+    assert metric_features(m, kind="rotmat").shape == (20, 23 * 9 + 6)
     np.testing.assert_array_equal(f[:, -6:], m.contacts)
     # the root orientation and translation do not enter the features
     moved = m.replace(poses=m.poses.copy(), trans=m.trans + 5.0)
     moved.poses[:, 0] += 1.0
-    np.testing.assert_allclose(mt.metric_features(moved), f)
+    np.testing.assert_allclose(metric_features(moved), f)
     # zero rotation -> identity columns
     still = Motion(poses=np.zeros((3, 24, 3)), trans=np.zeros((3, 3)), fps=30.0)
     np.testing.assert_allclose(
-        mt.metric_features(still).reshape(3, 23, 6), np.tile([1.0, 0, 0, 0, 1, 0], (3, 23, 1))
+        metric_features(still).reshape(3, 23, 6), np.tile([1.0, 0, 0, 0, 1, 0], (3, 23, 1))
     )
     # 6D is the first two columns of the matrix
-    R = mt.metric_features(m, kind="rotmat", contacts=False).reshape(20, 23, 3, 3)
+    R = metric_features(m, kind="rotmat", contacts=False).reshape(20, 23, 3, 3)
     sixd = f[:, :138].reshape(20, 23, 6)
     np.testing.assert_allclose(sixd[..., :3], R[..., :, 0], atol=1e-12)
     np.testing.assert_allclose(sixd[..., 3:], R[..., :, 1], atol=1e-12)
@@ -81,22 +84,22 @@ def test_metric_features_shapes_and_root_excluded():
 
 def test_metric_features_passthrough_and_errors():
     x = np.random.default_rng(0).normal(size=(7, 5)).astype(np.float32)
-    np.testing.assert_allclose(mt.metric_features(x), x)
-    np.testing.assert_allclose(mt.metric_features(torch.from_numpy(x)), x)
+    np.testing.assert_allclose(metric_features(x), x)
+    np.testing.assert_allclose(metric_features(torch.from_numpy(x)), x)
     with pytest.raises(MotionValueError, match=r"\(T, D\)"):
-        mt.metric_features(np.zeros((3, 4, 5)))
+        metric_features(np.zeros((3, 4, 5)))
     with pytest.raises(MotionValueError, match="NaN"):
-        mt.metric_features(np.full((3, 4), np.nan))
+        metric_features(np.full((3, 4), np.nan))
     with pytest.raises(MotionValueError, match="kind"):
-        mt.metric_features(smooth_motion(5, 0), kind="quat")
+        metric_features(smooth_motion(5, 0), kind="quat")
     with pytest.raises(MotionValueError, match="channels"):
-        mt.local_diversity(np.zeros((20, 4)), np.zeros((20, 5)))
+        local_diversity(np.zeros((20, 4)), np.zeros((20, 5)))
 
 
 def test_metrics_accept_motion_directly():
     m = smooth_motion(40, 1)
-    f = mt.metric_features(m)
-    assert mt.local_diversity(m, m, window=5) == pytest.approx(mt.local_diversity(f, f, window=5))
+    f = metric_features(m)
+    assert local_diversity(m, m, window=5) == pytest.approx(local_diversity(f, f, window=5))
 
 
 def test_frame_distances_match_naive():
@@ -104,7 +107,7 @@ def test_frame_distances_match_naive():
     x, y = rng.normal(size=(13, 6)), rng.normal(size=(9, 6)) + 3.0
     for squared in (False, True):
         np.testing.assert_allclose(
-            mt.frame_distances(x, y, squared),
+            frame_distances(x, y, squared),
             oracles.frame_distances_naive(x, y, squared),
             rtol=1e-10,
             atol=1e-10,
@@ -117,7 +120,7 @@ def test_frame_distances_match_naive():
 @pytest.mark.parametrize("chunk", [None, 64])
 def test_window_metrics_match_naive(monkeypatch, chunk):
     if chunk is not None:  # tiny blocks: exercises the block seams
-        monkeypatch.setattr(mt, "_CHUNK_ELEMS", chunk)
+        monkeypatch.setattr(win, "_CHUNK_ELEMS", chunk)
     rng = np.random.default_rng(2)
     for trial in range(40):
         D = int(rng.integers(1, 6))
@@ -125,15 +128,15 @@ def test_window_metrics_match_naive(monkeypatch, chunk):
         gen = patchwork(ref, int(rng.integers(8, 40)), rng, noise=0.3 * (trial % 3))
         w = int(rng.integers(1, 8))
         squared = bool(trial % 2)
-        prof = mt.coverage_profile(gen, ref, w, squared)
+        prof = coverage_profile(gen, ref, w, squared)
         np.testing.assert_allclose(
             prof, oracles.window_nn_naive(ref, gen, w, squared), rtol=1e-9, atol=1e-7
         )
         eps = float(np.median(prof)) + 1e-6  # about half covered
-        assert mt.coverage(gen, ref, w, eps, squared) == oracles.coverage_naive(
+        assert coverage(gen, ref, w, eps, squared) == oracles.coverage_naive(
             gen, ref, w, eps, squared
         )
-        assert mt.local_diversity(gen, ref, w, squared) == pytest.approx(
+        assert local_diversity(gen, ref, w, squared) == pytest.approx(
             oracles.local_diversity_naive(gen, ref, w, squared), rel=1e-9, abs=1e-7
         )
 
@@ -142,16 +145,21 @@ def test_coverage_of_a_list_is_the_mean_and_accepts_iterables():
     rng = np.random.default_rng(3)
     ref = rng.normal(size=(50, 4))
     gens = [patchwork(ref, 60, rng, noise=s) for s in (0.0, 0.5, 1.0)]
-    per = [mt.coverage(g, ref, 10, eps=1.0) for g in gens]
+    per = [coverage(g, ref, 10, eps=1.0) for g in gens]
     assert len(set(per)) > 1
-    assert mt.coverage(gens, ref, 10, eps=1.0) == pytest.approx(np.mean(per))
-    assert mt.coverage(iter(gens), ref, 10, eps=1.0) == pytest.approx(np.mean(per))
-    assert mt.coverage(gens, ref, 10, eps=1.0) == pytest.approx(
+    assert coverage(gens, ref, 10, eps=1.0) == pytest.approx(np.mean(per))
+    assert coverage(iter(gens), ref, 10, eps=1.0) == pytest.approx(np.mean(per))
+    assert coverage(gens, ref, 10, eps=1.0) == pytest.approx(
         oracles.coverage_naive(gens, ref, 10, eps=1.0)
     )
-    assert mt.local_diversity(gens, ref, 5) == pytest.approx(
+    assert local_diversity(gens, ref, 5) == pytest.approx(
         oracles.local_diversity_naive(gens, ref, 5)
     )
+    # several thresholds at once: the same numbers as one call per threshold
+    many = coverage(gens, ref, 10, eps=(1.0, 0.5, 1e9))
+    assert many == {e: coverage(gens, ref, 10, eps=e) for e in (1.0, 0.5, 1e9)}
+    with pytest.raises(MotionValueError, match="eps"):
+        coverage(gens, ref, 10, eps=(1.0, -1.0))
 
 
 # ---------------------------------------------------------------------------------------
@@ -160,7 +168,7 @@ def test_coverage_of_a_list_is_the_mean_and_accepts_iterables():
 @pytest.mark.parametrize("chunk", [None, 50])
 def test_global_diversity_matches_naive_dp(monkeypatch, chunk):
     if chunk is not None:
-        monkeypatch.setattr(mt, "_CHUNK_ELEMS", chunk)
+        monkeypatch.setattr(win, "_CHUNK_ELEMS", chunk)
     rng = np.random.default_rng(4)
     n_feasible = 0
     for trial in range(60):
@@ -175,10 +183,10 @@ def test_global_diversity_matches_naive_dp(monkeypatch, chunk):
             want, _ = oracles.global_diversity_naive(gen, ref, tmin, squared)
         except ClipTooShortError:
             with pytest.raises(ClipTooShortError):
-                mt.global_diversity(gen, ref, tmin, squared)
+                global_diversity(gen, ref, tmin, squared)
             continue
         n_feasible += 1
-        got, seg = mt.global_diversity(gen, ref, tmin, squared, return_segmentation=True)
+        got, seg = global_diversity(gen, ref, tmin, squared, return_segmentation=True)
         assert got == pytest.approx(want, rel=1e-9, abs=1e-7)
         check_segmentation(seg, L, Lr, tmin)
         assert segmentation_cost(gen, ref, seg, squared) == pytest.approx(got, rel=1e-9, abs=1e-7)
@@ -198,14 +206,14 @@ def test_naive_dp_matches_enumeration_and_short_segments_suffice():
         assert oracles.global_diversity_enumerate(
             gen, ref, tmin, max_len=2 * tmin - 1
         ) == pytest.approx(want)
-        assert mt.global_diversity(gen, ref, tmin) == pytest.approx(want, abs=1e-7)
+        assert global_diversity(gen, ref, tmin) == pytest.approx(want, abs=1e-7)
 
 
 def test_global_diversity_list_returns_mean_and_segmentations():
     rng = np.random.default_rng(6)
     ref = rng.normal(size=(40, 3))
     gens = [patchwork(ref, 45, rng, 0.1), rng.normal(size=(50, 3))]
-    v, segs = mt.global_diversity(gens, ref, 5, return_segmentation=True)
+    v, segs = global_diversity(gens, ref, 5, return_segmentation=True)
     assert len(segs) == 2
     assert v == pytest.approx(
         np.mean([oracles.global_diversity_naive(g, ref, 5)[0] for g in gens]), abs=1e-7
@@ -216,73 +224,71 @@ def test_global_diversity_list_returns_mean_and_segmentations():
 # identities
 # ---------------------------------------------------------------------------------------
 def test_identity_shift_and_noise():
-    ref = mt.metric_features(smooth_motion(120, 7))
-    assert mt.coverage(ref, ref) == 1.0
-    assert mt.local_diversity(ref, ref) < 1e-6
-    v, seg = mt.global_diversity(ref, ref, return_segmentation=True)
+    ref = metric_features(smooth_motion(120, 7))
+    assert coverage(ref, ref) == 1.0
+    assert local_diversity(ref, ref) < 1e-6
+    v, seg = global_diversity(ref, ref, return_segmentation=True)
     assert v < 1e-6 and seg == [(0, 120, 0)]
     # cropped: a single segment at the crop offset
-    v, seg = mt.global_diversity(ref[17:100], ref, return_segmentation=True)
+    v, seg = global_diversity(ref[17:100], ref, return_segmentation=True)
     assert v < 1e-6 and seg == [(0, 83, 17)]
     # rolled: two segments, the second matched to the start of the reference
-    v, seg = mt.global_diversity(np.roll(ref, -45, axis=0), ref, return_segmentation=True)
+    v, seg = global_diversity(np.roll(ref, -45, axis=0), ref, return_segmentation=True)
     assert v < 1e-6 and seg == [(0, 75, 45), (75, 120, 0)]
     # ... and only the reference windows across the seam (frames 44 and 45) are missing
-    prof = mt.coverage_profile(np.roll(ref, -45, axis=0), ref)
+    prof = coverage_profile(np.roll(ref, -45, axis=0), ref)
     assert prof[:16].max() < 1e-6 and prof[45:].max() < 1e-6 and prof[16:45].min() > 1e-3
     # white noise covers nothing and is far from everything
     noise = np.random.default_rng(0).normal(size=(240, ref.shape[1]))
-    assert mt.coverage(noise, ref) == 0.0
-    assert mt.global_diversity(noise, ref) > 2.0
+    assert coverage(noise, ref) == 0.0
+    assert global_diversity(noise, ref) > 2.0
     # a different clip scores in between
-    other = mt.metric_features(smooth_motion(240, 8))
-    assert 0 < mt.local_diversity(other, ref) < mt.local_diversity(noise, ref)
+    other = metric_features(smooth_motion(240, 8))
+    assert 0 < local_diversity(other, ref) < local_diversity(noise, ref)
 
 
 def test_reconstruction_error():
     rng = np.random.default_rng(9)
     a, b = rng.normal(size=(10, 4)), rng.normal(size=(10, 4))
-    assert mt.reconstruction_error(a, a) == 0.0
-    assert mt.reconstruction_error(a, b) == pytest.approx(np.linalg.norm(a - b, axis=1).mean())
-    assert mt.reconstruction_error(a, b, squared=True) == pytest.approx(
-        ((a - b) ** 2).sum(1).mean()
-    )
+    assert reconstruction_error(a, a) == 0.0
+    assert reconstruction_error(a, b) == pytest.approx(np.linalg.norm(a - b, axis=1).mean())
+    assert reconstruction_error(a, b, squared=True) == pytest.approx(((a - b) ** 2).sum(1).mean())
     with pytest.raises(MotionValueError, match="equal lengths"):
-        mt.reconstruction_error(a, b[:9])
+        reconstruction_error(a, b[:9])
 
 
 def test_condition_fidelity():
-    fa = mt.metric_features(smooth_motion(90, 10))
-    fb = mt.metric_features(smooth_motion(90, 11))
+    fa = metric_features(smooth_motion(90, 10))
+    fb = metric_features(smooth_motion(90, 11))
     refs = {"happy": fa, "angry": fb}
-    assert mt.condition_fidelity([(fa[10:80], "happy"), (fb, "angry")], refs) == 1.0
-    assert mt.condition_fidelity([(fa[10:80], "angry")], refs) == 0.0
+    assert condition_fidelity([(fa[10:80], "happy"), (fb, "angry")], refs) == 1.0
+    assert condition_fidelity([(fa[10:80], "angry")], refs) == 0.0
     # half of each clip from each label: about half of the windows go each way
     mixed = np.concatenate([fa[:60], fb[:60]])
-    share = mt.condition_fidelity([(mixed, "happy")], refs)
+    share = condition_fidelity([(mixed, "happy")], refs)
     assert 0.3 < share < 0.7
     m = smooth_motion(60, 10).replace(label="happy")
     assert (
-        mt.condition_fidelity([m], {"happy": smooth_motion(90, 10), "angry": smooth_motion(90, 11)})
+        condition_fidelity([m], {"happy": smooth_motion(90, 10), "angry": smooth_motion(90, 11)})
         == 1.0
     )
     with pytest.raises(MotionValueError, match="no reference"):
-        mt.condition_fidelity([(fa, "sad")], refs)
+        condition_fidelity([(fa, "sad")], refs)
 
 
 def test_errors_on_short_clips_and_bad_arguments():
     x = np.zeros((20, 3))
     with pytest.raises(ClipTooShortError, match="tmin"):
-        mt.global_diversity(x[:10], x, tmin=15)
+        global_diversity(x[:10], x, tmin=15)
     with pytest.raises(ClipTooShortError, match="reference"):
-        mt.global_diversity(x, x[:10], tmin=15)
+        global_diversity(x, x[:10], tmin=15)
     with pytest.raises(ClipTooShortError, match="no segmentation"):
-        mt.global_diversity(np.zeros((31, 3)), np.zeros((30, 3)), tmin=30)
+        global_diversity(np.zeros((31, 3)), np.zeros((30, 3)), tmin=30)
     with pytest.raises(ClipTooShortError, match="window"):
-        mt.coverage(x[:5], x, window=10)
+        coverage(x[:5], x, window=10)
     with pytest.raises(MotionValueError, match="eps"):
-        mt.coverage(x, x, window=5, eps=0.0)
+        coverage(x, x, window=5, eps=0.0)
     with pytest.raises(MotionValueError, match="window"):
-        mt.local_diversity(x, x, window=0)
+        local_diversity(x, x, window=0)
     with pytest.raises(MotionValueError, match="no generated"):
-        mt.coverage([], x, window=5)
+        coverage([], x, window=5)

@@ -5,17 +5,10 @@ import pytest
 import torch
 
 from mrlib.model.config import ConfigError, ModelConfig
-from mrlib.model.networks import (
-    FiLM,
-    LevelGenerator,
-    PatchCritic,
-    SkeletonConv1d,
-    build_critics,
-    build_generator,
-    hidden_channel_joint,
-    skeleton_mask,
-)
+from mrlib.model.critic import PatchCritic, build_critics
+from mrlib.model.generator import FiLM, LevelGenerator, build_generator
 from mrlib.model.pyramid import PackedLevels
+from mrlib.model.skeleton_conv import SkeletonConv1d, hidden_channel_joint, skeleton_mask
 from mrlib.representation.features import NUM_FEATURES, channel_joint
 from mrlib.representation.skeleton import UPPER_BODY_JOINTS, graph_distances
 

@@ -10,7 +10,6 @@ import torch
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.io.paths import default_data_dir
 from mrlib.metrics import plausibility as pl
-from mrlib.representation.body import load_body_model
 from mrlib.representation.contacts import foot_contacts
 from mrlib.representation.motion import Motion
 
@@ -18,11 +17,6 @@ DATA_DIR = default_data_dir()
 needs_data = pytest.mark.skipif(
     not (DATA_DIR / "data").is_dir(), reason="Bandai-Namco data not found (MRLIB_DATA_DIR)"
 )
-
-
-@pytest.fixture(scope="module")
-def body():
-    return load_body_model()
 
 
 def still_motion(T: int = 40, fps: float = 30.0) -> Motion:

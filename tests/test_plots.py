@@ -11,8 +11,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
+from mrlib import metrics as mt
 from mrlib.errors import MotionValueError
-from mrlib.metrics import paper as mt
 from mrlib.viz.plots import (
     plot_coverage_strip,
     plot_quality_curve,

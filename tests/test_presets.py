@@ -1,4 +1,4 @@
-"""One registry of presets (``mrlib.model.config.PRESETS``) behind every ``--preset``."""
+"""One registry of presets (``mrlib.model.presets.PRESETS``) behind every ``--preset``."""
 
 from __future__ import annotations
 
@@ -8,12 +8,10 @@ from pathlib import Path
 import pytest
 
 from mrlib.app.cli import build_parser, main
-from mrlib.model.config import (
-    PRESET_FPS,
+from mrlib.model.config import ConfigError, config_to_json
+from mrlib.model.presets import (
     PRESET_SUMMARIES,
     PRESETS,
-    ConfigError,
-    config_to_json,
     demo,
     describe_presets,
     get_preset,
@@ -29,7 +27,7 @@ def test_every_preset_has_a_one_line_summary_and_a_kind():
     assert preset_names() == list(PRESETS)
     assert sorted(preset_names("labels") + preset_names("speech")) == sorted(PRESETS)
     assert "demo" in preset_names("labels") and "speech_tutorial" in preset_names("speech")
-    assert set(PRESET_FPS) <= set(PRESETS)
+    assert get_preset("demo").fps == 15.0 and get_preset("tutorial").fps is None
     with pytest.raises(ConfigError):
         preset_names("images")
 
@@ -95,7 +93,7 @@ def test_mrlib_train_preset_demo(tmp_path):
     expected = demo().replace(block_iterations=(2, 2, 2, 2))
     assert saved == json.loads(config_to_json(expected))
     model = load_model(out / "checkpoint.pt")
-    assert model.fps == PRESET_FPS["demo"]
+    assert model.fps == get_preset("demo").fps
     assert model.trained_levels == model.num_levels == demo().model.num_levels
 
 

@@ -16,7 +16,7 @@ from mrlib.errors import JointMapError
 from mrlib.io import default_data_dir, load_motion
 from mrlib.io.axes import UNITS
 from mrlib.io.bvh import write_bvh
-from mrlib.io.recognize import is_helper, name_parts
+from mrlib.io.name_rules import is_helper, name_parts
 from mrlib.io.retarget import retarget_bvh
 from mrlib.representation.skeleton import JOINT_NAMES
 

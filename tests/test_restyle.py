@@ -22,10 +22,13 @@ from mrlib.evaluation.restyle_evidence import (
     restyle_references,
     restyle_shares,
 )
-from mrlib.model.networks import LevelGenerator
+from mrlib.model.generator import LevelGenerator
 from mrlib.model.pyramid import pyramid_lengths, resample_linear
 from mrlib.representation.features import features_to_motion, motion_to_features
 from mrlib.sampling.restyling import restyle, restyle_level
+from mrlib.sampling.sampler import Sampler
+
+RAW = Sampler(fix_contacts=False)  # the raw result
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +70,7 @@ def test_restyle_resamples_to_the_model_and_records_what_made_it(model, clip, bo
     assert np.allclose(m.betas, clip.betas)
     info = m.meta["restyle"]
     assert (info["label"], info["level"], info["keep"], info["seed"]) == ("wave", 2, "coarse", 0)
-    assert info["invert"] is None and info["seconds"] > 0 and info["source_fps"] == 30.0
+    assert info["seconds"] > 0 and info["source_fps"] == 30.0
     # the clip at the model's rate gives the same result: resampling is the first step
     same = restyle(model, at_model, "wave", 2, seed=0, body=body)
     np.testing.assert_allclose(same.poses, m.poses, atol=1e-5)
@@ -80,12 +83,12 @@ def test_restyle_resamples_to_the_model_and_records_what_made_it(model, clip, bo
 
 
 def test_restyle_is_seeded(model, clip, body):
-    a = restyle(model, clip, "walk_sad", 1, seed=3, fix_contacts=False, body=body)
-    b = restyle(model, clip, "walk_sad", 1, seed=3, fix_contacts=False, body=body)
-    c = restyle(model, clip, "walk_sad", 1, seed=4, fix_contacts=False, body=body)
+    a = restyle(model, clip, "walk_sad", 1, seed=3, sampler=RAW, body=body)
+    b = restyle(model, clip, "walk_sad", 1, seed=3, sampler=RAW, body=body)
+    c = restyle(model, clip, "walk_sad", 1, seed=4, sampler=RAW, body=body)
     assert np.array_equal(a.poses, b.poses)
     assert np.abs(a.poses - c.poses).max() > 1e-4  # the label's levels have their noise
-    d = restyle(model, clip, "wave", 1, seed=3, fix_contacts=False, body=body)
+    d = restyle(model, clip, "wave", 1, seed=3, sampler=RAW, body=body)
     assert np.abs(a.poses - d.poses).max() > 1e-4  # and their label
 
 
@@ -97,7 +100,7 @@ def test_the_fine_levels_run_on_the_clips_level_k(model, clip, body, monkeypatch
     src = clip.resample(model.fps)
     L = model.num_levels
     for k in (1, L - 1):
-        got = restyle(model, src, "wave", k, align=False, fix_contacts=False, body=body)
+        got = restyle(model, src, "wave", k, align=False, sampler=RAW, body=body)
         x = model.normalizer.normalize(motion_to_features(src, body)).T[None]
         lengths = pyramid_lengths(src.num_frames, L, model.config.model.scale_factor, 3)
         want = resample_linear(x, lengths[k - 1])
@@ -111,7 +114,7 @@ def test_the_fine_levels_run_on_the_clips_level_k(model, clip, body, monkeypatch
 def test_the_root_travels_and_faces_as_the_clip(model, clip, body):
     src = _yaw(clip, np.pi / 2).resample(model.fps)  # a walk along +X: unlike the training
     for keep in ("coarse", "detail"):
-        m = restyle(model, src, "wave", 2, keep=keep, seed=0, fix_contacts=False, body=body)
+        m = restyle(model, src, "wave", 2, keep=keep, seed=0, sampler=RAW, body=body)
         path = np.linalg.norm(m.trans[:, [0, 2]] - src.trans[:, [0, 2]], axis=1)
         assert path.mean() < 0.05, keep  # the low band of the ground velocity is the clip's
         assert np.allclose(m.trans[0, [0, 2]], src.trans[0, [0, 2]], atol=1e-6)
@@ -120,16 +123,16 @@ def test_the_root_travels_and_faces_as_the_clip(model, clip, body):
     # keep='detail': both bands of the ground velocity are the clip's
     np.testing.assert_allclose(m.trans[:, [0, 2]], src.trans[:, [0, 2]], atol=1e-4)
     # without the turn to the training clips' facing the model sees a walk along +X
-    straight = restyle(model, src, "wave", 2, seed=0, fix_contacts=False, body=body)
-    turned = restyle(model, src, "wave", 2, seed=0, align=False, fix_contacts=False, body=body)
+    straight = restyle(model, src, "wave", 2, seed=0, sampler=RAW, body=body)
+    turned = restyle(model, src, "wave", 2, seed=0, align=False, sampler=RAW, body=body)
     assert straight.meta["restyle"]["align_deg"] == pytest.approx(-90, abs=5)
     assert np.abs(straight.poses[:, 1:] - turned.poses[:, 1:]).max() > 1e-3
 
 
 def test_keep_detail_takes_the_coarse_levels_from_the_label(model, clip, body):
-    a = restyle(model, clip, "wave", 2, keep="detail", seed=0, fix_contacts=False, body=body)
-    b = restyle(model, clip, "wave", 2, keep="coarse", seed=0, fix_contacts=False, body=body)
-    c = restyle(model, clip, "wave", 2, keep="detail", seed=1, fix_contacts=False, body=body)
+    a = restyle(model, clip, "wave", 2, keep="detail", seed=0, sampler=RAW, body=body)
+    b = restyle(model, clip, "wave", 2, keep="coarse", seed=0, sampler=RAW, body=body)
+    c = restyle(model, clip, "wave", 2, keep="detail", seed=1, sampler=RAW, body=body)
     assert a.meta["restyle"]["keep"] == "detail" and a.name.endswith("_restyled_wave_detail2")
     assert np.abs(a.poses - b.poses).max() > 1e-3
     assert np.abs(a.poses - c.poses).max() > 1e-4  # the coarse levels are drawn
@@ -146,19 +149,9 @@ def test_a_long_clip_runs_in_one_pass(model, body, monkeypatch):
         return forward(self, x_up, *a, **k)
 
     monkeypatch.setattr(LevelGenerator, "forward", counted)
-    m = restyle(model, long_walk, "wave", 2, seed=0, fix_contacts=False, body=body)
+    m = restyle(model, long_walk, "wave", 2, seed=0, sampler=RAW, body=body)
     assert m.num_frames == 1200
     assert len(calls) == model.num_levels - 2 and calls[-1] == 1200  # one call per level
-
-
-def test_inversion_fits_the_coarse_levels_to_the_clip(model, clip, body):
-    m = restyle(model, clip, "walk_sad", 2, seed=0, invert=True, invert_steps=30,
-                fix_contacts=False, body=body)  # fmt: skip
-    fit = m.meta["restyle"]["invert"]
-    assert fit["steps"] == 30 and fit["rms_after"] < fit["rms_before"]
-    direct = restyle(model, clip, "walk_sad", 2, seed=0, fix_contacts=False, body=body)
-    assert np.abs(m.poses - direct.poses).max() > 1e-3
-    assert np.linalg.norm(m.trans[:, [0, 2]] - direct.trans[:, [0, 2]], axis=1).mean() < 0.05
 
 
 # -- errors -------------------------------------------------------------------------------------
@@ -174,10 +167,6 @@ def test_restyle_refuses_what_it_cannot_do(model, clip, body):
         restyle(model, clip.slice(0, 12), "wave", body=body)  # 4 frames at 10 fps
     with pytest.raises(MotionValueError, match="keep must be one of"):
         restyle(model, clip, "wave", keep="both", body=body)
-    with pytest.raises(MotionValueError, match="keep='coarse' only"):
-        restyle(model, clip, "wave", keep="detail", invert=True, body=body)
-    with pytest.raises(MotionValueError, match="invert_steps"):
-        restyle(model, clip, "wave", invert=True, invert_steps=0, body=body)
     speech_like = dataclasses.replace(model, labels=["speech"])  # condition != one-hot labels
     with pytest.raises(MotionValueError, match="label-conditioned"):
         restyle(speech_like, clip, "speech", body=body)
@@ -203,7 +192,7 @@ def test_coarse_gap_is_zero_on_a_training_clip_and_grows_away_from_it(model, sad
 
 def test_restyle_evidence_and_shares(model, clip, body):
     src = clip.resample(model.fps)
-    m = restyle(model, src, "wave", 2, seed=0, fix_contacts=False, body=body)
+    m = restyle(model, src, "wave", 2, seed=0, sampler=RAW, body=body)
     ref = restyle_references(model, m.num_frames, 2, num_samples=2)
     assert set(ref.label_profiles) == {"walk_sad", "wave"} and len(ref.clip_lows) == 2
     ev = restyle_evidence(model, m, clip, ref)  # the source at any frame rate
@@ -247,11 +236,8 @@ def test_restyle_cli(tmp_path):
     assert main([*base, "--overwrite", "--raw"]) == 0
     assert main([*base, "--keep", "detail", "--level", "2", "--seed", "1"]) == 0
     assert (out / "walk_happy_to_wave_detail2_seed1_0.npz").is_file()
-    assert main([*base, "--invert", "3", "--no-progress"]) == 0
-    assert (out / "walk_happy_to_wave_coarse1_inverted_seed0_0.npz").is_file()
     assert main([*base, "--level", "3"]) == 1  # 1..L-1
     assert main([*base[:-4], "--label", "jump", "--out", str(out)]) == 1
-    assert main([*base, "--keep", "detail", "--invert"]) == 1
     short = tmp_path / "short.npz"
     from mrlib.io import save_motion
 
@@ -325,7 +311,6 @@ def test_interactive_restyle_builds_and_redraws(model, clip, body, monkeypatch):
     controls["level k"].value = 3
     assert update().motion.meta["restyle"]["level"] == 3
     controls["keep"].value = "detail"
-    assert controls["invert (fit the coarse noise; seconds)"].disabled
     assert update().motion.meta["restyle"]["keep"] == "detail"
 
     def fake_render(motion, body, frames=None, **kw):  # the real one takes seconds

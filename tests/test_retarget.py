@@ -26,7 +26,7 @@ from mrlib.io.bvh import (
 from mrlib.io.jointmap import detect_joint_map, load_joint_map, shipped_joint_maps
 from mrlib.io.paths import default_data_dir
 from mrlib.io.rest_alignment import _solve_offset
-from mrlib.io.retarget import calibrate_retarget, retarget_bvh
+from mrlib.io.retarget import RetargetOptions, calibrate_retarget, retarget_bvh
 from mrlib.io.retarget_report import RETARGET_WARN_CM, RetargetWarning
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import (
@@ -238,7 +238,9 @@ def test_offsets_can_be_reused(body):
     m = _smpl_walkish(T=40, seed=5)
     bvh, jmap = _custom_bvh(m, body)
     r1 = retarget_bvh(bvh, jmap, body=body)
-    r2 = retarget_bvh(bvh, jmap, body=body, offsets=r1.offsets, betas=r1.betas)
+    r2 = retarget_bvh(
+        bvh, jmap, body=body, options=RetargetOptions(offsets=r1.offsets, betas=r1.betas)
+    )
     np.testing.assert_allclose(r2.poses, r1.poses, atol=1e-6)
 
 
@@ -578,7 +580,11 @@ def test_a_character_larger_than_any_smpl_body_is_transferred_by_rotations(body,
     from mrlib.io.retarget import retarget_bvh as rb
 
     with pytest.warns(RetargetWarning, match="shape bound"):
-        r = rb(read_bvh(tmp_path / "giant.bvh"), body=body, transfer="positions")
+        r = rb(
+            read_bvh(tmp_path / "giant.bvh"),
+            body=body,
+            options=RetargetOptions(transfer="positions"),
+        )
     assert len(r.betas_at_bound) >= 5 and r.error_mean_cm > 5.0
 
 
@@ -707,7 +713,7 @@ def test_hinge_twist_moves_rotations_not_positions(body):
     walk = synthetic_walk("walk_happy", seconds=3.0, fps=30.0, body=body)
     bvh = rigs.write_rig(walk, rigs.RIGS["lafan1"], body)
     a = retarget_bvh(bvh, body=body)
-    b = retarget_bvh(bvh, body=body, hinge_twist=False)
+    b = retarget_bvh(bvh, body=body, options=RetargetOptions(hinge_twist=False))
     assert a.error_mean_cm == pytest.approx(b.error_mean_cm, abs=1e-6)
     ja = body.motion_joints(Motion(a.poses, a.trans, 30.0, betas=a.betas))
     jb = body.motion_joints(Motion(b.poses, b.trans, 30.0, betas=b.betas))

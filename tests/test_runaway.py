@@ -4,9 +4,9 @@ before it finishes or fails with one line that names the limit and the way aroun
 - downloads: a mirror that streams an endless body (or announces one), one that never
   answers and one that trickles, each served on 127.0.0.1; the download stops at the
   registry's size or the timeout, and nothing is left in the cache;
-- ``--threads N`` / ``apply_policy(N)``: counts above 4 x the usable CPUs are refused;
-- iteration counts (``restyle --invert N``, ``--fit-steps``, ``--sharpen``, the
-  Python entry points' ``steps``): refused above ``MAX_FIT_STEPS`` up front;
+- ``--threads N`` / ``use(N)``: counts above 4 x the usable CPUs are refused;
+- iteration counts (``--fit-steps``, ``--sharpen``, the Python entry points' ``steps``):
+  refused above ``MAX_FIT_STEPS`` up front;
 - frame rates and lengths: a clip whose resampling to the model's or training rate
   would make more frames than mrlib's bounds is refused before anything is resampled.
 
@@ -189,7 +189,6 @@ def files(tmp_path_factory) -> dict[str, Path]:
 def _cli_cases(ckpt: Path, f: dict[str, Path]) -> dict[str, tuple[list[str], str]]:
     """name -> (argv, text the one-line error must hold)."""
     ck, clip, slow, out = str(ckpt), str(f["clip"]), str(f["slow"]), str(f["out"])
-    restyle = ["restyle", ck, clip, "--label", "walk_sad", "--out", out]
     sample = ["sample", ck, "--out", out]
     resamples = "more than the 100000 mrlib resamples to"
     steps = "Adam steps are more than the 3000 of one noise fit"
@@ -201,11 +200,6 @@ def _cli_cases(ckpt: Path, f: dict[str, Path]) -> dict[str, tuple[list[str], str
             ["restyle", ck, slow, "--label", "walk_sad", "--out", out],
             "longer than the 600 s mrlib restyles",
         ),
-        "restyle --invert 100000000": (
-            [*restyle, "--invert", "100000000"],
-            f"--invert: 100000000 {steps}",
-        ),
-        "restyle --invert 1e8": ([*restyle, "--invert", "1e8"], f"--invert: 100000000 {steps}"),
         "sample --keyframes --fit-steps 1e8": (
             [*sample, "--keyframes", str(f["keys"]), "--seconds", "2", "--fit-steps", "1e8"],
             f"--fit-steps: 100000000 {steps}",
@@ -260,7 +254,7 @@ from mrlib.io import load_motion
 from mrlib.model.trained import load_model
 from mrlib.representation.motion import Motion
 from mrlib.sampling.constraints import (
-    continue_motion, generate_on_path, generate_parts, generate_sharpened,
+    KeyframeFit, NoiseFit, Sharpening, continue_motion, generate_parts, generate_sharpened,
     generate_with_keyframes,
 )
 from mrlib.sampling.constraints.optimise import optimise_noise
@@ -296,21 +290,16 @@ API_CASES = {
         "longer than the 600 s mrlib generates in one sample",
     ),
     # iteration counts, refused up front
-    "restyle(invert_steps=1e8)": (
-        "restyle(model, clip, 'walk_sad', invert=True, invert_steps=10**8)",
-        "invert_steps: 100000000 Adam steps are more than the 3000",
-    ),
     "generate_with_keyframes(steps=1e8)": (
-        "generate_with_keyframes(model, [], 20, steps=10**8)",
+        "generate_with_keyframes(model, [], 20, fit=KeyframeFit(steps=10**8))",
         "steps: 100000000 Adam steps",
     ),
-    "continue_motion(steps=1e8)": ("continue_motion(model, clip, 20, steps=10**8)", "the 3000"),
-    "generate_on_path(optimise, steps=1e8)": (
-        "generate_on_path(model, 'circle:1', 'walk_sad', method='optimise', steps=10**8)",
-        "steps: 100000000 Adam steps",
+    "continue_motion(steps=1e8)": (
+        "continue_motion(model, clip, 20, fit=NoiseFit(steps=10**8))",
+        "the 3000",
     ),
     "generate_sharpened(steps=1e8)": (
-        "generate_sharpened(model, 'walk_sad', steps=10**8)",
+        "generate_sharpened(model, 'walk_sad', fit=Sharpening(steps=10**8))",
         "steps: 100000000 Adam steps",
     ),
     "generate_parts(sharpen=1e8)": (
@@ -321,7 +310,7 @@ API_CASES = {
         "optimise_noise(model, [], [], None, steps=10**8)",
         "steps: 100000000 Adam steps",
     ),
-    "apply_policy(10000)": ("mrlib.threads.apply_policy(10000)", "threads: 10000 is more than"),
+    "use(10000)": ("mrlib.threads.use(10000)", "threads: 10000 is more than"),
 }
 
 
@@ -350,7 +339,7 @@ def test_thread_counts_up_to_four_per_cpu_work(monkeypatch):
         with threads.policy(n):
             assert torch.get_num_threads() == n
     with pytest.raises(MrlibError, match=rf"more than the {4 * cpus} .*--threads N"):
-        threads.apply_policy(4 * cpus + 1)  # refused before anything is set
+        threads.use(4 * cpus + 1)  # refused before anything is set
     assert torch.get_num_threads() == before
     monkeypatch.setattr("mrlib.app.cli._cmd_info", lambda args: 0)
     assert main(["info", "x.npz", "--threads", str(cpus)]) == 0
@@ -359,9 +348,8 @@ def test_thread_counts_up_to_four_per_cpu_work(monkeypatch):
 def test_fit_steps_up_to_the_cap_are_taken():
     from mrlib.sampling.constraints.keyframes import FIT_STEPS
     from mrlib.sampling.constraints.optimise import MAX_FIT_STEPS, check_fit_steps
-    from mrlib.sampling.restyling import INVERT_STEPS
 
-    assert MAX_FIT_STEPS >= 10 * max(FIT_STEPS, INVERT_STEPS)
+    assert MAX_FIT_STEPS >= 10 * FIT_STEPS
     assert check_fit_steps(MAX_FIT_STEPS) == MAX_FIT_STEPS
     assert check_fit_steps(np.int64(5)) == 5 and check_fit_steps(100.0) == 100
     with pytest.raises(MrlibError, match="integer >= 1"):

@@ -16,10 +16,11 @@ import torch
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.model.checkpoint import CheckpointError, load_checkpoint
 from mrlib.model.config import ConfigError, LossWeights, ModelConfig, TrainConfig
-from mrlib.model.networks import LevelGenerator
+from mrlib.model.generator import LevelGenerator
 from mrlib.model.pyramid import PackedLevels, pyramid_lengths
 from mrlib.representation.features import channel_joint
 from mrlib.representation.skeleton import UPPER_BODY_JOINTS, graph_distances
+from mrlib.sampling.sampler import Sampler
 from mrlib.speech import (
     SpeechClip,
     SpeechFeatureExtractor,
@@ -29,8 +30,6 @@ from mrlib.speech import (
     downsample_levels,
     evaluate_speech_sync,
     generate_from_audio,
-    generate_levels_from_audio,
-    generate_many_from_audio,
     levels_to_residuals,
     load_speech_model,
     phrase_loudness,
@@ -168,13 +167,13 @@ def test_conditional_critics_see_each_real_clip_with_its_own_speech(data, body, 
     assert all((c.detail is not None) == (band == "detail") for c in tr.critics)
     # the real clip in slot b is paired clip b mod N, scored with that clip's own speech
     for i in range(3):
-        got = tr.rand_layout.unpack(tr.real_rand_conds[i].transpose(1, 2), i)
-        for b, k in enumerate(tr.rand_clip.tolist()):
+        got = tr.batches.rand_layout.unpack(tr.signal.real_conds[i].transpose(1, 2), i)
+        for b, k in enumerate(tr.batches.rand_clip.tolist()):
             own = speech_conditions(
                 data.paired_features[k],
                 50.0,
                 FPS,
-                tr.lengths[k].tolist(),
+                tr.batches.lengths[k].tolist(),
                 normalizer=data.normalizer,
                 offset_s=0.0125,
             )
@@ -185,19 +184,19 @@ def test_conditional_critics_see_each_real_clip_with_its_own_speech(data, body, 
     for mixed in ("none", "label"):
         cfg = tiny(model=mc, mix_prob=0.5, critic_mixed=mixed)
         t = SpeechTrainer(data, cfg, tmp_path, body=body, random_audio="all")
-        draws = []
-        draw_speech = t.draw_speech
-        t.draw_speech = lambda layout: draws.append(draw_speech(layout)) or draws[-1]  # noqa: B023
+        draws, sig, fake_layout = [], t.signal, t.batches.fake_layout
+        draw_speech = sig.draw_speech
+        sig.draw_speech = lambda layout: draws.append(draw_speech(layout)) or draws[-1]  # noqa: B023
         kinds = set()
         for _ in range(4):
-            draw = t.draw_random(t.fake_layout, 3)
+            draw = sig.draw_random(fake_layout, 3)
             conds = draw.conds
-            seen = t.critic_conditions(draw, t.fake_layout)
+            seen = sig.critic_conditions(draw, fake_layout)
             d = draws[-1]
             for i in range(3):
-                got = t.fake_layout.unpack(seen[i].transpose(1, 2), i)
-                full = t.fake_layout.unpack(conds[i].transpose(1, 2), i)
-                for b in range(t.fake_layout.batch_size):
+                got = fake_layout.unpack(seen[i].transpose(1, 2), i)
+                full = fake_layout.unpack(conds[i].transpose(1, 2), i)
+                for b in range(fake_layout.batch_size):
                     second = i >= int(d.cross[b])
                     src = d.source_b[b] if second else d.source[b]
                     heard = bool(src < data.num_paired) and (mixed == "label" or not second)
@@ -208,7 +207,7 @@ def test_conditional_critics_see_each_real_clip_with_its_own_speech(data, body, 
     tr.start_block()
     before = [c.project.weight.clone() for c in tr.critics[:2]]
     swapped = SpeechTrainer(data, tiny(model=mc), tmp_path, body=body, random_audio="paired")
-    swapped.real_rand_conds = [c.flip(1) for c in swapped.real_rand_conds]
+    swapped.signal.real_conds = [c.flip(1) for c in swapped.signal.real_conds]
     swapped.start_block()
     la, lb = tr.step(), swapped.step()
     assert all(
@@ -241,8 +240,9 @@ def test_speech_mismatch_is_each_clips_own_speech_out_of_step(data, body, tmp_pa
     cfg = tiny(model=mc, loss=LossWeights(mismatch=1.0))
     tr = SpeechTrainer(data, cfg, tmp_path, body=body, random_audio="paired")
     for i in range(3):
-        own = tr.rand_layout.unpack(tr.real_rand_conds[i].transpose(1, 2), i)
-        wrong = tr.rand_layout.unpack(tr.mismatched_real_conditions(i).transpose(1, 2), i)
+        lay, sig = tr.batches.rand_layout, tr.signal
+        own = lay.unpack(sig.real_conds[i].transpose(1, 2), i)
+        wrong = lay.unpack(sig.mismatched_real_conditions(i).transpose(1, 2), i)
         for o, w in zip(own, wrong, strict=True):
             T = o.shape[1]
             shifts = [s for s in range(1, T) if torch.equal(o.roll(s, 1), w)]
@@ -303,10 +303,10 @@ def test_residual_operators_equal_the_alignment_functions():
 def test_random_conditions_match_the_naive_oracle(data, body, mix):
     tr = SpeechTrainer(data, tiny(mix_prob=mix), ".", body=body, random_audio="all")
     finest, _ = data.finest()
-    layout = tr.fake_layout
+    layout = tr.batches.fake_layout
     for _ in range(3):
-        draw = tr.draw_speech(layout)
-        conds = tr.draw_conditions(draw, layout, 3)
+        draw = tr.signal.draw_speech(layout)
+        conds = tr.signal.draw_conditions(draw, layout, 3)
         for b in range(layout.batch_size):
             lengths = layout.table[b].tolist()
             per = []
@@ -325,18 +325,22 @@ def test_random_conditions_match_the_naive_oracle(data, body, mix):
 
 def test_reconstruction_uses_only_paired_speech(data, body):
     tr = SpeechTrainer(data, tiny(), ".", body=body)
-    rec = tr.rec_conditions(3)
+    rec, b = tr.signal.rec_conditions(3), tr.batches
     for k, f in enumerate(data.paired_features):
         own = speech_conditions(
-            f, 50.0, FPS, tr.lengths[k].tolist(), normalizer=data.normalizer, offset_s=0.0125
+            f, 50.0, FPS, b.lengths[k].tolist(), normalizer=data.normalizer, offset_s=0.0125
         )
         for i in range(3):
-            assert torch.allclose(tr.rec_layout.unpack(rec[i].transpose(1, 2), i)[k].T, own[i])
+            assert torch.allclose(b.rec_layout.unpack(rec[i].transpose(1, 2), i)[k].T, own[i])
     # random generations: unpaired audio only (bank indices 3, 4), both clips get used
-    seen = torch.cat([tr.draw_speech(tr.rand_layout).source for _ in range(20)])
+    seen = torch.cat([tr.signal.draw_speech(b.rand_layout).source for _ in range(20)])
     assert set(seen.tolist()) == {3, 4}
     paired_only = SpeechTrainer(data, tiny(), ".", body=body, random_audio="paired")
-    assert set(paired_only.draw_speech(paired_only.rand_layout).source.tolist()) <= {0, 1, 2}
+    assert set(paired_only.signal.draw_speech(paired_only.batches.rand_layout).source.tolist()) <= {
+        0,
+        1,
+        2,
+    }
 
     # other unpaired audio changes the adversarial terms, never the reconstruction term
     other = dataclasses.replace(
@@ -378,7 +382,8 @@ def test_resume_continues_exactly(data, body, trained, tmp_path):
         if trainer.block == 0 and trainer.iteration == 2:
             raise KeyboardInterrupt
 
-    res = speech_train(data, tiny(), tmp_path, body=body, progress=False, callback=stop_at_2)
+    # a callback (step-level control) is the trainer's: SpeechTrainer.start(...).fit(...)
+    res = SpeechTrainer.start(data, tiny(), tmp_path, body=body).fit(False, stop_at_2)
     assert res.interrupted
     res = speech_train(None, None, tmp_path, resume=res.checkpoint, body=body, progress=False)
     assert not res.interrupted
@@ -404,13 +409,20 @@ def test_generate_from_audio_has_the_audio_duration(trained, tmp_path):
     assert not np.allclose(a.poses, c.poses)
     # a sample does not depend on the batch (the raw output: the foot clean-up turns on
     # contact labels thresholded at 0.5, which float rounding can tip)
-    raw = generate_from_audio(model, path, seed=3, fix_contacts=False)
-    many = generate_many_from_audio(model, path, seed=3, num_samples=2, fix_contacts=False)
+    unplanted = Sampler(fix_contacts=False)
+    raw = generate_from_audio(model, path, seed=3, sampler=unplanted)
+    many = generate_from_audio(model, path, seed=3, num=2, sampler=unplanted)
     assert isinstance(many, list) and len(many) == 2
     assert np.allclose(many[0].poses, raw.poses, atol=1e-5)
-    one, levels = generate_levels_from_audio(model, path, seed=3, fix_contacts=False)
+    one, levels = generate_from_audio(model, path, seed=3, sampler=unplanted, levels=True)
     assert np.array_equal(one.poses, raw.poses)
     assert [lv.num_frames for lv in levels] == pyramid_lengths(38, 3, 4 / 3)
+    pairs = generate_from_audio(model, path, seed=3, sampler=unplanted, num=1, levels=True)
+    assert isinstance(pairs, list) and np.array_equal(pairs[0][1][0].poses, levels[0].poses)
+    quiet = generate_from_audio(model, path, seed=3, sampler=Sampler(0.0, fix_contacts=False))
+    assert np.abs(quiet.poses - raw.poses).max() > 1e-4  # the fine noise reaches the output
+    with pytest.raises(MotionValueError, match="guidance"):
+        generate_from_audio(model, path, sampler=Sampler(guidance=0.5))
     with pytest.raises(ClipTooShortError):
         generate_from_audio(model, bursts(0.3, 1), sr=SR)  # 4 frames: too few for 3 levels
     with pytest.raises(MotionValueError, match="sr="):
@@ -470,7 +482,7 @@ def test_film_modulates_only_the_upper_body():
         diff = (level.film(u, c1) - level.film(u, c2)).abs().amax((0, 2)).numpy()
     assert (diff[~upper] == 0).all() and (diff[upper] > 0).all()
 
-    from mrlib.model.networks import MultiResGenerator
+    from mrlib.model.generator import MultiResGenerator
 
     gen = MultiResGenerator(cfg, cond_dim=13)
     with torch.no_grad():

@@ -9,6 +9,7 @@ from __future__ import annotations
 import pytest
 import torch
 
+import mrlib.training.trainer
 from mrlib import threads
 from mrlib.app.cli import build_parser, main
 from mrlib.errors import MrlibError
@@ -38,23 +39,23 @@ def _started_with(monkeypatch, n: int, cpus: int) -> None:
 def test_the_default_is_half_the_usable_cpus_at_most_torchs_own(monkeypatch, cpus, start, expected):
     _started_with(monkeypatch, start, cpus)
     assert threads.default_threads() == expected
-    assert threads.apply_policy() == expected
+    assert threads.use() == expected
     assert torch.get_num_threads() == expected
 
 
 def test_an_explicit_count_wins_over_everything(monkeypatch):
     _started_with(monkeypatch, 2, 2)
     monkeypatch.setenv("OMP_NUM_THREADS", "2")
-    assert threads.apply_policy(3) == 3
+    assert threads.use(3) == 3
     assert torch.get_num_threads() == 3
-    assert threads.apply_policy() == 3  # and stays the count for later calls
+    assert threads.use() == 3  # and stays the count for later calls
 
 
 @pytest.mark.parametrize("name", threads.ENV_VARS)
 def test_a_count_from_the_environment_is_kept(monkeypatch, name):
     _started_with(monkeypatch, 2, 2)
     monkeypatch.setenv(name, "2")
-    assert threads.apply_policy() == 2
+    assert threads.use() == 2
     assert torch.get_num_threads() == 2
 
 
@@ -62,22 +63,22 @@ def test_a_count_from_the_environment_is_kept(monkeypatch, name):
 def test_an_empty_or_invalid_environment_value_is_not_a_choice(monkeypatch, value):
     _started_with(monkeypatch, 2, 2)
     monkeypatch.setenv("OMP_NUM_THREADS", value)
-    assert threads.apply_policy() == 1
+    assert threads.use() == 1
 
 
 def test_a_count_the_user_set_after_import_is_kept(monkeypatch):
     _started_with(monkeypatch, 2, 2)
     torch.set_num_threads(3)  # the user's own call
-    assert threads.apply_policy() == 3
+    assert threads.use() == 3
     assert torch.get_num_threads() == 3
 
 
 def test_a_count_the_user_set_after_mrlibs_default_is_kept(monkeypatch):
     _started_with(monkeypatch, 2, 2)
-    assert threads.apply_policy() == 1
-    assert threads.apply_policy() == 1  # mrlib's own default, applied again
+    assert threads.use() == 1
+    assert threads.use() == 1  # mrlib's own default, applied again
     torch.set_num_threads(2)  # the user changes it afterwards
-    assert threads.apply_policy() == 2
+    assert threads.use() == 2
 
 
 def test_the_policy_block_restores_the_previous_count(monkeypatch):
@@ -91,26 +92,78 @@ def test_the_policy_block_restores_the_previous_count(monkeypatch):
     with threads.policy(3):
         assert torch.get_num_threads() == 3
     assert torch.get_num_threads() == 2
-    assert threads.apply_policy() == 1  # the explicit count of the block did not stick
+    assert threads.use() == 1  # the explicit count of the block did not stick
 
 
-def test_library_entry_points_run_under_the_policy(monkeypatch):
-    from mrlib.evaluation.evaluate import evaluate_model
+# a worker process mrlib starts itself (train_cached_many) may set its own count
+WORKER_PROCESSES = {("training/trainer.py", "_train_cached_in_worker")}
+
+
+def test_only_the_command_line_and_use_set_the_count():
+    """``torch.set_num_threads`` is called in ``mrlib.threads`` alone, and what sets a
+    count there (``use``, ``policy``, a decorator) is used only by the command line
+    (``mrlib.app``): no library function changes the count of the caller's process."""
+    import ast
+    from pathlib import Path
+
+    root = Path(threads.__file__).resolve().parent
+    setters = {"use", "policy", "apply_policy", "with_policy"}
+    found = []
+    for path in root.rglob("*.py"):
+        rel = path.relative_to(root).as_posix()
+        if rel == "threads.py" or rel.startswith("app/"):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        from_threads = {
+            a.asname or a.name
+            for n in ast.walk(tree)
+            if isinstance(n, ast.ImportFrom) and n.module == "mrlib.threads"
+            for a in n.names
+            if a.name in setters
+        }
+        workers = [
+            n for n in ast.walk(tree)
+            if isinstance(n, ast.FunctionDef) and (rel, n.name) in WORKER_PROCESSES
+        ]  # fmt: skip
+        allowed = {id(x) for w in workers for x in ast.walk(w)}
+        for node in ast.walk(tree):
+            if id(node) in allowed:
+                continue
+            if isinstance(node, ast.Attribute) and (
+                node.attr == "set_num_threads"
+                or (node.attr in setters and getattr(node.value, "id", None) == "threads")
+            ):
+                found.append(f"{rel}:{node.lineno} {node.attr}")
+            elif isinstance(node, ast.Name) and node.id in from_threads:
+                found.append(f"{rel}:{node.lineno} {node.id}")
+    assert not found, found
+
+
+def test_library_calls_keep_the_callers_count(monkeypatch, tmp_path):
+    """A clean-up and a short training run from Python run on the caller's count and
+    leave it as it was (here 2, where mrlib's default would be 1)."""
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.representation.contacts import foot_contacts
     from mrlib.sampling.cleanup import cleanup_foot_contacts
-    from mrlib.sampling.generation import generate
+    from mrlib.training.trainer import train
 
-    # (Trainer.fit fixes a run's count itself: the tests of run_threads below)
-    for fn in (generate, evaluate_model, cleanup_foot_contacts):
-        assert getattr(fn, "__wrapped__", None) is not None, fn.__qualname__
     _started_with(monkeypatch, 2, 2)
-    seen = threads.with_policy(torch.get_num_threads)()
-    assert seen == 1 and torch.get_num_threads() == 2
+    calls = []
+    real = torch.set_num_threads
+    monkeypatch.setattr(torch, "set_num_threads", lambda n: (calls.append(n), real(n)))
+    walk = synthetic_walk("walk_happy", seconds=2.0, fps=15.0)
+    cleanup_foot_contacts(walk.replace(contacts=foot_contacts(walk)))
+    data, cfg = _tiny_run()
+    seen = []
+    train(data, cfg.replace(block_iterations=(1, 1)), tmp_path, progress=False,
+          callback=lambda tr, losses: seen.append(torch.get_num_threads()))  # fmt: skip
+    assert calls == [] and set(seen) == {2}
 
 
 @pytest.mark.parametrize("bad", [0, -2, 1.5, "2", True])
 def test_a_bad_explicit_count_is_an_error(bad):
     with pytest.raises(MrlibError, match="positive integer"):
-        threads.apply_policy(bad)
+        threads.use(bad)
 
 
 def test_usable_cpus_is_at_least_one():
@@ -178,14 +231,15 @@ def _weights(path) -> dict[str, torch.Tensor]:
     return {f"{n}.{k}": v for n in ("generator", "critics") for k, v in state[n].items()}
 
 
-def test_a_run_keeps_one_count_records_it_and_resumes_on_it(monkeypatch, tmp_path):
-    """The count is chosen once (here mrlib's default, 2 of 4 CPUs), held through every
-    iteration, written into the checkpoint, and a resume without --threads takes it back
-    even where the default would now be another."""
+def test_a_run_records_its_count_and_the_command_line_resumes_on_it(monkeypatch, tmp_path):
+    """A run from Python keeps the caller's count (here 2, set with ``use``) through every
+    iteration and writes it into the checkpoint; ``mrlib train --resume`` without
+    --threads takes it back even where the default would now be another."""
     from mrlib.model.checkpoint import load_checkpoint
     from mrlib.training.trainer import train
 
     _started_with(monkeypatch, 4, cpus=4)
+    threads.use(2)
     data, cfg = _tiny_run()
     seen = []
 
@@ -197,13 +251,21 @@ def test_a_run_keeps_one_count_records_it_and_resumes_on_it(monkeypatch, tmp_pat
     part = train(data, cfg, tmp_path, progress=False, callback=stop_in_block_2)
     assert part.interrupted and set(seen) == {2} and len(seen) == 6
     assert load_checkpoint(part.checkpoint)["threads"] == 2
-    assert torch.get_num_threads() == 4  # the caller's count is back afterwards
 
+    monkeypatch.setattr(threads, "_state", threads._State())
     _started_with(monkeypatch, 3, cpus=8)  # another machine: its default would be 3
-    seen.clear()
-    done = train(None, None, tmp_path, resume=part.checkpoint, progress=False,
-                 callback=lambda tr, losses: seen.append(torch.get_num_threads()))  # fmt: skip
-    assert set(seen) == {2} and load_checkpoint(done.checkpoint)["threads"] == 2
+    counts = []
+    real_fit = mrlib.training.trainer.Trainer.fit
+
+    def fit(self, *a, **k):
+        counts.append(torch.get_num_threads())
+        return real_fit(self, *a, **k)
+
+    monkeypatch.setattr(mrlib.training.trainer.Trainer, "fit", fit)
+    assert main(["train", "--resume", str(part.checkpoint), "--out", str(tmp_path),
+                 "--no-progress"]) == 0  # fmt: skip
+    assert counts == [2] and load_checkpoint(part.checkpoint)["threads"] == 2
+    assert torch.get_num_threads() == 3  # the command restored the caller's count
 
 
 def test_resuming_on_another_count_than_the_run_began_with_warns(monkeypatch, tmp_path):
@@ -217,8 +279,9 @@ def test_resuming_on_another_count_than_the_run_began_with_warns(monkeypatch, tm
         if (trainer.block, trainer.iteration) == (0, 1):
             raise KeyboardInterrupt
 
-    part = train(data, cfg, tmp_path, progress=False, callback=stop)  # default: 1 thread
-    threads.apply_policy(2)  # --threads 2
+    threads.use(1)
+    part = train(data, cfg, tmp_path, progress=False, callback=stop)
+    threads.use(2)
     with pytest.warns(RuntimeWarning, match="started with 1 torch threads and continues with 2"):
         train(None, None, tmp_path, resume=part.checkpoint, progress=False)
 
@@ -237,6 +300,7 @@ def test_the_same_seed_gives_the_same_weights_beside_a_cpu_hog(monkeypatch, tmp_
 
     cpus = threads.usable_cpus()
     _started_with(monkeypatch, cpus, cpus=cpus)  # torch's own start: one per CPU
+    threads.use()  # mrlib's default count, as a script or notebook sets it
     data, cfg = _tiny_run()
     seen = {"alone": set(), "busy": set()}
 

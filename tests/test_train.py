@@ -15,9 +15,6 @@ from mrlib.model.config import (
     TrainConfig,
     config_from_json,
     config_to_json,
-    get_preset,
-    paper,
-    tutorial,
 )
 from mrlib.model.losses import (
     critic_loss,
@@ -25,6 +22,7 @@ from mrlib.model.losses import (
     gradient_penalty,
     wgan_gp_critic_loss,
 )
+from mrlib.model.presets import get_preset, paper, tutorial
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import Trainer, train
 
@@ -68,7 +66,7 @@ def _gen_state(path):
 def test_cli_lr_overrides_the_presets_and_is_saved(tmp_path):
     from mrlib.app.cli import _cmd_train, build_parser, main
     from mrlib.errors import MrlibError
-    from mrlib.model.config import training_config
+    from mrlib.model.presets import training_config
 
     assert training_config("tutorial").lr == tutorial().lr
     assert training_config("tutorial", lr=2e-3).lr == 2e-3 != tutorial().lr
@@ -151,7 +149,7 @@ def test_config_json_round_trip_and_validation():
 
 
 def test_batched_critic_loss_equals_reference():
-    from mrlib.model.networks import PatchCritic
+    from mrlib.model.critic import PatchCritic
     from mrlib.model.pyramid import PackedLevels
 
     torch.manual_seed(0)
@@ -271,11 +269,34 @@ def test_interrupt_inside_a_step_keeps_the_last_checkpoint(data, body, tmp_path)
     )  # checkpoint_every=2
 
 
+def test_train_honours_the_frame_rate_of_the_config(data, body, tmp_path):
+    """A config that trains at a rate of its own (``TrainConfig.fps``, the demo preset's 15)
+    refuses clips at another rate, saying how to build them, before it writes anything;
+    clips built at that rate (as ``mrlib train`` builds them) train."""
+    from mrlib.errors import MrlibError
+    from mrlib.model.trained import load_model
+
+    cfg = tiny(fps=5.0, block_iterations=(1, 0))
+    with pytest.raises(MrlibError, match=r"TrainingSet\.from_files\(paths, fps=config\.fps\)") as e:
+        train(data, cfg, tmp_path / "refused", body=body, progress=False)
+    assert "5 fps" in str(e.value) and "10 fps" in str(e.value)
+    assert not (tmp_path / "refused").exists()
+    walks = [synthetic_walk(s, seconds=4.0, fps=10.0) for s in ("walk_sad", "walk_happy")]
+    at_5 = TrainingSet.from_motions(walks, fps=cfg.fps)
+    res = train(at_5, cfg, tmp_path / "ok", body=body, progress=False)
+    assert load_model(res.checkpoint).fps == 5.0
+    again = Trainer.from_checkpoint(res.checkpoint)  # resumes: its data are at its rate
+    assert again.config.fps == again.data.fps == 5.0
+
+
 def test_reconstruction_noise_is_one_channel_at_the_level_1_amplitude(data, body, tmp_path):
     shared = Trainer(data, tiny(), tmp_path, body=body)
-    assert [z.shape[0] for z in shared.zstar] == [1] * 3
+    assert [z.shape[0] for z in shared.batches.zstar] == [1] * 3
     ratio = torch.stack(
-        [z.std() / s for z, s in zip(shared.zstar, shared.sigma_clip[:, 0], strict=True)]
+        [
+            z.std() / s
+            for z, s in zip(shared.batches.zstar, shared.batches.sigma_clip[:, 0], strict=True)
+        ]
     )
     assert ((ratio > 0.5) & (ratio < 1.5)).all()  # drawn with the level-1 noise amplitude
 
@@ -346,23 +367,23 @@ def test_conditional_critics_train_resume_and_see_each_samples_label(data, body,
     tr = Trainer(data, cfg, tmp_path, body=body)
     assert all(c.project is not None and c.cond_dim == 3 for c in tr.critics)
     # reals are shown with their own clip's label at every level
-    for i, cond in enumerate(tr.real_rand_conds):
-        owner = tr.rand_layout.owner[i]
-        assert torch.equal(cond[0].argmax(-1), tr.clip_labels[tr.rand_clip][owner])
+    for i, cond in enumerate(tr.signal.real_conds):
+        owner = tr.batches.rand_layout.owner[i]
+        assert torch.equal(cond[0].argmax(-1), tr.signal.clip_labels[tr.batches.rand_clip][owner])
     # fakes: the label of each level, zeroed from a mixed sample's crossover level on
-    draw = tr.draw_random(tr.rand_layout, 3)
+    draw = tr.signal.draw_random(tr.batches.rand_layout, 3)
     conds, mixed = draw.conds, draw.mixed
     assert mixed.any() and (~mixed).any()
-    seen = tr.critic_conditions(draw, tr.rand_layout)
+    seen = tr.signal.critic_conditions(draw, tr.batches.rand_layout)
     for i in range(3):
-        owner = tr.rand_layout.owner[i]
+        owner = tr.batches.rand_layout.owner[i]
         assert torch.equal(seen[i][0].sum(-1), (~mixed[owner, i]).float())
         assert torch.equal(
             seen[i][0].argmax(-1)[~mixed[owner, i]], conds[i][0].argmax(-1)[~mixed[owner, i]]
         )
-    tr.config = cfg.replace(critic_mixed="label")
-    assert tr.critic_conditions(draw, tr.rand_layout) is conds
-    tr.config = cfg
+    tr.signal.config = cfg.replace(critic_mixed="label")
+    assert tr.signal.critic_conditions(draw, tr.batches.rand_layout) is conds
+    tr.signal.config = cfg
     tr.start_block()
     before = [p.detach().clone() for p in tr.critics[0].project.parameters()]
     tr.step()
@@ -394,17 +415,20 @@ def test_detail_term_pulls_each_level_to_its_labels_detail_statistics(data, body
     cfg = tiny(loss=LossWeights(detail=10.0), mix_prob=1.0)
     tr = Trainer(data, cfg, tmp_path, body=body)
     K, L = data.num_labels, TINY_MODEL.num_levels
-    assert len(tr.detail_rms) == L and tr.detail_rms[1].shape == (K, tr.real[1].shape[1])
+    assert len(tr.signal.detail_rms) == L and tr.signal.detail_rms[1].shape == (
+        K,
+        tr.batches.levels[1].real.shape[1],
+    )
     # the real clips, each driven by its own label, meet their targets exactly (one clip
     # per label); shown as another label's, they do not
-    own = tr.clip_labels[tr.rand_clip]
-    lay = tr.rand_layout
-    rms = lay.per_sample_rms(lay.level_band(tr.real_rand[1], 1), 1)
-    draw = tr.draw_random(lay, L)
+    own = tr.signal.clip_labels[tr.batches.rand_clip]
+    lay = tr.batches.rand_layout
+    rms = lay.per_sample_rms(lay.level_band(tr.batches.levels[1].real_rand, 1), 1)
+    draw = tr.signal.draw_random(lay, L)
     draw.labels = own[:, None].expand(-1, L)
-    assert detail_statistics_loss(rms, tr.detail_targets(draw, 1)).item() < 1e-6
+    assert detail_statistics_loss(rms, tr.signal.detail_targets(draw, 1)).item() < 1e-6
     draw.labels = ((own + 1) % K)[:, None].expand(-1, L)
-    assert detail_statistics_loss(rms, tr.detail_targets(draw, 1)).item() > 1e-3
+    assert detail_statistics_loss(rms, tr.signal.detail_targets(draw, 1)).item() > 1e-3
     # it enters the generator step from level 2 on and is logged
     tr.start_block()
     losses = tr.step()
@@ -417,7 +441,7 @@ def test_detail_term_pulls_each_level_to_its_labels_detail_statistics(data, body
 
 
 def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
-    from mrlib.model.config import demo, ganimator_mode
+    from mrlib.model.presets import demo, ganimator_mode
 
     t = tutorial()
     g = ganimator_mode(t)
@@ -432,7 +456,7 @@ def test_ganimator_mode_is_the_preset_without_mixing_or_conditional_critics():
 def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(
     data, body, tmp_path, monkeypatch
 ):
-    import mrlib.training.steps as mt
+    import mrlib.training.objective as mt
 
     cfg = tiny(
         model=dataclasses.replace(TINY_MODEL, critic_condition=True), mix_prob=1.0, n_critic=2
@@ -462,8 +486,8 @@ def test_mismatch_term_shows_real_clips_with_a_wrong_label(data, body, tmp_path)
     cfg = tiny(model=model, loss=LossWeights(mismatch=1.0), mix_prob=0.0, critic_mixed="label")
     tr = Trainer(data, cfg, tmp_path, body=body)
     for i in range(3):
-        wrong = tr.mismatched_real_conditions(i)[0]
-        own = tr.real_rand_conds[i][0]
+        wrong = tr.signal.mismatched_real_conditions(i)[0]
+        own = tr.signal.real_conds[i][0]
         assert torch.equal(wrong.sum(-1), own.sum(-1))  # one-hot on every frame
         assert not (wrong.argmax(-1) == own.argmax(-1)).any()  # never the clip's own label
     tr.start_block()
@@ -481,7 +505,7 @@ def test_mismatch_term_shows_real_clips_with_a_wrong_label(data, body, tmp_path)
     one = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=2.0, fps=10.0)])
     single = Trainer(one, cfg, tmp_path / "one", body=body)
     single.start_block()
-    assert not single.use_mismatch and "mis" not in single.step()[0]
+    assert not single.signal.mismatch and "mis" not in single.step()[0]
 
 
 # -- non-finite losses ------------------------------------------------------------------------
@@ -490,7 +514,7 @@ def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
 ):
     """The 4th iteration's loss is NaN and its weights are poisoned: training raises,
     names the term, and the checkpoint of iteration 2 stays as it was."""
-    from mrlib.training.loop import TrainingDivergedError
+    from mrlib.training.monitor import TrainingDivergedError
 
     real_step = Trainer.step
     calls = {"n": 0}
@@ -513,7 +537,7 @@ def test_a_non_finite_loss_stops_training_and_keeps_the_last_checkpoint(
 
 
 def test_a_trainer_refuses_to_save_non_finite_weights(tmp_path, data, body):
-    from mrlib.training.loop import TrainingDivergedError
+    from mrlib.training.monitor import TrainingDivergedError
 
     trainer = Trainer(data, tiny(), tmp_path, body=body)
     trainer.save()

@@ -123,34 +123,30 @@ def test_invalid_values_are_reported_and_the_last_picture_stays(model, body):
     assert "mrlib-done" in status_of(box)
 
 
-def test_parts_labels_in_full_and_arms_in_step_only_for_splice(model, body, monkeypatch):
+def test_parts_labels_in_full_and_arms_in_step(model, body, monkeypatch):
     import mrlib.sampling.constraints
 
     calls = []
     generate_parts = mrlib.sampling.constraints.generate_parts
 
-    def recorded(*args, **kw):
-        calls.append(kw)
-        return generate_parts(*args, **kw)
+    def recorded(model, parts, **kw):
+        calls.append(parts)
+        return generate_parts(model, parts, **kw)
 
     monkeypatch.setattr(mrlib.sampling.constraints, "generate_parts", recorded)
     box, update = CV.interactive_parts(model, body=body, length=40)
     controls = controls_of(box)
-    in_step = controls["arms in step with the legs (splice)"]
+    in_step = controls["arms in step with the legs"]
     sharpen = controls["sharpen each part's label (takes seconds)"]
     for box_ in (in_step, sharpen):
         assert box_.style.description_width == "initial" and box_.layout.width == "auto"
         assert not box_.indent and len(box_.tooltip) > 40
     in_step.value = True
-    assert calls[-1]["align_gait"] is True
+    assert calls[-1].in_step is True
     assert "(splice, arms in step, seed 0)" in text_of(box)
-    controls["method"].value = "film"
-    assert in_step.disabled and in_step.value  # kept for splice, not used by film
-    assert calls[-1]["align_gait"] is False and calls[-1]["method"] == "film"
-    assert "(film, seed 0)" in text_of(box)
-    assert in_step.disabled  # the redraw's restore keeps it disabled
-    controls["method"].value = "splice"
-    assert not in_step.disabled and calls[-1]["align_gait"] is True
+    assert not in_step.disabled  # the redraw's restore leaves it enabled
+    in_step.value = False
+    assert calls[-1].in_step is False and "(splice, seed 0)" in text_of(box)
 
 
 def test_path_status_and_busy_text(model, body, monkeypatch):
@@ -161,7 +157,6 @@ def test_path_status_and_busy_text(model, body, monkeypatch):
 
     def watched(*args, **kw):
         seen.append(status_of(box))
-        kw["method"] = "bend"  # optimising takes seconds; the status is what is checked
         return on_path(*args, **kw)
 
     monkeypatch.setattr(mrlib.sampling.constraints, "generate_on_path", watched)
@@ -169,11 +164,11 @@ def test_path_status_and_busy_text(model, body, monkeypatch):
     controls = controls_of(box)
     update()
     assert seen[-1].endswith("drawing...</span>")
-    assert "'walk_sad' on circle:2 (bend, seed 0): the pelvis" in text_of(box)
+    assert "'walk_sad' on circle:2 (seed 0): the pelvis" in text_of(box)
     assert "cm from the path on average" in text_of(box)
-    controls["method"].value = "optimise"
-    assert "fitting the noise" in seen[-1]
-    assert "(optimise, seed 0)" in text_of(box)
+    controls["seed"].value = 1
+    assert seen[-1].endswith("drawing...</span>")
+    assert "(seed 1)" in text_of(box)
 
 
 def test_inbetween_changing_clip_redraws_once(model, body, sad_wave_clips, monkeypatch):

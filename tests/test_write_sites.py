@@ -76,7 +76,7 @@ ALLOWED: dict[tuple[str, str], str] = {
         'write_bytes(path, iio.imwrite("<bytes>", image',
     ): "encodes to bytes in memory, written with write_bytes",
     ("threads.py", 'open("/sys/fs/cgroup/cpu.max").read()'): "reads the CPU quota",
-    ("training/loop.py", 'with open(source, newline="") as fh:'): "reads a loss log",
+    ("training/monitor.py", 'with open(source, newline="") as fh:'): "reads a loss log",
     ("training/run.py", 'with open(log, newline="") as fh:'): "reads a loss log",
     (
         "training/run.py",

@@ -20,8 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from mrlib.datasets.synthetic import synthetic_walk, synthetic_wave
-from mrlib.evaluation.crossover import crossover_evidence
-from mrlib.model.config import ModelConfig, TrainConfig, tutorial
+from mrlib.evaluation.crossover import CrossoverOptions, crossover_evidence
+from mrlib.model.config import ModelConfig, TrainConfig
+from mrlib.model.presets import tutorial
 from mrlib.model.trained import load_model
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train
@@ -56,12 +57,15 @@ def synthetic_clips(body):
     ]
 
 
-def low_band_log_ratios(model, pairs=SYNTHETIC_PAIRS, level=SYNTHETIC_LEVEL) -> np.ndarray:
+def low_band_log_ratios(
+    model, pairs=SYNTHETIC_PAIRS, level=SYNTHETIC_LEVEL, sampler=None
+) -> np.ndarray:
     """``log(low_to_fine / low_to_coarse)`` per pair: > 0 where the crossover's low-pass
-    band is nearer the coarse label's samples."""
+    band is nearer the coarse label's samples (drawn with ``sampler``, default raw)."""
     out = []
+    opts = CrossoverOptions(sampler=sampler)
     for a, b in pairs:
-        e = crossover_evidence(model, a, b, level, num_samples=4, seed=0)
+        e = crossover_evidence(model, a, b, level, num_samples=4, seed=0, options=opts)
         out.append(np.log(e.low_to_fine / e.low_to_coarse))
     return np.asarray(out)
 
@@ -110,13 +114,14 @@ def detail_clips(data_dir: Path, body):
     return [mrlib.load_motion(Path(data_dir) / "data" / f, fps=15.0) for f in DETAIL_FILES]
 
 
-def band_log_ratios(model, cases=DETAIL_CASES) -> np.ndarray:
+def band_log_ratios(model, cases=DETAIL_CASES, sampler=None) -> np.ndarray:
     """``(len(cases), 2)``: per case, ``log(low_to_fine / low_to_coarse)`` (> 0: the low
     band is nearer A) and ``log(high_to_coarse / high_to_fine)`` (> 0: the residual is
-    nearer B)."""
+    nearer B); samples drawn with ``sampler`` (default raw)."""
     out = []
+    opts = CrossoverOptions(sampler=sampler)
     for a, b, level in cases:
-        e = crossover_evidence(model, a, b, level, num_samples=4, seed=0)
+        e = crossover_evidence(model, a, b, level, num_samples=4, seed=0, options=opts)
         out.append(
             (np.log(e.low_to_fine / e.low_to_coarse), np.log(e.high_to_coarse / e.high_to_fine))
         )
@@ -181,25 +186,29 @@ def restyle_inputs(data_dir: Path) -> dict:
     return {f: mrlib.load_motion(Path(data_dir) / "data" / f, fps=15.0) for f in RESTYLE_FILES}
 
 
-def restyle_log_ratios(model, inputs: dict, levels=RESTYLE_LEVELS) -> np.ndarray:
+def restyle_log_ratios(model, inputs: dict, levels=RESTYLE_LEVELS, sampler=None) -> np.ndarray:
     """``(P, 2)`` over the (input, level) cases, the target the label the input is not:
     ``log(d_own / d_target)``, where ``d_l`` is the distance of the residual profile of
     the input restyled towards label ``l`` to the target's profile (> 0: restyling
     towards the target brings the residual nearer the target than the paired negative,
     the input restyled with its own label, does), and 1 where the restyled residual's
-    nearest label is the target."""
+    nearest label is the target. Restyles and references are drawn with ``sampler``
+    (default: the raw output)."""
     from mrlib.evaluation.restyle_evidence import restyle_evidence, restyle_references
     from mrlib.sampling.restyling import restyle
+    from mrlib.sampling.sampler import raw_sampler
+
+    sampler = raw_sampler(sampler)
 
     out = []
     for name, clip in inputs.items():
         own = "walk_" + name.split("_")[2]
         (target,) = [lab for lab in model.labels if lab != own]
         for level in levels:
-            ref = restyle_references(model, clip.num_frames, level, num_samples=4)
+            ref = restyle_references(model, clip.num_frames, level, num_samples=4, sampler=sampler)
             ev = {
                 lab: restyle_evidence(
-                    model, restyle(model, clip, lab, level, seed=0, fix_contacts=False), clip, ref
+                    model, restyle(model, clip, lab, level, seed=0, sampler=sampler), clip, ref
                 )
                 for lab in (own, target)
             }

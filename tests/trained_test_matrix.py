@@ -62,11 +62,11 @@ def run_one(
     import trained_models as tm
 
     from mrlib.io import default_data_dir
-    from mrlib.model.trained import FINE_NOISE
     from mrlib.representation.body import load_body_model
-    from mrlib.threads import apply_policy
+    from mrlib.sampling.sampler import FINE_NOISE, Sampler
+    from mrlib.threads import use
 
-    apply_policy(threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
+    use(threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     body = load_body_model()
     iterations = 2 if variant == "untrained" else 300
     t0 = time.time()
@@ -91,15 +91,15 @@ def run_one(
         train_s = time.time() - t0
         inputs = tm.restyle_inputs(default_data_dir()) if recipe == "restyle" else None
         for fine in fine_noises or [FINE_NOISE]:
-            model.fine_noise = fine  # the sampler the quantities are drawn with
+            sampler = Sampler(fine_noise=fine, fix_contacts=False)  # the quantities' draws
             if recipe == "synthetic":
-                r = tm.low_band_log_ratios(model)
+                r = tm.low_band_log_ratios(model, sampler=sampler)
                 row = {"low": r.tolist(), "low_mean": float(r.mean()), "low_min": float(r.min())}
             elif recipe == "reconstruction":
                 e = tm.reconstruction_errors(model)
                 row = {"errors": e.tolist(), "max_error_below": float(0.08 - e.max())}
             elif recipe == "restyle":
-                r = tm.restyle_log_ratios(model, inputs)
+                r = tm.restyle_log_ratios(model, inputs, sampler=sampler)
                 row = {
                     "log": r[:, 0].tolist(),
                     "log_mean": float(r[:, 0].mean()),
@@ -107,7 +107,7 @@ def run_one(
                     "nearest_target": float(r[:, 1].mean()),  # residual nearest the target
                 }
             else:
-                r = tm.band_log_ratios(model)
+                r = tm.band_log_ratios(model, sampler=sampler)
                 row = {
                     "low": r[:, 0].tolist(),
                     "high": r[:, 1].tolist(),
@@ -128,8 +128,8 @@ def passes(row: dict) -> bool:
 
 def summary(rows: list[dict], fine_noise: float | None = None) -> str:
     """The table of ``rows`` drawn with the sampler's ``fine_noise`` (default: today's
-    ``mrlib.sampling.generation.FINE_NOISE``; rows saved before it was recorded drew at 1)."""
-    from mrlib.model.trained import FINE_NOISE
+    ``mrlib.sampling.sampler.FINE_NOISE``; rows saved before it was recorded drew at 1)."""
+    from mrlib.sampling.sampler import FINE_NOISE
 
     fine = FINE_NOISE if fine_noise is None else fine_noise
     latest = {}  # the last row saved for each run

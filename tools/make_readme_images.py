@@ -32,7 +32,8 @@ def crossover_figure(
     import torch
     from matplotlib.figure import Figure
 
-    from mrlib.model.config import tutorial
+    from mrlib.model.presets import tutorial
+    from mrlib.sampling.conditions import Condition
     from mrlib.sampling.generation import generate
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
@@ -47,12 +48,7 @@ def crossover_figure(
         (f"'{coarse}' at every level", generate(model, coarse, length=length, seed=seed)),
         (
             f"crossover: '{coarse}' at levels 1-{split} (coarse), '{fine}' at levels {split + 1}-{L} (fine)",
-            generate(
-                model,
-                conditions=[(coarse, (1, split)), (fine, (split + 1, L))],
-                length=length,
-                seed=seed,
-            ),
+            generate(model, Condition.crossover(coarse, fine, split), length=length, seed=seed),
         ),
         (f"'{fine}' at every level", generate(model, fine, length=length, seed=seed)),
     ]

@@ -5,7 +5,7 @@ A route to body-part composition (``mrlib.sampling.constraints.generate_parts``,
 comes from a sample of its own label, so a part keeps its label as often as unmixed
 samples keep it on that part. Drawing n samples and keeping the one the critics like best
 is discriminator rejection sampling (Azadi et al., ICLR 2019) in its simplest form. The
-`tutorial` critics are projection critics (``mrlib.model.networks.PatchCritic``):
+`tutorial` critics are projection critics (``mrlib.model.critic.PatchCritic``):
 ``D(x, c)_t = w * h(x)_t + <P c_t, g(x)_t>``, and ``g``'s channels belong to joints
 (skeleton-aware convolutions), so the label term splits by body part. Scores, each summed
 over the eight levels' critics on the sample's level outputs and averaged over frames:
@@ -39,12 +39,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.p
 from common import add_checkpoint_arg, set_threads
 
 from mrlib.model.checkpoint import load_checkpoint
-from mrlib.model.networks import build_critics, hidden_channel_joint
+from mrlib.model.critic import build_critics
 from mrlib.model.pyramid import PackedLevels
+from mrlib.model.skeleton_conv import hidden_channel_joint
 from mrlib.model.trained import model_from_state
 from mrlib.representation.features import features_to_motions
+from mrlib.sampling.conditions import Condition
 from mrlib.sampling.constraints import PARTS, part_fidelity
-from mrlib.sampling.generation import label_inputs, label_weights, sample_features
+from mrlib.sampling.generation import label_inputs, sample_features
+from mrlib.sampling.sampler import Sampler
 
 GROUPS = (2, 4, 8)
 
@@ -102,7 +105,9 @@ def main() -> int:
     t_sample = t_score = 0.0
     for k, lab in enumerate(model.labels):
         t0 = time.perf_counter()
-        lens, amp, conds = label_inputs(model, label_weights(model, lab), length)
+        lens, amp, conds = label_inputs(
+            model, Condition.label(lab).weights(model), length, Sampler()
+        )
         outs = sample_features(model, conds, lens, amp, seed=0, num_samples=N, keep=True)
         t1 = time.perf_counter()
         with torch.inference_mode():

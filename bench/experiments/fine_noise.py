@@ -1,4 +1,4 @@
-"""Jitter against the finest level's noise: ``GenerativeModel.fine_noise`` on a trained model.
+"""Jitter against the finest level's noise: ``Sampler.fine_noise`` on a trained model.
 
 For each ``--fine`` value, ``--samples`` samples per label of twice the label's training
 clip (seed 0, one torch thread) from a checkpoint (default: the `tutorial` model of
@@ -22,6 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.p
 from common import add_checkpoint_arg, checkpoint_model
 from label_clips import LabelClips
 
+from mrlib.sampling.sampler import Sampler
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -36,8 +38,7 @@ def main() -> int:
           "local div. | cond. fidelity % | skating raw / cleaned % |")  # fmt: skip
     print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     for fine in (float(x) for x in a.fine.split(",")):
-        model.fine_noise = fine
-        r = clips.measure(model, a.samples)
+        r = clips.measure(model, a.samples, Sampler(fine_noise=fine))
         print(f"| {fine:g} | {r['jerk_raw']:.2f} | {r['jerk_clean']:.2f} | "
               f"{100 * r['coverage']:.1f} / {100 * r['coverage_eps1']:.1f} | "
               f"{r['global_div']:.3f} | {r['local_div']:.3f} | {100 * r['fidelity']:.1f} | "

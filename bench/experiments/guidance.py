@@ -1,4 +1,4 @@
-"""Label guidance on a trained model: ``GenerativeModel.guidance`` against fidelity and
+"""Label guidance on a trained model: ``Sampler.guidance`` against fidelity and
 closeness to the training motion.
 
 For each ``--guidance`` value, ``--samples`` samples per label of twice the label's
@@ -29,6 +29,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.p
 from common import add_checkpoint_arg, checkpoint_model
 from label_clips import LabelClips
 
+from mrlib.sampling.sampler import Sampler
+
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -48,13 +50,12 @@ def main() -> int:
     sigma = model.sigma.clone()
     grid = [(float(g), float(t)) for g in a.guidance.split(",") for t in a.noise_scale.split(",")]
     for g, t in grid:
-        model.guidance = g
         model.sigma = sigma.clone()
         if a.noise_levels == "all":
             model.sigma *= t
         else:
             model.sigma[:, 0] *= t
-        r = clips.measure(model, a.samples)
+        r = clips.measure(model, a.samples, Sampler(guidance=g))
         print(f"| {g:g} | {t:g} | {100 * r['fidelity']:.1f} / {100 * r['upper']:.1f} / "
               f"{100 * r['lower']:.1f} | {100 * r['worst_part']:.1f} | "
               f"{100 * r['coverage']:.1f} / {100 * r['coverage_eps1']:.1f} | "

@@ -5,9 +5,9 @@ condition is pushed away from the label it is mistaken for?
 For each label ``a`` and each reference ``r`` (``mean``, or each other label ``b``),
 ``--samples`` samples of twice the longest training clip (seed 0, one torch thread, feet
 planted as in ``generate``) under the per-level weights ``W_a + g (W_a - W_r)``: for
-``mean`` that is ``GenerativeModel.guidance = g``, for a label ``b`` the blend
-``(b, a, 1 + g)`` (a negative weight on ``b``, the FiLM embedding being linear in the
-condition). Prints the part's fidelity (``mrlib.sampling.constraints.part_fidelity``, the measure
+``mean`` that is ``Sampler(guidance=g)``, for a label ``b`` the blend ``(b, a, 1 + g)``
+(a negative weight on ``b``, the FiLM embedding being linear in the condition; a weight
+``Condition.blend`` refuses, so the condition is built from its field). Prints the part's fidelity (``mrlib.sampling.constraints.part_fidelity``, the measure
 of body-part composition) per label and reference.
 
     python bench/experiments/guidance_away.py --checkpoint RUN/checkpoint.pt [--part lower] [--guidance 0.5]
@@ -24,8 +24,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.p
 from common import add_checkpoint_arg, checkpoint_model
 
 from mrlib.sampling.cleanup import cleanup_foot_contacts
+from mrlib.sampling.conditions import Condition
 from mrlib.sampling.constraints import part_fidelity
-from mrlib.sampling.generation import generate_many
+from mrlib.sampling.generation import generate
+from mrlib.sampling.sampler import Sampler
 
 
 def main() -> int:
@@ -47,10 +49,12 @@ def main() -> int:
             if ref == lab:
                 cells.append("")
                 continue
-            kw = {"condition": lab} if ref == "mean" else {"blend": (ref, lab, 1 + a.guidance)}
-            model.guidance = a.guidance if ref == "mean" else 0.0
-            ms = generate_many(model, length=length, seed=0, num_samples=a.samples,
-                               fix_contacts=False, **kw)  # fmt: skip
+            if ref == "mean":
+                cond, sampler = lab, Sampler(guidance=a.guidance, fix_contacts=False)
+            else:
+                cond = Condition(blend_of=(ref, lab, (1 + a.guidance,)))
+                sampler = Sampler(fix_contacts=False)
+            ms = generate(model, cond, length=length, seed=0, num=a.samples, sampler=sampler)
             ms = [cleanup_foot_contacts(m, body) for m in ms]
             f = part_fidelity(ms, model, {a.part: lab})[a.part]
             cells.append(f"{100 * f:.1f} %")

@@ -3,9 +3,11 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from mrlib.metrics.paper import (
+from mrlib.metrics import (
     condition_fidelity,
     coverage,
     global_diversity,
@@ -18,7 +20,8 @@ from mrlib.representation.features import features_to_motion
 from mrlib.representation.motion import Motion
 from mrlib.sampling.cleanup import cleanup_foot_contacts
 from mrlib.sampling.constraints import part_fidelity
-from mrlib.sampling.generation import generate_many
+from mrlib.sampling.generation import generate
+from mrlib.sampling.sampler import Sampler
 
 
 class LabelClips:
@@ -42,16 +45,18 @@ class LabelClips:
         """Share of contact vertex-frames sliding above the threshold."""
         return foot_skating(motion_kinematics(m, self.body)[1], m.contacts, self.fps)[1]
 
-    def measure(self, model: GenerativeModel, samples: int) -> dict[str, float]:
-        """``samples`` samples per label of twice the label's clip (seed 0) under the
-        model's current sampler settings, raw and after the foot-contact clean-up; every
+    def measure(
+        self, model: GenerativeModel, samples: int, sampler: Sampler | None = None
+    ) -> dict[str, float]:
+        """``samples`` samples per label of twice the label's clip (seed 0) drawn with
+        ``sampler``'s fine noise and guidance, raw and after the foot-contact clean-up; every
         figure is the mean over the labels, except ``worst_part`` (the lowest per-part
         fidelity). Jerk is over the label's own clip's; the rest is of the cleaned samples
         against the label's clip, but ``*_raw``."""
         rows = []
         for lab, clip in self.clips.items():
-            raw = generate_many(model, lab, length=2 * clip.num_frames, seed=0,
-                                num_samples=samples, fix_contacts=False)  # fmt: skip
+            raw = generate(model, lab, length=2 * clip.num_frames, seed=0, num=samples,
+                           sampler=replace(sampler or Sampler(), fix_contacts=False))  # fmt: skip
             clean = [cleanup_foot_contacts(m, self.body) for m in raw]
             f = [metric_features(m) for m in clean]
             ref = self.refs[lab]

@@ -1,4 +1,4 @@
-"""Why one label lost its fidelity at the demo budget (docs/notes/2026-12-05-label-fidelity.md).
+"""Why one label lost its fidelity at the demo budget (docs/notes/2026-12-02-condition-control.md).
 
 Each subcommand prints one table of that note:
 
@@ -32,16 +32,18 @@ from common import ROOT, TUTORIAL_CLIPS, bandai_clips, set_threads
 RUNS = ROOT / "outputs" / "label_fidelity"
 
 
-def _fidelity(model, length_of, **sampler):
-    from mrlib.metrics.paper import condition_fidelity, metric_features, model_references
-    from mrlib.sampling.generation import generate_many
+def _fidelity(model, length_of, **settings):
+    from mrlib.metrics.coverage import condition_fidelity
+    from mrlib.metrics.windows import metric_features, model_references
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import Sampler
 
     _, labels, feats = model_references(model)
     refs = dict(zip(labels, feats, strict=True))
     out = {}
     for i, lab in enumerate(labels):
-        ms = generate_many(model, lab, length=length_of(i), seed=0, num_samples=10,
-                           fix_contacts=False, **sampler)  # fmt: skip
+        ms = generate(model, lab, length=length_of(i), seed=0, num=10,
+                      sampler=Sampler(fix_contacts=False, **settings))  # fmt: skip
         out[lab] = 100 * condition_fidelity([(metric_features(m), lab) for m in ms], refs)
     return out
 
@@ -57,7 +59,8 @@ def _model(a):
 
 
 def diagnose(a) -> None:
-    from mrlib.metrics.paper import condition_fidelity, metric_features, model_references
+    from mrlib.metrics.coverage import condition_fidelity
+    from mrlib.metrics.windows import metric_features, model_references
     from mrlib.sampling.generation import reconstruct
 
     model = _model(a)
@@ -71,12 +74,8 @@ def diagnose(a) -> None:
             "1x its clip": _fidelity(model, lambda i: own[i]),
             "2x": _fidelity(model, lambda i: 2 * own[i])}  # fmt: skip
     for g in (0.25, 0.5):
-        model.guidance = g
-        cols[f"guidance {g}"] = _fidelity(model, lambda i: 2 * own[i])
-    model.guidance, fine = 0.0, model.fine_noise
-    model.fine_noise = 0.0
-    cols["fine_noise 0"] = _fidelity(model, lambda i: 2 * own[i])
-    model.fine_noise = fine
+        cols[f"guidance {g}"] = _fidelity(model, lambda i: 2 * own[i], guidance=g)
+    cols["fine_noise 0"] = _fidelity(model, lambda i: 2 * own[i], fine_noise=0.0)
     cols["reconstruction"] = {
         lab: 100 * condition_fidelity([(metric_features(reconstruct(model, i)), lab)], refs)
         for i, lab in enumerate(labels)
@@ -87,17 +86,19 @@ def diagnose(a) -> None:
 
 
 def probe(a) -> None:
-    from mrlib.metrics.paper import condition_fidelity, metric_features, model_references
-    from mrlib.sampling.generation import generate_many
+    from mrlib.metrics.coverage import condition_fidelity
+    from mrlib.metrics.windows import metric_features, model_references
+    from mrlib.sampling.conditions import Condition
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import Sampler
 
     model = _model(a)
     _, labels, feats = model_references(model)
     refs = dict(zip(labels, feats, strict=True))
     L, n = model.num_levels, 2 * int(model.lengths[labels.index("walk_happy"), -1])
     for k in range(1, L):
-        conds = [("walk_happy", (1, k)), ("walk_normal", (k + 1, L))]
-        ms = generate_many(model, conditions=conds, length=n, seed=0, num_samples=10,
-                           fix_contacts=False)  # fmt: skip
+        cond = Condition.crossover("walk_happy", "walk_normal", k)
+        ms = generate(model, cond, length=n, seed=0, num=10, sampler=Sampler(fix_contacts=False))
         f = [metric_features(m) for m in ms]
         share = {lab: 100 * condition_fidelity([(x, lab) for x in f], refs) for lab in labels}
         print(f"happy at levels 1-{k}, normal above: "
@@ -106,7 +107,7 @@ def probe(a) -> None:
 
 def variant(a) -> None:
     import mrlib
-    from mrlib.model.config import PRESET_FPS
+    from mrlib.model.presets import demo
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
 
@@ -119,7 +120,7 @@ def variant(a) -> None:
     elif a.name != "base":
         sys.exit(f"unknown variant {a.name!r}: base, band_full or mismatchW")
     body = mrlib.load_body_model()
-    fps = PRESET_FPS["demo"]
+    fps = demo().fps
     data = TrainingSet.from_motions(
         [mrlib.load_motion(p, fps=fps) for p in bandai_clips(TUTORIAL_CLIPS)], body=body
     )
@@ -152,7 +153,7 @@ def capture(a) -> None:
 def synthetic(a) -> None:
     import mrlib
     from mrlib.app.demo import DATA_SAMPLES, DEMO_FPS
-    from mrlib.evaluation.evaluate import evaluate_model
+    from mrlib.evaluation.evaluate import EvaluationSettings, evaluate_model
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
 
@@ -164,7 +165,8 @@ def synthetic(a) -> None:
     out = RUNS / f"synthetic_mismatch{a.mismatch:g}_seed{a.seed}"
     model, _ = train_or_reuse(TrainingSet.from_motions(clips, body=body), cfg, out, body=body,
                               progress=False)  # fmt: skip
-    r = evaluate_model(model, num_samples=10, seed=0, body=body, contacts="both", progress=False)
+    settings = EvaluationSettings(num_samples=10, seed=0)
+    r = evaluate_model(model, settings=settings, body=body, contacts="both", progress=False)
     for d in r.summary():
         if d["method"].startswith("ours"):
             print(f"{d['method']}: fidelity {d['cond_fidelity_pct_mean']:.1f} %, skating "

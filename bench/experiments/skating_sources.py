@@ -42,7 +42,8 @@ from mrlib.representation.rotations import (
     axis_angle_to_matrix,
     sixd_to_axis_angle,
 )
-from mrlib.sampling.generation import generate, reconstruct_levels
+from mrlib.sampling.generation import generate, reconstruct
+from mrlib.sampling.sampler import Sampler
 
 LEGS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
 LEGS_AND_PELVIS = (0, *LEGS)
@@ -67,7 +68,7 @@ def main() -> int:
         print(f"| {name} | {v[0]:.1f} | {v[1]:.3f} |")
 
     train = [features_to_motion(x, fps, betas=model.betas) for x in model.features]
-    recs = [reconstruct_levels(model, k) for k in range(len(train))]
+    recs = [reconstruct(model, k, levels=True) for k in range(len(train))]
     print(f"{a.checkpoint}: {len(train)} clips at {fps:g} fps, {L} levels\n")
 
     print("## 1. Per level: training pyramid and reconstructions\n")
@@ -130,7 +131,7 @@ def main() -> int:
     print("\n## 3. Timing and jitter\n")
     n = max(2, round(a.frames * fps / 30))
     raw = [
-        generate(model, lab, length=n, seed=s, fix_contacts=False)
+        generate(model, lab, length=n, seed=s, sampler=Sampler(fix_contacts=False))
         for lab in model.labels
         for s in range(a.samples)
     ]
@@ -168,7 +169,7 @@ def main() -> int:
     quiet.sigma = model.sigma.clone()
     quiet.sigma[:, 1:] = 0
     still = [
-        generate(quiet, lab, length=n, seed=s, fix_contacts=False)
+        generate(quiet, lab, length=n, seed=s, sampler=Sampler(fix_contacts=False))
         for lab in model.labels
         for s in range(a.samples)
     ]

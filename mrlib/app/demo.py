@@ -6,7 +6,7 @@ Runs on the synthetic clips in ``data_samples/`` (nothing to download), in six s
 2. **retarget** one Bandai Namco BVH onto SMPL, if the dataset is found
    (``MRLIB_DATA_DIR``), and render it next to its contact labels;
 3. **train** the multi-resolution GAN on the four clips: the ``demo`` preset
-   (``mrlib.model.config.demo``, minutes on two CPU cores) by default, ``tutorial`` or ``paper``
+   (``mrlib.model.presets.demo``, minutes on two CPU cores) by default, ``tutorial`` or ``paper``
    with ``preset=``;
 4. **sample** every label (feet planted by the contact clean-up, ``mrlib.sampling.cleanup``),
    export SMPL ``.npz`` and ``.bvh``, render each, and write an animated preview
@@ -34,13 +34,13 @@ import numpy as np
 
 from mrlib.io.outputs import write_text
 from mrlib.io.transaction import make_folders, output_transaction, when_written
-from mrlib.model.config import PRESET_FPS
+from mrlib.model.presets import demo
 from mrlib.progress import bar as progress_bar
 
 __all__ = ["run_demo", "DATA_SAMPLES", "DEMO_FPS"]
 
 DATA_SAMPLES = Path(__file__).resolve().parents[2] / "data_samples"
-DEMO_FPS = PRESET_FPS["demo"]  # the demo preset trains on the samples resampled to this rate
+DEMO_FPS = demo().fps  # the demo preset trains on the samples resampled to this rate
 STAGES = ("load", "retarget", "train", "sample", "crossover", "evaluate")
 
 
@@ -157,9 +157,10 @@ def run_demo(
     """
     import mrlib
     from mrlib.datasets.bandai import bandai_dir
-    from mrlib.evaluation.evaluate import evaluate_model
-    from mrlib.model.config import get_preset
+    from mrlib.evaluation.evaluate import EvaluationSettings, evaluate_model
+    from mrlib.model.presets import get_preset
     from mrlib.model.trained import load_model
+    from mrlib.sampling.conditions import Condition
     from mrlib.sampling.generation import generate
     from mrlib.training.data import TrainingSet
     from mrlib.viz.meshes import evenly_spaced_frames, render_mesh_animation, render_meshes
@@ -256,7 +257,7 @@ def run_demo(
     make_folders(out / "samples")
     pure = {}
     for lab in _bar(model.labels, "sampling and rendering", unit="label", enabled=progress):
-        m = generate(model, lab, length=length, seed=seed, fix_contacts=True)
+        m = generate(model, lab, length=length, seed=seed)
         pure[lab] = m
         mrlib.save_motion(m, out / "samples" / f"{lab}.npz")
         mrlib.save_motion(m, out / "samples" / f"{lab}.bvh")
@@ -284,13 +285,7 @@ def run_demo(
     )
     split = L // 2
     stages.start("crossover", f"'{coarse}' at levels 1-{split}, '{fine}' at levels {split + 1}-{L}")
-    mix = generate(
-        model,
-        conditions=[(coarse, (1, split)), (fine, (split + 1, L))],
-        length=length,
-        seed=seed,
-        fix_contacts=True,
-    )
+    mix = generate(model, Condition.crossover(coarse, fine, split), length=length, seed=seed)
     mrlib.save_motion(mix, out / "samples" / "crossover.npz")
     mrlib.save_motion(mix, out / "samples" / "crossover.bvh")
     img = render_meshes(mix, body, frames=evenly_spaced_frames(len(mix), 6))
@@ -317,7 +312,11 @@ def run_demo(
     # 6. evaluation
     stages.start("evaluate", f"{n_eval} samples per label against the training clips")
     result = evaluate_model(
-        model, num_samples=n_eval, seed=seed, body=body, progress=progress, contacts="both"
+        model,
+        settings=EvaluationSettings(num_samples=n_eval, seed=seed),
+        body=body,
+        progress=progress,
+        contacts="both",
     )
     result.save(out / "evaluation")
     plot_evaluation(result, out / "evaluation" / "evaluation.png")

@@ -38,6 +38,7 @@ from mrlib.datasets.fetching import (
     TIMEOUT_S,
     DataFetchError,
     FetchHints,
+    FetchLimits,
     file_deadline,
     registry_rows,
 )
@@ -182,10 +183,10 @@ def fetch_bandai(
     wanted = ["LICENSE", "cfg/content_label.txt", "cfg/style_label.txt"]
     wanted += list(registry) if everything else _clip_files(clips or (), registry)
     first = not (cache / "LICENSE").exists()
+    limits = FetchLimits(lambda f: download_cap(f, sizes), TIMEOUT_S, file_deadline)
     fetched = fetching.fetch_files(
-        wanted, registry=registry, cache=cache, base_url=_base_url(),
-        cap=lambda f: download_cap(f, sizes), hints=HINTS, desc="Bandai Namco clips",
-        progress=progress, timeout=TIMEOUT_S, deadline=file_deadline,
+        wanted, registry=registry, cache=cache, base_url=_base_url(), limits=limits,
+        hints=HINTS, desc="Bandai Namco clips", progress=progress,
     )  # fmt: skip
     if fetched and first:
         print(ATTRIBUTION.format(license=cache / "LICENSE"), flush=True)

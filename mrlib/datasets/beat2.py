@@ -46,7 +46,7 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from mrlib.datasets import fetching
-from mrlib.datasets.fetching import DataFetchError, FetchHints, registry_rows
+from mrlib.datasets.fetching import DataFetchError, FetchHints, FetchLimits, registry_rows
 from mrlib.io.paths import CACHE_ENV, cache_root
 
 __all__ = [
@@ -165,10 +165,10 @@ def _fetch(files: list[str], registry: dict[str, str], progress) -> Path:
     sizes = beat2_sizes(registry)
     cache = beat2_cache_dir()
     first = not any((cache / f).is_file() for f in registry)
+    limits = FetchLimits(lambda f: sizes.get(f, CAP_OTHER))
     fetched = fetching.fetch_files(
-        files, registry=registry, cache=cache, base_url=_base_url(),
-        cap=lambda f: sizes.get(f, CAP_OTHER), hints=HINTS, desc="BEAT2 files",
-        progress=progress,
+        files, registry=registry, cache=cache, base_url=_base_url(), limits=limits,
+        hints=HINTS, desc="BEAT2 files", progress=progress,
     )  # fmt: skip
     if fetched and first:
         print(ATTRIBUTION.format(cache=cache), flush=True)

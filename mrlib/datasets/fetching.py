@@ -32,6 +32,7 @@ __all__ = [
     "registry_sizes",
     "file_deadline",
     "CappedDownloader",
+    "FetchLimits",
     "cached_ok",
     "fetch_files",
 ]
@@ -158,6 +159,17 @@ class CappedDownloader:
         )
 
 
+@dataclass(frozen=True)
+class FetchLimits:
+    """The bounds of every download of one fetch: ``cap(path)``, the most bytes the file
+    at a registry path may have; ``timeout``, the seconds a server may stay silent; and
+    ``deadline(cap)``, the seconds a file of at most ``cap`` bytes may take in all."""
+
+    cap: Callable[[str], int]
+    timeout: float = TIMEOUT_S
+    deadline: Callable[[int], float] = file_deadline
+
+
 def _remove_stale_temporaries(folders: Iterable[Path]) -> None:
     """Remove the temporary files a killed download left in the cache (pooch's
     ``tmp********``), once they are older than any download may take."""
@@ -219,16 +231,16 @@ def fetch_files(
     registry: dict[str, str],
     cache: Path,
     base_url: str,
-    cap: Callable[[str], int],
+    limits: FetchLimits,
     hints: FetchHints,
     desc: str,
     progress=True,
-    timeout: float = TIMEOUT_S,
-    deadline: Callable[[int], float] = file_deadline,
 ) -> list[str]:
     """Download into ``cache`` those of ``files`` (registry paths) that are not there with
-    the registry's hash, each from ``base_url + path``, bounded by ``cap(path)`` bytes,
-    ``timeout`` and ``deadline(cap)``; returns the paths downloaded (none: all cached).
+    the registry's hash, each from ``base_url + path``, bounded by ``limits``
+    (``limits.cap(path)`` bytes, ``limits.timeout``, ``limits.deadline(cap)``); returns
+    the paths downloaded (none: all cached). ``desc`` names the files on the progress
+    bar, ``hints`` the ways around in the messages.
 
     Raises:
         DataFetchError: one line naming the file, the URL and what to do; a file whose
@@ -248,10 +260,11 @@ def fetch_files(
         f"check the network, set ${hints.url_env} to a mirror, or ${hints.dir_env} to a "
         "downloaded copy"
     )
+    timeout = limits.timeout
     for f in bar:
         url = store.get_url(f)
-        c = cap(f)
-        downloader = CappedDownloader(f, c, deadline(c), hints=hints, timeout=timeout)
+        c = limits.cap(f)
+        downloader = CappedDownloader(f, c, limits.deadline(c), hints=hints, timeout=timeout)
         try:
             store.fetch(f, downloader=downloader)
         except DataFetchError:

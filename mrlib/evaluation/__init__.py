@@ -4,7 +4,8 @@ fidelity per label (``fidelity``), the evidence that a crossover mixes the two l
 bands (``crossover``) and the measures of restyling (``restyle_evidence``).
 """
 
+from mrlib.evaluation.calibration import CalibrationOptions
 from mrlib.evaluation.evaluate import evaluate_model
-from mrlib.evaluation.results import EvaluationResult
+from mrlib.evaluation.results import EvaluationResult, EvaluationSettings
 
-__all__ = ["evaluate_model", "EvaluationResult"]
+__all__ = ["evaluate_model", "EvaluationResult", "EvaluationSettings", "CalibrationOptions"]

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +51,7 @@ __all__ = [
     "find_bandai_counterparts",
     "load_counterparts",
     "calibration_rows",
+    "CalibrationOptions",
 ]
 
 # Names of the calibration rows, in the order they are reported.
@@ -262,3 +264,32 @@ def load_counterparts(
         m = load_motion(p, body=body)
         out[key] = m.resample(reference.fps) if abs(m.fps - reference.fps) > 1e-6 else m
     return out
+
+
+@dataclass(frozen=True)
+class CalibrationOptions:
+    """Which calibration rows ``mrlib.evaluation.evaluate.evaluate`` adds.
+
+    Attributes:
+        enabled: add the calibration rows (:func:`calibration_rows`) at all.
+        others: the real clips beside the built rows: ``"auto"`` finds other takes /
+            styles / contents of Bandai Namco references in ``data_dir``
+            (:func:`find_bandai_counterparts`); None uses none; or label -> {row name:
+            Motion}.
+        data_dir: the Bandai Namco folder for ``"auto"`` (default ``default_data_dir()``).
+    """
+
+    enabled: bool = True
+    others: str | Mapping[str, Mapping[str, Motion]] | None = "auto"
+    data_dir: str | Path | None = None
+
+    def others_of(
+        self, label: str, reference: Motion, body: Any, notes: list[str]
+    ) -> dict[str, Motion]:
+        """The real clips to score beside the built rows of ``reference`` (``label``);
+        for ``"auto"``, what could not be found is said in ``notes``."""
+        if self.others == "auto":
+            return load_counterparts(label, reference, self.data_dir, body, notes)
+        if self.others is None:
+            return {}
+        return dict(self.others.get(label, {}))

@@ -2,14 +2,14 @@
 
 A model trained with style mixing (paper Sec. 4.3) can take one label ``A`` at the coarse
 levels ``1..i`` and another label ``B`` at the fine levels ``i+1..L``
-(``mrlib.sampling.generation.generate(model, conditions=[(A, (1, i)), (B, (i + 1, L))])``). The paper
+(``mrlib.generate(model, mrlib.Condition.crossover(A, B, i))``). The paper
 claims the result combines A's coarse motion with B's fine detail. This module measures
 that claim:
 
 - :func:`crossover_evidence`: distances of a crossover sample's *low-pass* content and of
   its *high-frequency residual* to A and to B (four numbers);
-- :func:`crossover_conditions` / :func:`crossover_blend`: the ``conditions`` and
-  ``blend`` arguments of ``generate`` for a crossover at level ``i``.
+- :func:`crossover_conditions` / :func:`crossover_blend`: the ``Condition`` of a
+  crossover at level ``i`` (checked against the model), plain or blended.
 
 Whether single-label samples are faithful to their label in the first place (nearest
 training sequence of every window, condition fidelity, coverage per clip) is measured
@@ -29,12 +29,12 @@ run under B. The filter is a zero-phase Butterworth filter (:func:`lowpass`), st
 enough that the two bands barely overlap.
 
 **Features and distances.** Per-frame features are the local joint rotations in 6D
-(``mrlib.metrics.paper.metric_features(motion, contacts=False)``, ``D = 138``): the root's
+(``mrlib.metrics.windows.metric_features(motion, contacts=False)``, ``D = 138``): the root's
 global orientation and path are left out, as in every mrlib metric, and the binary
 contact labels are left out of the band split (a low-pass of a 0/1 step is not
 "coarse motion"). The low-pass band is compared by the nearest-neighbour distance of
 each frame (or ``window``) to the reference frames, averaged
-(``mrlib.metrics.paper.nearest_windows``), so a difference of timing or phase between the
+(``mrlib.metrics.windows.nearest_windows``), so a difference of timing or phase between the
 sample and the reference does not count. The residual band is compared by its
 per-channel RMS over time (a ``(D,)`` profile, timing-free by construction): a
 per-frame nearest neighbour of two noise-like residuals measures their energies more
@@ -62,8 +62,10 @@ from typing import Any
 import numpy as np
 
 from mrlib.errors import MotionValueError, check_count
-from mrlib.metrics.bands import check_cutoff, rms_profile, split_bands
-from mrlib.metrics.paper import metric_features, model_references, nearest_windows
+from mrlib.metrics.bands import check_cutoff, check_split_level, rms_profile, split_bands
+from mrlib.metrics.windows import metric_features, model_references, nearest_windows
+from mrlib.sampling.conditions import Condition
+from mrlib.sampling.sampler import Sampler, raw_sampler
 
 __all__ = [
     "band_distances",
@@ -72,6 +74,7 @@ __all__ = [
     "crossover_conditions",
     "crossover_blend",
     "CrossoverEvidence",
+    "CrossoverOptions",
     "crossover_evidence",
     "evidence_table",
 ]
@@ -81,14 +84,7 @@ def check_crossover_level(model: Any, level: int) -> int:
     """``level`` if it is a valid crossover level of ``model`` (``1..L-1``), else a
     ``MotionValueError`` saying why."""
     L = model.num_levels
-    if isinstance(level, bool) or not isinstance(level, (int, np.integer)):
-        raise MotionValueError(f"crossover level must be an integer, got {level!r}")
-    if not 1 <= level <= L - 1:
-        raise MotionValueError(
-            f"crossover level must be in 1..{L - 1} (levels 1..i coarse, i+1..{L} fine), "
-            f"got {level}"
-        )
-    return int(level)
+    return check_split_level(level, L, "crossover level", f"levels 1..i coarse, i+1..{L} fine")
 
 
 def crossover_cutoff(model: Any, level: int, length: int) -> float:
@@ -106,11 +102,13 @@ def crossover_cutoff(model: Any, level: int, length: int) -> float:
 
 def crossover_conditions(
     model: Any, coarse_label: str | int, fine_label: str | int, level: int
-) -> list[tuple[str | int, tuple[int, int]]]:
-    """``[(coarse_label, (1, level)), (fine_label, (level + 1, L))]`` for ``generate``."""
+) -> Condition:
+    """``Condition.crossover(coarse_label, fine_label, level)`` (levels ``1..level``
+    coarse, ``level+1..L`` fine) for ``generate``, its level and labels checked against
+    ``model``."""
     level = check_crossover_level(model, level)
     model.label_index(coarse_label), model.label_index(fine_label)  # validate both
-    return [(coarse_label, (1, level)), (fine_label, (level + 1, model.num_levels))]
+    return Condition.crossover(coarse_label, fine_label, level)
 
 
 # ---------------------------------------------------------------------------------------
@@ -207,7 +205,7 @@ def evidence_table(evidences: Sequence[CrossoverEvidence]) -> str:
 def _nn_distance(x: np.ndarray, refs: Sequence[np.ndarray], window: int) -> float:
     """Mean over the windows of ``x (T, D)`` of the distance to the nearest window among
     ``refs`` (windows never straddle two references). For one reference this is
-    ``mrlib.metrics.paper.local_diversity(x, refs[0], window)``."""
+    ``mrlib.metrics.diversity.local_diversity(x, refs[0], window)``."""
     per_ref = [nearest_windows(x, r, window)[0] for r in refs]
     return float(np.min(per_ref, axis=0).mean())
 
@@ -278,6 +276,26 @@ def _band_distances(
 REFERENCE_SEED_OFFSET = 1_000_003  # pure-label reference samples share no noise with the mix
 
 
+@dataclass(frozen=True)
+class CrossoverOptions:
+    """How :func:`crossover_evidence` splits and compares the bands.
+
+    Attributes:
+        cutoff: low-pass half-power frequency in Hz; None: the Nyquist frequency of the
+            crossover level (:func:`crossover_cutoff`).
+        window: window of the low-band nearest-neighbour distance in frames (1: per frame).
+        reference: what the bands are compared with: ``"samples"`` (pure-label samples
+            of the model) or ``"clips"`` (its training clips).
+        sampler: how the samples are drawn (a ``mrlib.Sampler``); None: the paper's
+            sampler without the foot-contact clean-up (``Sampler(fix_contacts=False)``).
+    """
+
+    cutoff: float | None = None
+    window: int = 1
+    reference: str = "samples"
+    sampler: Sampler | None = None
+
+
 def crossover_evidence(
     model: Any,
     coarse_label: str | int,
@@ -285,11 +303,9 @@ def crossover_evidence(
     level: int,
     num_samples: int = 8,
     seed: int = 0,
-    cutoff: float | None = None,
     *,
     length: int | None = None,
-    window: int = 1,
-    reference: str = "samples",
+    options: CrossoverOptions | None = None,
 ) -> CrossoverEvidence:
     """Does a coarse-A / fine-B sample take its low-pass band from A and its
     high-frequency residual from B?
@@ -303,7 +319,7 @@ def crossover_evidence(
     - residual band: Euclidean distance between the sample's residual RMS profile
       (:func:`rms_profile`, ``(D,)``) and the mean profile of the label's references.
 
-    The references are, with ``reference="samples"`` (default), ``num_samples`` pure-A
+    The references are, with ``options.reference="samples"`` (default), ``num_samples`` pure-A
     and pure-B samples of the same length (seed ``seed + REFERENCE_SEED_OFFSET``, so no
     noise is shared with the crossover); with ``"clips"``, the training clips of A and
     B. Pure samples answer the question inside the model; training clips also measure
@@ -316,18 +332,19 @@ def crossover_evidence(
         level: the crossover level ``i``, ``1 <= i <= L - 1``.
         num_samples: ``B`` samples of each kind (seeded; a sample does not depend on B).
         seed: noise seed of the crossover samples.
-        cutoff: low-pass half-power frequency in Hz; default the Nyquist frequency of
-            level ``i`` (:func:`crossover_cutoff`).
         length: frames per sample; default the longer of A's and B's first training clip.
-        window: window of the low-band nearest-neighbour distance in frames (1: per frame).
-        reference: ``"samples"`` or ``"clips"``.
+        options: the cutoff, the low band's window and the references
+            (:class:`CrossoverOptions`; its defaults when None).
     Returns:
         :class:`CrossoverEvidence`.
     """
-    from mrlib.sampling.generation import generate_many
+    from mrlib.sampling.generation import generate
 
+    opts = options or CrossoverOptions()
+    sampler = raw_sampler(opts.sampler)
+    cutoff, reference = opts.cutoff, opts.reference
     num_samples = check_count("num_samples", num_samples)
-    window = check_count("window", window)
+    window = check_count("window", opts.window)
     if reference not in ("samples", "clips"):
         raise MotionValueError(f"reference must be 'samples' or 'clips', got {reference!r}")
     conds = crossover_conditions(model, coarse_label, fine_label, level)
@@ -342,14 +359,13 @@ def crossover_evidence(
     cutoff = crossover_cutoff(model, level, length) if cutoff is None else float(cutoff)
     check_cutoff(model.fps, cutoff)
 
-    def samples(seed_: int, **cond: Any) -> list[np.ndarray]:
-        ms = generate_many(
-            model, length=length, seed=seed_, num_samples=num_samples, fix_contacts=False, **cond
-        )
+    def samples(seed_: int, condition: Any) -> list[np.ndarray]:
+        ms = generate(model, condition, length=length, seed=seed_, num=num_samples,
+                      sampler=sampler)  # fmt: skip
         return [metric_features(m, contacts=False) for m in ms]
 
     if reference == "samples":
-        refs = {k: samples(seed + REFERENCE_SEED_OFFSET, condition=k) for k in (a, b)}
+        refs = {k: samples(seed + REFERENCE_SEED_OFFSET, k) for k in (a, b)}
     else:
         _, clip_labels, feats = model_references(model, contacts=False)
         refs = {
@@ -358,7 +374,7 @@ def crossover_evidence(
         }
     split = {k: _split_refs(refs[k], model.fps, cutoff, window) for k in (a, b)}
     rows, energy = [], []
-    for x in samples(seed, conditions=conds):
+    for x in samples(seed, conds):
         bands = split_bands(x, model.fps, cutoff)
         energy.append(np.linalg.norm(rms_profile(bands[1])))
         rows.append(_band_distances(bands, split[a], split[b], window))
@@ -385,11 +401,12 @@ def crossover_evidence(
 
 def crossover_blend(
     model: Any, coarse_label: str | int, fine_label: str | int, level: int, weight: float
-) -> tuple[str | int, str | int, list[float]]:
-    """``blend=(coarse, fine, w)`` for ``generate``: weight 0 of the fine label at levels
-    ``1..level`` and ``weight`` at ``level+1..L`` (1: a plain crossover, 0: pure coarse)."""
+) -> Condition:
+    """``Condition.blend(coarse, fine, w)`` for ``generate``: weight 0 of the fine label
+    at levels ``1..level`` and ``weight`` at ``level+1..L`` (1: a plain crossover, 0: pure
+    coarse)."""
     level = check_crossover_level(model, level)
     if not (np.isfinite(weight) and 0.0 <= weight <= 1.0):
         raise MotionValueError(f"blend weight must be in [0, 1], got {weight}")
     L = model.num_levels
-    return coarse_label, fine_label, [0.0] * level + [float(weight)] * (L - level)
+    return Condition.blend(coarse_label, fine_label, [0.0] * level + [float(weight)] * (L - level))

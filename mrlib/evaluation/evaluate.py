@@ -1,27 +1,29 @@
 """The evaluation protocol: coverage, diversity and plausibility tables with calibration
 rows, for one or several generators.
 
-``evaluate(sample_fn, references)`` draws ``num_samples`` clips per training sequence
-(label) from a generator, ``length_factor`` times as long as the training clip, with
+``evaluate(models, references)`` draws ``num_samples`` clips per training sequence
+(label) from each generator, ``length_factor`` times as long as the training clip, with
 fixed seeds, and scores them against that clip: the paper's Table 1 metrics (coverage
-with ``T_c = 30`` and threshold ``eps``, global diversity by patched nearest neighbours
-with ``T_min = 30``, local diversity with ``T_d = 15``; ``mrlib.metrics.paper``) and the
+with ``T_c = 30`` and threshold ``eps``, Eq. 17-18, ``mrlib.metrics.coverage``; global
+diversity by patched nearest neighbours with ``T_min = 30``, Eq. 19, and local diversity
+with ``T_d = 15``, Eq. 20, ``mrlib.metrics.diversity``) and the
 plausibility measures of ``mrlib.metrics.plausibility`` (foot skating, jitter, ground
 penetration, Wasserstein distances of speed distributions). The result holds one row
 per (method, sequence) and their mean and standard deviation per method, and writes
 CSV, Markdown and a PNG plot.
 
-A generator is any callable ``sample_fn(label, length, seed) -> Motion``; wire a
-trained model in with a closure, e.g.
-``lambda label, length, seed: generate(model, label, length=length, seed=seed)``
-(``mrlib.sampling.generation.generate`` returns one ``Motion`` for ``num_samples=1``).
+A generator is any callable ``sample_fn(label, length, seed) -> Motion``, given by
+method name in ``models``; wire a trained model in with a closure, e.g.
+``{"ours": lambda label, length, seed: generate(model, label, length=length, seed=seed)}``
+(``mrlib.generate`` returns one ``Motion`` without ``num``; :func:`model_sample_fn`).
 
-**Calibration rows** (``mrlib.evaluation.calibration``): the training clip played twice, its first
+**Calibration rows** (``mrlib.evaluation.calibration``, chosen by its
+``CalibrationOptions``): the training clip played twice, its first
 frame frozen, and other real takes, styles and contents, scored with the same code, so
 the generators' numbers can be read against them. Real clips are scored at their own
 length; the built rows are one clip each.
 
-**Features.** Coverage and diversity use ``mrlib.metrics.paper.metric_features``: the 23
+**Features.** Coverage and diversity use ``mrlib.metrics.windows.metric_features``: the 23
 non-root joints' local rotations in 6D plus the 6 foot-contact labels (``D = 144``).
 Clips without contact labels get them from ``mrlib.representation.contacts.foot_contacts`` (speed
 threshold 0.25 m/s), so every clip is compared on the same channels. GANimator's
@@ -37,40 +39,46 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
-from pathlib import Path
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
+from mrlib import metrics as mt
 from mrlib.errors import (
     ArgumentError,
     ClipTooShortError,
     MotionValueError,
     check_args,
     check_choice,
+    check_flag,
     check_text,
     shown,
 )
-from mrlib.evaluation.calibration import CALIBRATION_METHODS, calibration_rows, load_counterparts
+from mrlib.evaluation.calibration import (
+    CALIBRATION_METHODS,
+    CalibrationOptions,
+    calibration_rows,
+)
 from mrlib.evaluation.results import (
     CALIB_PREFIX,
     MAX_EVAL_FRAMES,
     EvaluationResult,
     EvaluationSettings,
 )
-from mrlib.metrics import paper as mt
 from mrlib.metrics import plausibility as pl
 from mrlib.model.trained import check_label_model
 from mrlib.progress import bar as progress_bar
-from mrlib.representation.body import resolve_body
+from mrlib.representation.body import check_body, resolve_body
 from mrlib.representation.motion import Motion
-from mrlib.threads import with_policy
+from mrlib.training.data import instance_or_none
 
 __all__ = [
     "SampleFn",
     "score_motions",
     "evaluate",
+    "CalibrationOptions",
+    "EvaluationSettings",
 ]
 
 SampleFn = Callable[[str, int, int], Motion]
@@ -212,65 +220,45 @@ def _draw(
 
 
 def evaluate(
-    sample_fn: SampleFn | None,
+    models: Mapping[str, SampleFn],
     references: Mapping[str, Motion],
-    num_samples: int = 200,
-    length_factor: float = 2.0,
-    seed: int = 0,
-    eps: float = 2.0,
-    calibration: bool = True,
-    extra_models: Mapping[str, SampleFn] | None = None,
+    settings: EvaluationSettings | None = None,
     *,
-    name: str = "model",
-    reconstructions: Mapping[str, Motion] | None = None,
-    extra_reconstructions: Mapping[str, Mapping[str, Motion]] | None = None,
-    calibration_others: str | Mapping[str, Mapping[str, Motion]] | None = "auto",
-    data_dir: str | Path | None = None,
+    reconstructions: Mapping[str, Mapping[str, Motion]] | None = None,
+    calibration: CalibrationOptions | None = None,
     body: Any = None,
     progress: bool = True,
-    settings: EvaluationSettings | None = None,
 ) -> EvaluationResult:
     """Score generators against their training clips, with calibration rows.
 
     Args:
-        sample_fn: ``sample_fn(label, length, seed) -> Motion`` (``SampleFn``), the main
-            method, reported as ``name``; None to evaluate only ``extra_models``.
+        models: method name -> ``sample_fn(label, length, seed) -> Motion``
+            (``SampleFn``), scored identically, in this order; empty to score only the
+            calibration rows.
         references: label -> training clip (``Motion``), one per sequence.
-        num_samples: clips drawn per sequence and method.
-        length_factor: generated length = ``round(length_factor * T_ref)`` frames.
-        seed: sample ``i`` is drawn with seed ``seed + i`` (same seeds for every
-            sequence and method).
-        eps: coverage threshold.
-        calibration: add the calibration rows (``calibration_rows``).
-        extra_models: more methods by name, scored identically.
-        reconstructions: label -> the main model's reconstruction of the training clip
-            (reconstruction error column).
-        extra_reconstructions: method name -> label -> reconstruction.
-        calibration_others: ``"auto"`` finds other real takes / styles / contents of
-            Bandai Namco references in ``data_dir`` (``find_bandai_counterparts``);
-            None uses none; or label -> {row name: Motion}.
-        data_dir: the Bandai Namco folder for ``"auto"`` (default ``default_data_dir()``).
+        settings: the numbers of the protocol (default ``EvaluationSettings()``):
+            ``num_samples`` clips drawn per sequence and method, each
+            ``round(length_factor * T_ref)`` frames, sample ``i`` with seed ``seed + i``
+            (the same seeds for every sequence and method); the coverage threshold
+            ``eps``; the windows ``T_c, T_min, T_d``; the plausibility thresholds.
+        reconstructions: method name -> label -> that method's reconstruction of the
+            training clip (reconstruction error column).
+        calibration: which calibration rows (``CalibrationOptions``: the rows at all,
+            the real clips beside them and where to find them; its defaults when None).
         body: ``BodyModel`` (default body when None).
         progress: show progress (``mrlib.progress.bar``).
-        settings: all settings at once, instead of ``num_samples``, ``length_factor``,
-            ``seed`` and ``eps`` (the windows ``T_c, T_min, T_d`` and the plausibility
-            thresholds are only set here); passing both is an error.
 
     Returns:
         an :class:`EvaluationResult`; the condition fidelity column is filled when there
         are two labels or more.
     """
-    given = dict(num_samples=num_samples, length_factor=length_factor, seed=seed, eps=eps)
-    if settings is None:
-        settings = EvaluationSettings(**given)
-    else:
-        default = EvaluationSettings()
-        clash = [k for k, v in given.items() if v != getattr(default, k)]
-        if clash:
-            raise MotionValueError(
-                f"pass {', '.join(clash)} inside settings, not next to it "
-                "(settings would silently override them)"
-            )
+    settings = settings or EvaluationSettings()
+    calibration = calibration or CalibrationOptions()
+    if not isinstance(models, Mapping):
+        raise MotionValueError(
+            "models must be a dict method name -> sample_fn(label, length, seed), got "
+            f"{type(models).__name__}"
+        )
     if not isinstance(references, Mapping) or not references:
         raise MotionValueError("references must be a non-empty dict label -> Motion")
     for label, ref in references.items():
@@ -292,17 +280,10 @@ def evaluate(
                 f"references[{label!r}] has {ref.num_frames} frames; the metrics need at least "
                 f"{need} (T_c = {settings.coverage_window}, 2 T_min - 1 = {2 * settings.tmin - 1})"
             )
-    models: dict[str, SampleFn] = {}
-    if sample_fn is not None:
-        models[name] = sample_fn
-    for k, fn in (extra_models or {}).items():
-        if k in models:
-            raise MotionValueError(f"extra_models has a second method named {k!r}")
-        models[k] = fn
     for k, fn in models.items():
         if not callable(fn):
             raise MotionValueError(f"the sampler of {k!r} is not callable")
-    recons = {name: reconstructions or {}, **(extra_reconstructions or {})}
+    recons = reconstructions or {}
     body = resolve_body(body)
 
     cache = _ReferenceCache(body, settings.feature_kind)
@@ -325,17 +306,12 @@ def evaluate(
                     {"method": method, "kind": "model", "sequence": label, "source": "", **row}
                 )
 
-    if calibration:
+    if calibration.enabled:
         calib_rows: dict[str, list[dict[str, Any]]] = {}
         for label, ref in progress_bar(
             references.items(), desc="calibration", enabled=progress, leave=False
         ):
-            if calibration_others == "auto":
-                others = load_counterparts(label, ref, data_dir, body, notes)
-            elif calibration_others is None:
-                others = {}
-            else:
-                others = dict(calibration_others.get(label, {}))
+            others = calibration.others_of(label, ref, body, notes)
             for key, m in calibration_rows(ref, others, settings.length_factor).items():
                 try:
                     row = score_motions(
@@ -376,10 +352,14 @@ def model_references(model: Any) -> dict[str, Motion]:
     return refs
 
 
-def model_sample_fn(model: Any, fix_contacts: bool = False) -> SampleFn:
+def model_sample_fn(model: Any, sampler: Any = None) -> SampleFn:
     """``sample_fn(key, length, seed)`` for :func:`evaluate` from a trained model; keys
-    are those of :func:`model_references`."""
+    are those of :func:`model_references`. ``sampler``: a ``mrlib.Sampler``; default
+    the raw output (``Sampler(fix_contacts=False)``)."""
     from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import raw_sampler
+
+    sampler = raw_sampler(sampler)
 
     key_to_label = {}
     for k, lab in enumerate(model.clip_labels):
@@ -387,9 +367,7 @@ def model_sample_fn(model: Any, fix_contacts: bool = False) -> SampleFn:
         key_to_label[model.clip_names[k]] = model.labels[lab]
 
     def sample_fn(key: str, length: int, seed: int) -> Motion:
-        return generate(
-            model, key_to_label[key], length=length, seed=seed, fix_contacts=fix_contacts
-        )
+        return generate(model, key_to_label[key], length=length, seed=seed, sampler=sampler)
 
     return sample_fn
 
@@ -419,15 +397,21 @@ def _baselines(name: str, value: Any) -> Any:
     baselines=_baselines,
     name=check_text,
     contacts=lambda n, v: check_choice(n, v, ("raw", "clean", "both")),
+    settings=instance_or_none(EvaluationSettings, "an EvaluationSettings"),
+    calibration=instance_or_none(CalibrationOptions, "a CalibrationOptions"),
+    body=check_body,
+    progress=check_flag,
 )
-@with_policy
 def evaluate_model(
     model: Any,
     baselines: Mapping[str, Any] | None = None,
     *,
     name: str = "ours",
     contacts: str = "raw",
-    **kwargs: Any,
+    settings: EvaluationSettings | None = None,
+    calibration: CalibrationOptions | None = None,
+    body: Any = None,
+    progress: bool = True,
 ) -> EvaluationResult:
     """:func:`evaluate` a trained model on its own training clips, with reconstruction
     errors and calibration rows.
@@ -436,13 +420,18 @@ def evaluate_model(
     that sequence alone (GANimator-mode: one model per sequence); keys are those of
     :func:`model_references`. ``contacts``: ``"raw"`` scores the generator's output,
     ``"clean"`` the output after the foot-contact clean-up
-    (``mrlib.sampling.generation.cleanup_foot_contacts``), ``"both"`` both, the raw one as
-    ``"<name> (raw)"``. Extra keyword arguments go to :func:`evaluate`.
+    (``mrlib.sampling.cleanup.cleanup_foot_contacts``), ``"both"`` both, the raw one as
+    ``"<name> (raw)"``. ``settings``, ``calibration``, ``body`` and ``progress`` are
+    those of :func:`evaluate`; the model and the baselines sample with the fine noise
+    and guidance of ``settings`` (``EvaluationSettings.fine_noise``, ``.guidance``).
     """
     if contacts not in ("raw", "clean", "both"):
         raise MotionValueError(f"contacts must be 'raw', 'clean' or 'both', got {contacts!r}")
     from mrlib.sampling.generation import generate, reconstruct
+    from mrlib.sampling.sampler import Sampler
 
+    s = settings or EvaluationSettings()
+    raw = Sampler(s.fine_noise, s.guidance, fix_contacts=False)
     refs = model_references(model)
     recon = {key: reconstruct(model, _clip_index(model, key)) for key in refs}
     extra, extra_recon = {}, {}
@@ -452,21 +441,23 @@ def evaluate_model(
         def fn(key: str, length: int, seed: int, _models=per_key) -> Motion:
             m = _models[key]
             label = m.labels[m.clip_labels[_clip_index(m, key)]]
-            return generate(m, label, length=length, seed=seed, fix_contacts=False)
+            return generate(m, label, length=length, seed=seed, sampler=raw)
 
         extra[bname] = fn
         extra_recon[bname] = {
             key: reconstruct(m, _clip_index(m, key)) for key, m in per_key.items()
         }
     if contacts == "both":
-        extra = {f"{name} (raw)": model_sample_fn(model), **extra}
+        extra = {f"{name} (raw)": model_sample_fn(model, raw), **extra}
         extra_recon = {f"{name} (raw)": recon, **extra_recon}
+    if name in extra:
+        raise MotionValueError(f"baselines has a second method named {name!r}")
     return evaluate(
-        model_sample_fn(model, fix_contacts=contacts != "raw"),
+        {name: model_sample_fn(model, replace(raw, fix_contacts=contacts != "raw")), **extra},
         refs,
-        extra_models=extra or None,
-        name=name,
-        reconstructions=recon,
-        extra_reconstructions=extra_recon or None,
-        **kwargs,
+        settings,
+        reconstructions={name: recon, **extra_recon},
+        calibration=calibration,
+        body=body,
+        progress=progress,
     )

@@ -4,7 +4,7 @@ of every training clip by its label's samples.
 
 These answer "do samples of label X look like the clips of label X?", the first thing
 to check before the crossover of ``mrlib.evaluation.crossover``. Distances are those of
-``mrlib.metrics.paper`` (6D local rotations + contacts, windows of 30 frames by default);
+``mrlib.metrics.windows`` (6D local rotations + contacts, windows of 30 frames by default);
 pictures in ``mrlib.viz.plots`` (``plot_nearest_sequence``, ``plot_condition_fidelity``).
 
 Dimension letters (``mrlib`` glossary): T frames, D feature channels, N windows,
@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from mrlib.errors import MotionValueError, check_count
-from mrlib.metrics.paper import (
+from mrlib.metrics.coverage import condition_fidelity, coverage
+from mrlib.metrics.windows import (
     References,
-    condition_fidelity,
     metric_features,
     model_references,
     nearest_windows,
@@ -112,12 +112,12 @@ def nearest_sequence_strip(
     Args:
         motion: a generated ``Motion`` (or its ``(T, D)`` metric features).
         model_or_references: a ``GenerativeModel`` (its training clips), a mapping
-            name -> ``Motion`` or ``(T_k, D)`` features (``mrlib.metrics.paper.metric_features``),
+            name -> ``Motion`` or ``(T_k, D)`` features (``mrlib.metrics.windows.metric_features``),
             or the triple of :func:`reference_features` computed once.
         window: window length in frames (30, as coverage and condition fidelity).
     Returns:
         :class:`NearestSequenceStrip`; the distances are those of
-        ``mrlib.metrics.paper.condition_fidelity`` (6D local rotations + contacts).
+        ``mrlib.metrics.coverage.condition_fidelity`` (6D local rotations + contacts).
     """
     window = check_count("window", window)
     names, labels, refs = reference_features(model_or_references)
@@ -149,7 +149,8 @@ def nearest_sequence_strip(
 # -- condition fidelity and coverage of a model ---------------------------------------------
 @dataclass(frozen=True)
 class ConditionFidelity:
-    """Condition fidelity of single-condition samples (``mrlib.metrics.paper.condition_fidelity``).
+    """Condition fidelity of single-condition samples
+    (``mrlib.metrics.coverage.condition_fidelity``).
 
     ``overall`` pools every window of every sample (all samples have the same length, so
     it is the mean of ``per_label``). ``confusion (K, K)``: row = requested label, column
@@ -178,6 +179,8 @@ def condition_fidelity_of_model(
     length: int | None = None,
     seed: int = 0,
     window: int = 30,
+    *,
+    sampler: Any = None,
 ) -> ConditionFidelity:
     """Generate ``num_samples`` samples of every label (one label at every level) and
     measure the share of their windows whose nearest training window has that label.
@@ -188,14 +191,18 @@ def condition_fidelity_of_model(
             longer than the training clips, as the paper's evaluation uses).
         seed: noise seed (every label's samples use the same seed).
         window: window in frames (30, the paper's ``T_c``).
+        sampler: a ``mrlib.Sampler``; default the paper's sampler without the
+            foot-contact clean-up (``Sampler(fix_contacts=False)``, the raw output).
     Returns:
         :class:`ConditionFidelity`. When several training clips share a label their
         frames are joined into one reference per label (``condition_fidelity`` takes
         one reference per label), so a few windows straddle two clips.
     """
-    from mrlib.sampling.generation import generate_many
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import raw_sampler
 
     num_samples = check_count("num_samples", num_samples)
+    sampler = raw_sampler(sampler)
     _, labels, feats = model_references(model)
     refs = {
         lab: np.concatenate([f for f, lb in zip(feats, labels, strict=True) if lb == lab])
@@ -206,9 +213,7 @@ def condition_fidelity_of_model(
     per_label, names = {}, list(refs)
     confusion = np.zeros((len(names), len(names)))
     for k, lab in enumerate(names):
-        ms = generate_many(
-            model, lab, length=int(length), seed=seed, num_samples=num_samples, fix_contacts=False
-        )
+        ms = generate(model, lab, length=int(length), seed=seed, num=num_samples, sampler=sampler)
         per_label[lab] = condition_fidelity(ms, refs, window=window)
         for m in ms:
             shares = nearest_sequence_strip(m, refs, window).shares()
@@ -232,8 +237,10 @@ def coverage_per_sequence(
     seed: int = 0,
     eps: float | Sequence[float] = 2.0,
     window: int = 30,
+    *,
+    sampler: Any = None,
 ) -> dict[str, float] | dict[float, dict[str, float]]:
-    """``mrlib.metrics.paper.coverage`` of every training sequence by samples of its label.
+    """``mrlib.metrics.coverage.coverage`` of every training sequence by samples of its label.
 
     For clip k (label l, ``T_k`` frames): ``num_samples`` samples of label l, each
     ``round(length_factor * T_k)`` frames, and the mean over them of the share of clip
@@ -241,13 +248,15 @@ def coverage_per_sequence(
 
     Args:
         eps: one threshold, or several (the same samples serve every threshold).
+        sampler: a ``mrlib.Sampler``; default the raw output (``Sampler(fix_contacts=False)``).
     Returns:
         clip name -> coverage in [0, 1]; for several thresholds, eps -> that dict.
     """
-    from mrlib.metrics.paper import coverage_profile
-    from mrlib.sampling.generation import generate_many
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import raw_sampler
 
     num_samples = check_count("num_samples", num_samples)
+    sampler = raw_sampler(sampler)
     if not (np.isfinite(length_factor) and length_factor > 0):
         raise MotionValueError(f"length_factor must be positive, got {length_factor}")
     many = not isinstance(eps, (int, float, np.floating, np.integer))
@@ -258,12 +267,7 @@ def coverage_per_sequence(
     out: dict[float, dict[str, float]] = {e: {} for e in epss}
     for name, lab, ref in zip(names, labels, feats, strict=True):
         length = max(window, round(length_factor * len(ref)))
-        ms = generate_many(
-            model, lab, length=length, seed=seed, num_samples=num_samples, fix_contacts=False
-        )
-        # coverage = mean over samples of the share of reference windows closer than eps
-        # (mrlib.metrics.paper.coverage); the profiles are computed once for all thresholds
-        prof = np.stack([coverage_profile(m, ref, window) for m in ms])
-        for e in epss:
-            out[e][name] = float((prof < e).mean(1).mean())
+        ms = generate(model, lab, length=length, seed=seed, num=num_samples, sampler=sampler)
+        for e, value in coverage(ms, ref, window, eps=epss).items():
+            out[e][name] = value
     return out if many else out[epss[0]]

@@ -1,10 +1,9 @@
 """Measures of restyling (``mrlib.sampling.restyling.restyle``): how far a clip is from
-what a model's coarse levels produce (:func:`coarse_gap`: where ``invert=True`` may
-help), a restyled clip against the method's three claims (:func:`restyle_evidence`, with
-the references of :func:`restyle_references`: the path kept, the low band nearer the
-clip's than any training clip's, the residual nearest the target label's), and how much
-of a result is the clip's and how much the label's, level by level
-(:func:`restyle_shares`). The bench (``bench/restyle.py``), the tests and the restyle
+what a model's coarse levels produce (:func:`coarse_gap`), a restyled clip against the
+method's three claims (:func:`restyle_evidence`, with the references of
+:func:`restyle_references`: the path kept, the low band nearer the clip's than any
+training clip's, the residual nearest the target label's), and how much of a result is
+the clip's and how much the label's, level by level (:func:`restyle_shares`). The bench (``bench/restyle.py``), the tests and the restyle
 widget (``mrlib.viz.widgets.interactive_restyle``) share them; measured figures:
 ``docs/notes/2026-12-04-restyle.md``.
 
@@ -26,7 +25,7 @@ import torch
 
 from mrlib.errors import MotionValueError
 from mrlib.metrics.bands import rms_profile, split_bands
-from mrlib.metrics.paper import frame_distances, metric_features
+from mrlib.metrics.windows import frame_distances, metric_features
 from mrlib.model.pyramid import level_fps, resample_linear
 from mrlib.representation.features import CONTACT_SLICE, motion_to_features
 from mrlib.representation.motion import Motion
@@ -68,8 +67,7 @@ class CoarseGap:
     the training clips are from one another; NaN with one clip); ``ratio``: the two's
     quotient. Below 1 the clip is nearer the training data than its clips are to each
     other; well above 1 the fine levels see input unlike anything they were trained on
-    (where ``restyle(..., invert=True)`` may help; ``mrlib.sampling.restyling``'s
-    docstring says what it did on the clips measured)."""
+    (``mrlib.sampling.restyling``'s docstring says why the clip is not fitted first)."""
 
     level: int
     distance: float
@@ -140,14 +138,18 @@ class RestyleReferences:
 
 def restyle_references(
     model: Any, length: int, level: int | None = None, *, num_samples: int = 4,
-    seed: int = REFERENCE_SEED, reference: str = "samples",
+    seed: int = REFERENCE_SEED, reference: str = "samples", sampler: Any = None,
 ) -> RestyleReferences:  # fmt: skip
     """The references of :func:`restyle_evidence` for clips of ``length`` frames at the
     model's rate restyled at ``level``: per label, ``num_samples`` pure samples of that
-    length (``reference="samples"``, as ``mrlib.evaluation.crossover.crossover_evidence``) or its
+    length (``reference="samples"``, as ``mrlib.evaluation.crossover.crossover_evidence``,
+    drawn with ``sampler``, default the raw output ``Sampler(fix_contacts=False)``) or its
     training clips (``"clips"``)."""
-    from mrlib.metrics.paper import model_references
-    from mrlib.sampling.generation import generate_many
+    from mrlib.metrics.windows import model_references
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import raw_sampler
+
+    sampler = raw_sampler(sampler)
 
     model = check_label_model(model)
     k = restyle_level(model, level)
@@ -160,8 +162,8 @@ def restyle_references(
     profiles = {}
     for lab in model.labels:
         if reference == "samples":
-            ms = generate_many(model, lab, length=int(length), seed=seed,
-                               num_samples=num_samples, fix_contacts=False)  # fmt: skip
+            ms = generate(model, lab, length=int(length), seed=seed, num=num_samples,
+                          sampler=sampler)  # fmt: skip
             refs = [metric_features(m, contacts=False) for m in ms]
         else:
             refs = [f for f, cl in zip(feats, clip_labels, strict=True) if cl == lab]
@@ -262,6 +264,7 @@ class RestyleShares:
     levels: tuple[int, ...]
     to_source: np.ndarray
     to_label: np.ndarray
+    label_sample: Motion | None = None  # the label's own sample compared with
 
     @property
     def source_share(self) -> np.ndarray:
@@ -280,28 +283,29 @@ class RestyleShares:
 
 def restyle_shares(
     model: Any, motion: Motion | str | Path, label: str | int, *, keep: str = "coarse",
-    seed: int = 0, levels: Any = None, body: Any = None, label_sample: Motion | None = None,
+    seed: int = 0, levels: Any = None, body: Any = None, sampler: Any = None,
 ) -> RestyleShares:  # fmt: skip
     """How much of a restyling is the clip's and how much the label's, at every level
     (``levels``, default ``1..L-1``): :class:`RestyleShares` of ``restyle(model, motion,
-    label, k, keep=keep, seed=seed, fix_contacts=False)``. ``label_sample``: the label's
-    own sample to compare with (default ``generate(model, label, length=T, seed=seed)``
-    without the foot clean-up)."""
+    label, k, keep=keep, seed=seed, sampler=sampler)`` against the label's own sample
+    ``generate(model, label, length=T, seed=seed, sampler=sampler)`` (kept as
+    ``label_sample``); ``sampler`` default: the raw output (``Sampler(fix_contacts=False)``)."""
     from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import raw_sampler
 
     model = check_label_model(model)
     source = at_model_rate(model, motion)
     levels = tuple(range(1, model.num_levels)) if levels is None else tuple(levels)
     ks = [restyle_level(model, k) for k in levels]
     tag = model.labels[model.label_index(label)]
-    if label_sample is None:
-        label_sample = generate(model, tag, length=source.num_frames, seed=seed, fix_contacts=False)
+    sampler = raw_sampler(sampler)
+    label_sample = generate(model, tag, length=source.num_frames, seed=seed, sampler=sampler)
     src = metric_features(source, contacts=False)
     lab = metric_features(label_sample, contacts=False)
     to_src, to_lab = [], []
     for k in ks:
-        r = restyle(model, source, tag, k, keep=keep, seed=seed, fix_contacts=False, body=body)
+        r = restyle(model, source, tag, k, keep=keep, seed=seed, sampler=sampler, body=body)
         x = metric_features(r, contacts=False)
         to_src.append(_nn(x, src))
         to_lab.append(_nn(x, lab))
-    return RestyleShares(tag, keep, tuple(ks), np.asarray(to_src), np.asarray(to_lab))
+    return RestyleShares(tag, keep, tuple(ks), np.asarray(to_src), np.asarray(to_lab), label_sample)

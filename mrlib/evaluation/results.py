@@ -18,6 +18,7 @@ import numpy as np
 
 from mrlib.errors import MotionValueError
 from mrlib.metrics import plausibility as pl
+from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
 
 __all__ = [
     "CALIB_PREFIX",
@@ -55,12 +56,17 @@ class EvaluationSettings:
     coverage_window: int = 30  # T_c, frames
     tmin: int = 30  # T_min, shortest PNN segment, frames
     local_window: int = 15  # T_d, frames
-    feature_kind: str = "6d"  # mrlib.metrics.paper.metric_features(kind=...)
+    feature_kind: str = "6d"  # mrlib.metrics.windows.metric_features(kind=...)
     skate_threshold: float = pl.SKATE_SPEED_THRESHOLD  # m/s
     penetration_threshold: float = pl.PENETRATION_THRESHOLD  # m
     ground_percentile: float = pl.GROUND_PERCENTILE  # of the reference's foot heights
+    # the sampler of a trained model's samples (evaluate_model; mrlib.Sampler's settings,
+    # its foot-contact clean-up is evaluate_model's ``contacts``)
+    fine_noise: float = FINE_NOISE
+    guidance: float = GUIDANCE
 
     def __post_init__(self) -> None:
+        Sampler(self.fine_noise, self.guidance)  # their bounds
         for name in ("num_samples", "coverage_window", "tmin", "local_window"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -105,7 +111,8 @@ class EvaluationSettings:
             f"of frames deeper than {100 * self.penetration_threshold:g} cm. "
             "W: 1-D Wasserstein distance to the training clip's per-frame root ground speed "
             "and joint angular speeds (legs, arms, spine/head). Means and standard deviations "
-            "per method are over sequences (population std)."
+            "per method are over sequences (population std). Sampler of the trained model: "
+            f"fine noise {self.fine_noise:g}, guidance {self.guidance:g}."
         )
 
 

@@ -39,15 +39,9 @@ from mrlib.errors import (
     check_text,
     shown,
 )
-from mrlib.io.bvh import (
-    BVH,
-    BVHSkeleton,
-    format_bvh,
-    frame_time_problem,
-    parse_bvh,
-    read_bvh,
-    write_bvh,
-)
+from mrlib.io.bvh.hierarchy import BVH, BVHSkeleton, frame_time_problem
+from mrlib.io.bvh.reader import parse_bvh, read_bvh
+from mrlib.io.bvh.writer import format_bvh, write_bvh
 from mrlib.io.export import smpl_to_bvh
 from mrlib.io.jointmap import (
     JointMap,
@@ -61,6 +55,7 @@ from mrlib.io.outputs import OutputError, check_writable, write_text
 from mrlib.io.paths import default_data_dir, read_text_bounded
 from mrlib.io.retarget import calibrate_retarget, retarget_bvh
 from mrlib.io.retarget_report import RetargetResult
+from mrlib.io.transfer import RetargetOptions
 from mrlib.representation.body import check_body
 from mrlib.representation.motion import MAX_FPS, MAX_ROTATION_RAD, Motion
 
@@ -76,6 +71,7 @@ __all__ = [
     "load_easymocap",
     "retarget_bvh",
     "calibrate_retarget",
+    "RetargetOptions",
     "smpl_to_bvh",
     "RetargetResult",
     "JointMap",
@@ -167,7 +163,9 @@ def load_bvh(
         path: the ``.bvh`` file.
         fps: resample to this rate (default: the file's).
         joint_map: see ``retarget_bvh`` (None: detected from the joint names).
-        body, up_axis, unit, **retarget_options: passed to ``retarget_bvh``.
+        body, up_axis, unit, **retarget_options: passed to ``retarget_bvh``
+            (``options=RetargetOptions(...)``, ``warn``, or what ``calibrate_retarget``
+            returns).
         label: ``"auto"`` reads a Bandai Namco JSON next to the file when there is one
             (``load_label``), None leaves it empty, a string sets it.
 

@@ -4,12 +4,14 @@ and the least-squares fit of betas, scale and pelvis offset to a source skeleton
 For fixed global rotations SMPL's joints are linear in its rest joints, which are linear
 in the betas (``J(b) = J_0 + D b``): ``fit_shape_scale`` solves for betas, a uniform
 scale of the source and a constant pelvis offset by bounded linear least squares
-(``mrlib.io.retarget``, step 5). Only the body model's public API is used
+(``mrlib.io.retarget``, step 5), within the settings of a ``ShapeFit`` (what it starts
+from, holds fixed and fits). Only the body model's public API is used
 (``rest_joints``, or its ``J_template`` / ``J_shapedirs`` buffers when it has them).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -25,6 +27,7 @@ __all__ = [
     "rest_joints_for",
     "rest_pelvis",
     "smpl_forward_joints",
+    "ShapeFit",
     "fit_shape_scale",
     "fit_smpl_offsets",
 ]
@@ -90,6 +93,40 @@ def smpl_forward_joints(G: np.ndarray, J: np.ndarray, trans: np.ndarray) -> np.n
     return pos
 
 
+@dataclass(frozen=True)
+class ShapeFit:
+    """What the fit of steps 3-5 starts from, holds fixed and fits
+    (``mrlib.io.transfer.shape_fit`` makes it from ``retarget_bvh``'s options).
+
+    Attributes:
+        betas: ``(B,)`` the betas it starts from (or keeps, when not ``fit_betas``).
+        fit_betas: whether the betas are fitted.
+        offsets: ``(24, 3, 3)`` a fixed rest alignment, or None: solved.
+        scale: a fixed scale of the source, or None: fitted.
+        pelvis_offset: ``(3,)`` a fixed pelvis offset, or None: fitted.
+        ridge, bound: the betas fit's ridge weight and bound on each beta.
+    """
+
+    betas: np.ndarray
+    fit_betas: bool
+    offsets: np.ndarray | None
+    scale: float | None
+    pelvis_offset: np.ndarray | None
+    ridge: float
+    bound: float
+
+    def at_bound(self, b: np.ndarray) -> tuple[int, ...]:
+        """The indices of the fitted betas ``b`` that reached the bound."""
+        hit = self.fit_betas & (np.abs(b) >= self.bound * 0.999)
+        return tuple(int(i) for i in np.flatnonzero(hit))
+
+    def by_rotations(self, keep_betas: bool) -> ShapeFit:
+        """These settings for a transfer by rotations: no betas fitted, SMPL's mean shape
+        unless ``keep_betas`` (betas were given)."""
+        b = self.betas if keep_betas else np.zeros(len(self.betas))
+        return replace(self, betas=b, fit_betas=False)
+
+
 def fit_shape_scale(
     G: np.ndarray,
     J0: np.ndarray,
@@ -97,12 +134,7 @@ def fit_shape_scale(
     Q: np.ndarray,
     src: np.ndarray,
     mapped: np.ndarray,
-    b: np.ndarray,
-    fit_betas: bool,
-    scale: float | None,
-    delta: np.ndarray | None,
-    ridge: float,
-    bound: float,
+    fit: ShapeFit,
 ) -> tuple[np.ndarray, float, np.ndarray]:
     """Betas ``b``, scale ``s`` and pelvis offset ``delta`` minimising
     ``mean_{t,k} |x_k(t) + G_pelvis(t) delta - s Q_k(t)|^2 + ridge |b|^2``.
@@ -110,11 +142,15 @@ def fit_shape_scale(
     For fixed global rotations ``G (T, 24, 3, 3)``, SMPL's pelvis-relative joints are
     linear in the rest joints and so in the betas:
     ``x_k(t) = sum_{c on the path to k} G_parent(c)(t) (J_c - J_parent(c))(b)``.
-    ``Q (T, Js, 3)`` are the source joints relative to the hips; ``delta`` (pelvis
-    frame) moves SMPL's pelvis off the source hips. Bounded linear least squares
-    (``|b_i| <= bound``, ``s > 0``). Quantities given (``fit_betas=False``, ``scale`` or
-    ``delta`` not None) are held fixed.
+    ``Q (T, Js, 3)`` are the source joints relative to the hips, ``mapped`` the SMPL
+    joints compared; ``delta`` (pelvis frame) moves SMPL's pelvis off the source hips.
+    Bounded linear least squares (``|b_i| <= fit.bound``, ``s > 0``, ridge
+    ``fit.ridge``). What ``fit`` holds fixed (``fit_betas=False``: its ``betas``;
+    ``scale`` or ``pelvis_offset`` not None) stays as it is; its ``offsets`` play no
+    part here.
     """
+    b, fit_betas, scale, delta = fit.betas, fit.fit_betas, fit.scale, fit.pelvis_offset
+    ridge, bound = fit.ridge, fit.bound
     T = len(G)
     B = D.shape[-1]
     par = np.array(PARENTS[1:])

@@ -11,7 +11,8 @@ import numpy as np
 import torch
 
 from mrlib.io.bodyfit import rest_joints_for
-from mrlib.io.bvh import BVH, BVHSkeleton, matrix_to_euler
+from mrlib.io.bvh.hierarchy import BVH, BVHSkeleton
+from mrlib.io.bvh.kinematics import matrix_to_euler
 from mrlib.representation.body import resolve_body
 from mrlib.representation.rotations import axis_angle_to_matrix
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS

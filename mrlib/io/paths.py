@@ -32,6 +32,7 @@ __all__ = [
     "safe_component",
     "unique_components",
     "inside",
+    "read_bytes_bounded",
     "read_text_bounded",
 ]
 
@@ -138,21 +139,30 @@ def inside(root: str | Path, path: str | Path) -> Path:
     return Path(path)
 
 
-def read_text_bounded(path: str | Path, max_bytes: int, what: str, error, **kw) -> str:
-    """The text of ``path`` (UTF-8; ``kw`` passes ``errors=``), refused from its size
-    before a byte is read when it is over ``max_bytes``: a multi-GB file where a few MB
-    are expected costs a ``stat``, not the file. ``error(path, problem)`` builds the
-    exception (the reader's own ``MrlibError`` subclass); ``what`` names the file kind
-    in the message."""
+def read_bytes_bounded(
+    path: str | Path, max_bytes: int, error, too_big: str, unreadable: str = "cannot read file"
+) -> bytes:
+    """The bytes of ``path``, refused from its size before a byte is read when it is over
+    ``max_bytes``: a multi-GB file where a few MB are expected costs a ``stat``, not the
+    file. ``error(path, problem)`` builds the exception (the reader's own ``MrlibError``
+    subclass), with ``"<size> MB is more than the <too_big>"`` for a file too large and
+    ``"<unreadable>: <the system's reason>"`` for one that cannot be read."""
     path = Path(path)
     try:
         size = path.stat().st_size
         if size > max_bytes:
-            raise error(
-                path,
-                f"{size / 2**20:.0f} MB is more than the {max_bytes / 2**20:g} MB mrlib reads "
-                f"from {what}; cut it into shorter files",
-            )
-        return path.read_text(encoding="utf-8", **kw)
+            raise error(path, f"{size / 2**20:.0f} MB is more than the {too_big}")
+        return path.read_bytes()
     except OSError as e:
-        raise error(path, f"cannot read file: {e.strerror or e}") from None
+        raise error(path, f"{unreadable}: {e.strerror or e}") from None
+
+
+def read_text_bounded(path: str | Path, max_bytes: int, what: str, error, **kw) -> str:
+    """The text of ``path`` (UTF-8, newlines as ``Path.read_text`` gives them; ``kw``
+    passes ``errors=``), bounded as :func:`read_bytes_bounded`; ``what`` names the file
+    kind in the message."""
+    too_big = f"{max_bytes / 2**20:g} MB mrlib reads from {what}; cut it into shorter files"
+    text = read_bytes_bounded(path, max_bytes, error, too_big).decode("utf-8", **kw)
+    if "\r" in text:  # universal newlines, as text mode reads them
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text

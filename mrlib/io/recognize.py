@@ -1,9 +1,11 @@
 """Recognising a humanoid skeleton: a joint map from the tree, the bone lengths and the
 joint names, for skeletons no shipped map fits.
 
-The module is long because it is one algorithm, the seven numbered steps below, whose
-functions share one view of the tree (``_Tree``) and one set of name rules; split, each
-part would have to reach into the others' internals.
+The steps below share one view of the tree (``mrlib.io.skeleton_tree.SkeletonTree``) and
+one set of name rules (``mrlib.io.name_rules``: sides, helper joints, end markers, the
+words of each role); step 5 lives in ``mrlib.io.torso``, which also refits a shipped
+map's torso (``refit_torso``). This module finds the pelvis, chest and limbs and judges
+the result.
 
 A humanoid tree, whatever its names, has a *pelvis* where two legs and the spine part, a
 *chest* on the spine where two arms part from the way to the head, and five long chains
@@ -47,13 +49,15 @@ to the feet, the hands and the head. ``match_skeleton`` finds them in numbered s
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mrlib.errors import JointMapError
 from mrlib.io.jointmap import JointMap
+from mrlib.io.name_rules import fits_role, is_helper, name_fits_joint, name_parts
+from mrlib.io.skeleton_tree import SkeletonTree
+from mrlib.io.torso import place_torso, refit_torso
 from mrlib.representation.skeleton import JOINT_NAMES
 
 __all__ = [
@@ -66,83 +70,6 @@ __all__ = [
 ]
 
 MIN_CONFIDENCE = 0.6
-
-_END = re.compile(r"(end|top|nub|tip|site|effector)$")
-# helper bones: twist / roll / share (skinning helpers riding on a limb bone), IK and
-# control targets; matched on the core of the name (``name_parts``)
-_HELPER = re.compile(r"(twist|roll|share|helper|corrective)|^(ik|ctrl|ctl)")
-_PREFIX = re.compile(r"^(mixamorig\d*|bip0*\d+|def|jnt|j|b|bn|cc base|rig|sk)\s+")
-_SIDE_WORDS = {
-    "left": "left",
-    "l": "left",
-    "lft": "left",
-    "right": "right",
-    "r": "right",
-    "rt": "right",
-}
-# role -> words a name of that role contains (after the side marker is removed)
-_ROLES = {
-    "pelvis": ("hips", "hip", "pelvis", "root", "cog"),
-    "spine": ("spine", "chest", "back", "torso", "abdomen", "waist", "belly"),
-    "neck": ("neck",),
-    "head": ("head",),
-    "collar": ("clavicle", "collar", "shoulder"),
-    "shoulder": ("upperarm", "arm", "shoulder", "shldr", "humerus"),
-    "elbow": ("forearm", "lowerarm", "elbow"),
-    "wrist": ("hand", "wrist"),
-    "hand": ("finger", "index", "middle", "hand", "palm", "knuckle"),
-    "hip": ("upleg", "thigh", "upperleg", "hip", "femur"),
-    "knee": ("leg", "knee", "shin", "calf", "lowerleg"),
-    "ankle": ("foot", "ankle"),
-    "foot": ("toe", "ball", "toes"),
-}
-_ROLE_OF = {
-    "pelvis": "pelvis", "spine1": "spine", "spine2": "spine", "spine3": "spine",
-    "neck": "neck", "head": "head",
-}  # fmt: skip
-for _s in ("left", "right"):
-    _ROLE_OF.update(
-        {f"{_s}_{k}": k for k in ("collar", "shoulder", "elbow", "wrist", "hand", "hip", "knee")}
-    )
-    _ROLE_OF.update({f"{_s}_ankle": "ankle", f"{_s}_foot": "foot"})
-_PART_WORDS = tuple(sorted({w for ws in _ROLES.values() for w in ws} | {"thumb", "fingers"}))
-
-
-def name_parts(name: str) -> tuple[str | None, str]:
-    """``(side, core)`` of a joint name: ``"left"``, ``"right"`` or None, and the rest in
-    lower case without separators, namespace or rig prefix.
-
-    ``"mixamorig:LeftUpLeg"`` -> ``("left", "upleg")``, ``"Bip01 L Thigh"`` -> ``("left",
-    "thigh")``, ``"UpperArm_R"`` -> ``("right", "upperarm")``, ``"lhand"`` -> ``("left",
-    "hand")``, ``"Spine1"`` -> ``(None, "spine")``.
-    """
-    n = str(name).split(":")[-1].split("|")[-1]
-    n = re.sub(r"([a-z0-9])([A-Z])", r"\1 \2", n)  # camelCase -> words
-    words = [w for w in re.split(r"[^A-Za-z0-9]+", n.lower()) if w]
-    text = _PREFIX.sub("", " ".join(words) + " ").strip()
-    words = [w for w in text.split() if not w.isdigit()]
-    side = None
-    rest = []
-    for w in words:
-        s = _SIDE_WORDS.get(w)
-        if s is None and w.startswith(("left", "right")):
-            s, w = ("left", w[4:]) if w.startswith("left") else ("right", w[5:])
-        if s is not None and side is None:
-            side = s
-            if w in ("left", "right", "l", "r", "lft", "rt"):
-                continue
-        rest.append(w)
-    core = re.sub(r"\d+", "", "".join(rest))
-    if side is None and len(core) > 1 and core[0] in "lr" and core[1:].startswith(_PART_WORDS):
-        side, core = ("left" if core[0] == "l" else "right"), core[1:]
-    return side, core
-
-
-def is_helper(name: str) -> bool:
-    """Whether a joint name is a helper bone's: ``CC_Base_L_ThighTwist01``,
-    ``upperarm_twist_01_l``, ``CC_Base_L_KneeShareBone``, ``ik_hand_gun``, ... (not a
-    joint of the body's own chain, though it may sit on one)."""
-    return bool(_HELPER.search(name_parts(name)[1]))
 
 
 @dataclass(frozen=True)
@@ -170,110 +97,8 @@ class SkeletonMatch:
         return "\n".join(lines)
 
 
-class _Tree:
-    def __init__(self, names, parents, offsets):
-        self.names = list(names)
-        self.parents = list(parents)
-        self.n = len(self.names)
-        self.children = [[] for _ in range(self.n)]
-        for j, p in enumerate(self.parents):
-            if p >= 0:
-                self.children[p].append(j)
-        self.bone = np.linalg.norm(np.asarray(offsets, np.float64), axis=-1)  # to the parent
-        self.parts = [name_parts(n) for n in self.names]
-        self.helper = [bool(_HELPER.search(core)) for _, core in self.parts]
-        end = [not self.children[j] and bool(_END.search(self.parts[j][1])) for j in range(self.n)]
-        # a body joint below: a joint that is neither a helper nor an end marker
-        body_below = [False] * self.n
-        for j in reversed(range(self.n)):  # parents precede children in a BVH
-            body_below[j] = any(
-                body_below[c] or not (self.helper[c] or end[c]) for c in self.children[j]
-            )
-        # end markers, and helper joints with no body joint below them, are passed over
-        # when following chains; a helper on the way to a body joint is part of its bone
-        self.skip = [end[j] or (self.helper[j] and not body_below[j]) for j in range(self.n)]
-        # longest chain (bone length) from each joint down to a leaf
-        self.down = np.zeros(self.n)
-        for j in reversed(range(self.n)):  # parents precede children in a BVH
-            kids = [c for c in self.children[j] if not self.skip[c]]
-            self.down[j] = max((self.bone[c] + self.down[c] for c in kids), default=0.0)
-        self.depth = np.zeros(self.n, int)
-        for j in range(self.n):
-            if self.parents[j] >= 0:
-                self.depth[j] = self.depth[self.parents[j]] + 1
-
-    def reach(self, parent: int, child: int) -> float:
-        return self.bone[child] + self.down[child]
-
-    def long_children(self, j: int, length: float) -> list[int]:
-        return [c for c in self.children[j] if not self.skip[c] and self.reach(j, c) >= length]
-
-    def chain(self, start: int) -> list[int]:
-        """``start`` and its descendants along the longest path (end markers dropped)."""
-        out = [start]
-        while True:
-            kids = [c for c in self.children[out[-1]] if not self.skip[c]]
-            if not kids:
-                return out
-            out.append(max(kids, key=lambda c: self.bone[c] + self.down[c]))
-
-    def path(self, a: int, b: int) -> list[int]:
-        """Joints from ancestor ``a`` down to ``b``, both included."""
-        out = [b]
-        while out[-1] != a:
-            if self.parents[out[-1]] < 0:
-                raise ValueError("not an ancestor")
-            out.append(self.parents[out[-1]])
-        return out[::-1]
-
-    def long_forks(self, j: int, length: float) -> int:
-        """Number of joints in the subtree of ``j`` (itself included) with two or more
-        long branches (the chest with the arms; a leg has none)."""
-        total, stack = 0, [j]
-        while stack:
-            k = stack.pop()
-            total += len(self.long_children(k, length)) >= 2
-            stack += [c for c in self.children[k] if not self.skip[c]]
-        return total
-
-    def first_fork(self, start: int, length: float) -> tuple[int | None, float]:
-        """Down from ``start`` along single long branches: the first joint with two or
-        more long branches and the bone length on the way there (None if none)."""
-        j, way = start, 0.0
-        while True:
-            kids = self.long_children(j, length)
-            if len(kids) >= 2:
-                return j, way
-            if not kids:
-                return None, way
-            j = kids[0]
-            way += self.bone[j]
-
-    def branches(self, j: int) -> int:
-        """Number of long branches in the subtree of ``j``."""
-        total, stack = 0, [j]
-        while stack:
-            k = stack.pop()
-            kids = [c for c in self.children[k] if not self.skip[c]]
-            if len(kids) >= 2:
-                total += len(kids) - 1
-            stack += kids
-        return total
-
-
-def _alike(tree: _Tree, a: int, b: int, parent: int) -> float:
-    """How alike two branches are: 0 for the same length, growing with the ratio."""
-    la, lb = tree.reach(parent, a), tree.reach(parent, b)
-    return abs(np.log(max(la, 1e-9) / max(lb, 1e-9)))
-
-
-def _pick_pair(tree: _Tree, kids: list[int], parent: int) -> tuple[int, int]:
-    pairs = [(a, b) for i, a in enumerate(kids) for b in kids[i + 1 :]]
-    return min(pairs, key=lambda p: _alike(tree, p[0], p[1], parent))
-
-
 def _limb(
-    tree: _Tree, start: int, roles: tuple[str, str, str]
+    tree: SkeletonTree, start: int, roles: tuple[str, str, str]
 ) -> tuple[list[int], int, list[float]]:
     """The chain from ``start`` (helper joints on it merged into their bone), the index
     ``k`` of its upper bone (chain[k] -> chain[k + 1] -> chain[k + 2]) and the chain's
@@ -292,118 +117,14 @@ def _limb(
     top = max(seg[i] + seg[i + 1] for i in range(len(seg) - 1))
 
     def score(i: int) -> float:
-        fits = sum(
-            any(w in tree.parts[ch[i + r]][1] for w in _ROLES[role]) for r, role in enumerate(roles)
-        )
+        fits = sum(fits_role(tree.parts[ch[i + r]][1], role) for r, role in enumerate(roles))
         return (seg[i] + seg[i + 1]) / max(top, 1e-9) + 0.1 * fits
 
     k = max(range(len(seg) - 1), key=score)
     return ch, k, seg
 
 
-def _torso_assignment(
-    fr_src: np.ndarray,
-    fr_smpl: list[float],
-    lo: list[int],
-    hi: list[int],
-    usable: list[bool] | None = None,
-):
-    """Monotone assignment of SMPL torso joints (fractions ``fr_smpl``) to source chain
-    positions ``1..len-2`` (fractions ``fr_src``; only the ``usable`` ones) or to
-    nothing, position ``k`` of SMPL joint ``i`` within ``[lo[i], hi[i]]``; cost ``|fraction
-    difference|``, or ``UNMAPPED`` for a joint left out. Returns one position per SMPL
-    joint (-1: unmapped)."""
-    unmapped = 0.08
-    n, m = len(fr_smpl), len(fr_src)
-    best = {(-1, 0): (0.0, [])}  # (last position used, SMPL joints done) -> (cost, picks)
-    for i in range(n):
-        nxt: dict = {}
-        for (last, _), (cost, picks) in best.items():
-            options = [(-1, unmapped)]
-            for k in range(max(last + 1, lo[i]), min(hi[i], m - 2) + 1):
-                if usable is None or usable[k]:
-                    options.append((k, abs(fr_src[k] - fr_smpl[i])))
-            for k, c in options:
-                key = (k if k >= 0 else last, i + 1)
-                cand = (cost + c, picks + [k])
-                if key not in nxt or cand[0] < nxt[key][0]:
-                    nxt[key] = cand
-        best = nxt
-    return min(best.values(), key=lambda v: v[0])[1]
-
-
-def _torso(
-    tree: _Tree, torso: list[int], chest_at: int, P: np.ndarray, hips: list[int], J: np.ndarray
-) -> dict[str, int]:
-    """SMPL's spine1..3 and neck on the pelvis-to-head chain ``torso`` (step 5): ``{smpl
-    name: source joint}``, those with no source joint near enough left out. Arc lengths
-    start between the hips ``P[:, hips]`` (where the pelvis joint sits differs between
-    rigs); a joint at its parent's place (a zero-length bone) marks no point of its own
-    and is not used."""
-    base = float(np.median(np.linalg.norm(P[:, torso[0]] - P[:, hips].mean(1), axis=-1)))
-    seg = [base] + [tree.bone[torso[i]] for i in range(1, len(torso))]
-    fr_src = np.cumsum(seg) / max(sum(seg), 1e-9)
-    torso_names = ("pelvis", "spine1", "spine2", "spine3", "neck", "head")
-    smpl_torso = [JOINT_NAMES.index(n) for n in torso_names]
-    smpl_hips = J[[JOINT_NAMES.index("left_hip"), JOINT_NAMES.index("right_hip")]].mean(0)
-    steps = [np.linalg.norm(J[smpl_torso[0]] - smpl_hips)]
-    steps += [np.linalg.norm(J[b] - J[a]) for a, b in zip(smpl_torso, smpl_torso[1:], strict=False)]
-    arc = np.cumsum(steps)
-    fr_smpl = list(arc[1:5] / arc[-1])
-    lo = [1, 1, 1, chest_at]
-    hi = [chest_at, chest_at, chest_at, len(torso) - 2]
-    usable = [seg[k] > 1e-3 * sum(seg) for k in range(len(torso))]
-    picks = _torso_assignment(fr_src, fr_smpl, lo, hi, usable)
-    names = ("spine1", "spine2", "spine3", "neck")
-    return {n: torso[k] for n, k in zip(names, picks, strict=True) if k >= 0}
-
-
-def refit_torso(jmap: JointMap, names, parents, offsets, positions, rest_joints) -> JointMap:
-    """``jmap`` with SMPL's spine1..3 and neck placed on the source's own spine by its
-    geometry (step 5), the other joints kept: a shipped map names the torso joints of one
-    skeleton, another skeleton with the same names may have its spine joints elsewhere
-    (CMU's chest joint, where the collars hang, sits a third of the way up from SMPL's
-    spine3 to its collars). Returns ``jmap`` itself when the pelvis, head or chest is not
-    mapped or nothing moves.
-
-    Args:
-        names, parents, offsets: the source skeleton; positions: ``(F, J, 3)`` joint
-            positions of a few frames; rest_joints: ``(24, 3)`` SMPL's.
-    """
-    m = dict(jmap.mapping)
-    need = ("pelvis", "head", "left_hip", "right_hip", "left_collar", "right_collar")
-    if any(n not in m for n in need):
-        return jmap
-    tree = _Tree(names, parents, offsets)
-    idx = {n: list(names).index(m[n]) for n in need}
-    try:
-        torso = tree.path(idx["pelvis"], idx["head"])
-    except ValueError:
-        return jmap
-
-    def up(j: int) -> list[int]:
-        out = [j]
-        while parents[out[-1]] >= 0:
-            out.append(parents[out[-1]])
-        return out
-
-    a, b = up(idx["left_collar"]), set(up(idx["right_collar"]))
-    chest = next(j for j in a if j in b)  # where the collars part
-    if chest not in torso or chest == torso[0] or chest == torso[-1]:
-        return jmap
-    P = np.asarray(positions, np.float64)
-    hips = [idx["left_hip"], idx["right_hip"]]
-    new = _torso(tree, torso, torso.index(chest), P, hips, np.asarray(rest_joints, np.float64))
-    for n in ("spine1", "spine2", "spine3", "neck"):
-        m.pop(n, None)
-    m.update({n: names[j] for n, j in new.items()})
-    if m == dict(jmap.mapping):
-        return jmap
-    order = {n: m[n] for n in JOINT_NAMES if n in m}
-    return JointMap(jmap.name, order, jmap.description + " (torso placed by its geometry)")
-
-
-def _find_pelvis(tree: _Tree, long: float) -> tuple[int, int, tuple[int, int]]:
+def _find_pelvis(tree: SkeletonTree, long: float) -> tuple[int, int, tuple[int, int]]:
     """``(pelvis, first joint of the spine, the two legs' first joints)``: the joint
     nearest the root where two legs and a spine part, together (three long branches) or
     split (two long branches: one reaches a joint where the legs part, within half a
@@ -413,7 +134,7 @@ def _find_pelvis(tree: _Tree, long: float) -> tuple[int, int, tuple[int, int]]:
         if len(kids) >= 3:
             # the spine branches again (the chest); the legs do not
             spine = max(kids, key=lambda c: (tree.long_forks(c, long), tree.branches(c)))
-            return j, spine, _pick_pair(tree, [k for k in kids if k != spine], j)
+            return j, spine, tree.pick_pair([k for k in kids if k != spine], j)
         if len(kids) != 2:
             continue
         best = None
@@ -458,7 +179,7 @@ def match_skeleton(
         JointMapError: the tree has no pelvis with two legs and a spine, or no chest with
             two arms and a head.
     """
-    tree = _Tree(names, parents, offsets)
+    tree = SkeletonTree(names, parents, offsets)
     P = np.asarray(positions, np.float64)
     still = None
     if local_rotations is not None:
@@ -475,7 +196,7 @@ def match_skeleton(
         longs = tree.long_children(j, size / 6)
         others = [c for c in tree.children[j] if not tree.skip[c]]
         if len(longs) >= 2 and len(others) >= 3:
-            a, b = _pick_pair(tree, longs, j)
+            a, b = tree.pick_pair(longs, j)
             rest = [c for c in others if c not in (a, b)]
             chest, arm_kids = j, (a, b)
             head_child = max(rest, key=lambda c: tree.reach(j, c))
@@ -505,7 +226,7 @@ def match_skeleton(
     hips = [ch[k] for ch, k, _ in legs.values()]
     J = np.asarray(rest_joints, np.float64)
     mapping = {"pelvis": tree.names[pelvis], "head": tree.names[torso[-1]]}
-    for name, j in _torso(tree, torso, torso.index(chest), P, hips, J).items():
+    for name, j in place_torso(tree, torso, torso.index(chest), P, hips, J).items():
         mapping[name] = tree.names[j]
     # 6. sides: names, else the pose
     up_f = P[:, torso[-1]] - P[:, pelvis]  # (F, 3)
@@ -596,10 +317,7 @@ def match_skeleton(
     checks.append(
         ("trunk upright over the feet", upright >= 0.7, f"{100 * upright:.0f}% of frames")
     )
-    agree = [
-        any(w in name_parts(src)[1] for w in _ROLES[_ROLE_OF[smpl]])
-        for smpl, src in mapping.items()
-    ]
+    agree = [name_fits_joint(src, smpl) for smpl, src in mapping.items()]
     names_ok = float(np.mean(agree)) if agree else 0.0
     confidence = 0.7 * float(np.mean([ok for _, ok, _ in checks])) + 0.3 * names_ok
     jmap = JointMap(
@@ -618,7 +336,8 @@ def recognise_bvh(bvh, rest_joints: np.ndarray, min_confidence: float = MIN_CONF
         JointMapError: not recognised as humanoid (the error names the file and says why,
             with the checks that failed).
     """
-    from mrlib.io.bvh import BVH, bvh_forward_kinematics, bvh_local_transforms
+    from mrlib.io.bvh.hierarchy import BVH
+    from mrlib.io.bvh.kinematics import bvh_forward_kinematics, bvh_local_transforms
 
     sk = bvh.skeleton
     sub = np.unique(np.linspace(0, bvh.num_frames - 1, min(bvh.num_frames, 60)).round().astype(int))

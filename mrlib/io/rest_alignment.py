@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrlib.io.bvh import BVHSkeleton
+from mrlib.io.bvh.hierarchy import BVHSkeleton
 from mrlib.io.jointmap import mapped_targets
-from mrlib.io.recognize import is_helper
+from mrlib.io.name_rules import is_helper
 from mrlib.representation.rotations import axis_rotation, kabsch_rotation, rotation_between, skew
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 

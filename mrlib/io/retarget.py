@@ -94,17 +94,18 @@ from typing import Any
 
 import numpy as np
 
-from mrlib.errors import JointMapError, MotionFileError
+from mrlib.errors import ArgumentError, JointMapError, MotionFileError, shown
 from mrlib.io.axes import (
     file_unit,
     source_up_axis,
     up_axis_rotation,
 )
 from mrlib.io.bodyfit import default_body, joint_shape_basis
-from mrlib.io.bvh import BVH, bvh_forward_kinematics
+from mrlib.io.bvh.hierarchy import BVH
+from mrlib.io.bvh.kinematics import bvh_forward_kinematics
 from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, validate_map
 from mrlib.io.proportions import compared_joints, source_bones
-from mrlib.io.recognize import SkeletonMatch, recognise_bvh, refit_torso
+from mrlib.io.recognize import SkeletonMatch, recognise_bvh
 from mrlib.io.retarget_report import (
     RetargetResult,
     RetargetWarning,
@@ -112,7 +113,9 @@ from mrlib.io.retarget_report import (
     implausible_joints,
     warning_text,
 )
+from mrlib.io.torso import refit_torso
 from mrlib.io.transfer import (
+    RetargetOptions,
     fit_rest_and_shape,
     local_poses,
     root_by_leg_length,
@@ -123,6 +126,7 @@ from mrlib.io.transfer import (
 )
 
 __all__ = [
+    "RetargetOptions",
     "retarget_bvh",
     "calibrate_retarget",
 ]
@@ -140,16 +144,8 @@ def retarget_bvh(
     body=None,
     up_axis: str = "auto",
     unit: str | float = "auto",
-    fit_betas: bool = True,
-    betas: np.ndarray | None = None,
-    offsets: np.ndarray | None = None,
-    scale: float | str = "auto",
-    pelvis_offset: bool | np.ndarray = True,
-    shape_ridge: float = 1e-5,
-    shape_bound: float = 3.0,
-    transfer: str = "auto",
+    options: RetargetOptions | None = None,
     warn: bool = True,
-    hinge_twist: bool = True,
 ) -> RetargetResult:
     """Retarget a BVH clip onto the SMPL skeleton (method: module docstring).
 
@@ -160,30 +156,11 @@ def retarget_bvh(
         body: a body model (``mrlib.representation.body``); default: the one mrlib ships.
         up_axis: the source's up axis (``x y z -x -y -z``) or ``"auto"``.
         unit: metres per file unit, a name in ``mrlib.io.axes.UNITS``, or ``"auto"``.
-        fit_betas: fit SMPL's shape to the source skeleton's proportions.
-        betas: use these betas instead of fitting.
-        offsets: ``(24, 3, 3)`` rest alignment from an earlier call on the same skeleton.
-        scale: uniform scale applied to the source after unit conversion. ``"auto"``:
-            1 when betas are fitted (the capture keeps its metric size, so speeds and
-            strides stay true and the body's shape takes up the difference), fitted by
-            least squares otherwise; ``"fit"``: always fitted; or a number.
-        pelvis_offset: fit a constant offset ``delta`` (pelvis frame) between SMPL's
-            pelvis and the source hips (skeletons disagree on where the pelvis joint
-            is: CMU's root sits ~10 cm above its hip joints, SMPL's level with them);
-            False pins SMPL's pelvis to the hips; or a fixed ``(3,)`` offset in metres.
-        shape_ridge: ridge weight of the betas fit, per mean squared joint error in m^2
-            (at 1e-5 one unit of beta costs as much as 3 mm of RMS joint error).
-        shape_bound: bound on each fitted beta (keeps the body plausible).
-        transfer: ``"positions"`` (fit SMPL's shape to the source's joints),
-            ``"rotations"`` (transfer the motion by rotations onto SMPL's mean shape,
-            the root scaled by leg length) or ``"auto"``: positions unless SMPL's shape
-            space cannot reach the source's proportions (step 8).
+        options: what the fit fits, holds fixed and its knobs (``RetargetOptions``:
+            betas, rest alignment, scale, pelvis offset, shape ridge and bound, transfer
+            mode, hinge twist); None: the defaults.
         warn: issue a ``RetargetWarning`` when the error is above ``RETARGET_WARN_CM``
             (the result's ``warning`` holds its text either way).
-        hinge_twist: set the twist of hips, knees, shoulders and elbows by the knee and
-            elbow hinge axes (step 3); False keeps the closed form there too (mrlib's
-            retargeting before 2026-12: the same joint positions, the limbs' local
-            rotations twisted by the clip's average).
 
     Returns:
         A ``RetargetResult``.
@@ -193,22 +170,20 @@ def retarget_bvh(
     """
     if bvh.num_frames == 0:
         raise MotionFileError(bvh.source, "the BVH has no frames")
+    options = RetargetOptions() if options is None else options
+    if not isinstance(options, RetargetOptions):
+        raise ArgumentError(f"options must be a RetargetOptions, got options={shown(options)}")
     sk = bvh.skeleton
     body = default_body() if body is None else body
     J_tmpl, D = joint_shape_basis(body)
     jmap, recognition = _joint_map_for(bvh, joint_map, J_tmpl)
-    if joint_map is None and recognition is None and jmap.refit_torso and offsets is None:
+    if joint_map is None and recognition is None and jmap.refit_torso and options.offsets is None:
         # a shipped map's torso, and the same map with the torso placed by this
-        # skeleton's geometry (recognize.refit_torso): the one that fits better
+        # skeleton's geometry (torso.refit_torso): the one that fits better
         alt = _torso_by_geometry(bvh, jmap, J_tmpl)
         if alt is not jmap:
-            options = dict(
-                body=body, up_axis=up_axis, unit=unit, fit_betas=fit_betas, betas=betas,
-                scale=scale, pelvis_offset=pelvis_offset, shape_ridge=shape_ridge,
-                shape_bound=shape_bound, transfer=transfer, warn=False,
-                hinge_twist=hinge_twist,
-            )  # fmt: skip
-            fits = [retarget_bvh(bvh, m, **options) for m in (jmap, alt)]
+            same = dict(body=body, up_axis=up_axis, unit=unit, options=options, warn=False)
+            fits = [retarget_bvh(bvh, m, **same) for m in (jmap, alt)]
             best = min(fits, key=lambda r: r.error_mean_cm)
             if best.warning and warn:
                 warnings.warn(best.warning, RetargetWarning, stacklevel=2)
@@ -225,16 +200,12 @@ def retarget_bvh(
     up_axis = source_up_axis(src, P) if up_axis == "auto" else up_axis
     A = up_axis_rotation(up_axis)
     # 3.-5. what the fit is given and what it fits; the source in mrlib's frame
-    fit = shape_fit(
-        sk, jmap, src, A, unit_m, J_tmpl, D, betas=betas, fit_betas=fit_betas,
-        offsets=offsets, scale=scale, pelvis_offset=pelvis_offset, ridge=shape_ridge,
-        bound=shape_bound,
-    )  # fmt: skip
-    source = world_source(src, sk, placed, A @ R, unit_m * (P @ A.T), hinge_twist)
+    fit = shape_fit(sk, jmap, src, A, unit_m, J_tmpl, D, options)
+    source = world_source(src, sk, placed, A @ R, unit_m * (P @ A.T), options.hinge_twist)
     # 8. by positions, or by rotations when SMPL's shape space cannot reach the source
-    mode, leg_src = transfer_mode(transfer, source, bones, unit_m, J_tmpl, D, fit)
+    mode, leg_src = transfer_mode(options.transfer, source, bones, unit_m, J_tmpl, D, fit)
     if mode == "rotations":
-        fit = fit.by_rotations(keep_betas=betas is not None)
+        fit = fit.by_rotations(keep_betas=options.betas is not None)
     # 3.-5. rest alignment and body shape; 8. by rotations, the root scaled by leg length
     b, C_all, s_fit, delta = fit_rest_and_shape(source, J_tmpl, D, fit, mode)
     if mode == "rotations":
@@ -257,7 +228,7 @@ def retarget_bvh(
             "from the file's on average, no body's skeleton or motion (a damaged file, or "
             "values in the wrong columns?)",
         )
-    text = warning_text(result, bvh.source, shape_bound)
+    text = warning_text(result, bvh.source, options.shape_bound)
     if text is not None:
         result = replace(result, warning=text)
         if warn:
@@ -295,7 +266,7 @@ def calibrate_retarget(
     joint_map: str | Path | Mapping[str, str] | JointMap | None = None,
     *,
     max_frames_per_clip: int = 240,
-    **options: Any,
+    **retarget_kwargs: Any,
 ) -> dict[str, Any]:
     """One retargeting calibration for several clips of the same skeleton.
 
@@ -308,8 +279,13 @@ def calibrate_retarget(
         calib = calibrate_retarget([read_bvh(p) for p in paths])
         motions = [load_bvh(p, **calib) for p in paths]
 
+    ``retarget_kwargs`` are passed to ``retarget_bvh`` (``body``, ``up_axis``, ``unit``,
+    ``options``, ``warn``).
+
     Returns:
-        ``{"joint_map", "offsets", "betas", "pelvis_offset", "unit", "up_axis", "scale"}``.
+        ``{"joint_map", "unit", "up_axis", "options"}``: ``options`` is the
+        ``RetargetOptions`` given (or the defaults) with the fitted ``offsets``,
+        ``betas``, ``pelvis_offset`` and ``scale`` held fixed.
 
     Raises:
         MotionFileError: the clips do not share one skeleton (joint names and channels).
@@ -327,13 +303,9 @@ def calibrate_retarget(
             b.motion[np.unique(np.linspace(0, b.num_frames - 1, n).round().astype(np.int64))]
         )
     pooled = BVH(first, np.concatenate(parts), bvhs[0].frame_time, source=f"{len(bvhs)} clips")
-    r = retarget_bvh(pooled, joint_map, **options)
-    return {
-        "joint_map": r.joint_map,
-        "offsets": r.offsets,
-        "betas": r.betas,
-        "pelvis_offset": r.pelvis_offset,
-        "unit": r.unit,
-        "up_axis": r.up_axis,
-        "scale": r.scale,
-    }
+    r = retarget_bvh(pooled, joint_map, **retarget_kwargs)
+    given = retarget_kwargs.get("options") or RetargetOptions()
+    fitted = replace(
+        given, offsets=r.offsets, betas=r.betas, pelvis_offset=r.pelvis_offset, scale=r.scale
+    )
+    return {"joint_map": r.joint_map, "unit": r.unit, "up_axis": r.up_axis, "options": fitted}

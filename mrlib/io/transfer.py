@@ -6,7 +6,7 @@ global rotations are the source's turned by the rest alignment ``C_j``
 between its mapped neighbours, any other unmapped joint follows its parent
 (``smpl_globals``, step 4). ``fit_rest_and_shape`` alternates the alignment and the body
 fit of ``mrlib.io.bodyfit`` (betas, scale, pelvis offset) until the betas settle (steps
-3, 5), within the settings of ``shape_fit``. ``transfer_mode`` decides between positions
+3, 5), within the settings ``shape_fit`` makes of the caller's ``RetargetOptions``. ``transfer_mode`` decides between positions
 and rotations (step 8); by rotations ``root_by_leg_length`` scales the root. Last,
 ``smpl_motion`` and ``local_poses`` give SMPL's translation and axis-angle poses (step 6).
 """
@@ -17,8 +17,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mrlib.io.bodyfit import fit_shape_scale, fit_smpl_offsets
-from mrlib.io.bvh import BVHSkeleton
+from mrlib.io.bodyfit import ShapeFit, fit_shape_scale, fit_smpl_offsets
+from mrlib.io.bvh.hierarchy import BVHSkeleton
 from mrlib.io.jointmap import SMPL_JOINT_MAP, JointMap
 from mrlib.io.proportions import (
     LEG_NAMES,
@@ -41,9 +41,9 @@ from mrlib.representation.rotations import matrix_to_axis_angle_numpy
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, PARENTS
 
 __all__ = [
+    "RetargetOptions",
     "WorldSource",
     "world_source",
-    "ShapeFit",
     "shape_fit",
     "smpl_globals",
     "transfer_mode",
@@ -102,36 +102,47 @@ def world_source(
 
 
 @dataclass(frozen=True)
-class ShapeFit:
-    """What the fit of steps 3-5 starts from, holds fixed and fits (``shape_fit``).
+class RetargetOptions:
+    """How ``mrlib.io.retarget.retarget_bvh`` fits SMPL to a source: what it fits, what it
+    holds fixed and the fit's knobs, one value (the defaults are mrlib's). Pass
+    ``options=RetargetOptions(transfer="positions")`` to ``retarget_bvh``,
+    ``mrlib.io.load_bvh`` or ``calibrate_retarget`` (which returns the options that
+    reuse its fit).
 
     Attributes:
-        betas: ``(B,)`` the betas it starts from (or keeps, when not ``fit_betas``).
-        fit_betas: whether the betas are fitted.
-        offsets: ``(24, 3, 3)`` a fixed rest alignment, or None: solved.
-        scale: a fixed scale of the source, or None: fitted.
-        pelvis_offset: ``(3,)`` a fixed pelvis offset, or None: fitted.
-        ridge, bound: the betas fit's ridge weight and bound on each beta.
+        fit_betas: fit SMPL's shape to the source skeleton's proportions.
+        betas: use these betas instead of fitting.
+        offsets: ``(24, 3, 3)`` rest alignment from an earlier call on the same skeleton.
+        scale: uniform scale applied to the source after unit conversion. ``"auto"``:
+            1 when betas are fitted (the capture keeps its metric size, so speeds and
+            strides stay true and the body's shape takes up the difference), fitted by
+            least squares otherwise; ``"fit"``: always fitted; or a number.
+        pelvis_offset: fit a constant offset ``delta`` (pelvis frame) between SMPL's
+            pelvis and the source hips (skeletons disagree on where the pelvis joint
+            is: CMU's root sits ~10 cm above its hip joints, SMPL's level with them);
+            False pins SMPL's pelvis to the hips; or a fixed ``(3,)`` offset in metres.
+        shape_ridge: ridge weight of the betas fit, per mean squared joint error in m^2
+            (at 1e-5 one unit of beta costs as much as 3 mm of RMS joint error).
+        shape_bound: bound on each fitted beta (keeps the body plausible).
+        transfer: ``"positions"`` (fit SMPL's shape to the source's joints),
+            ``"rotations"`` (transfer the motion by rotations onto SMPL's mean shape,
+            the root scaled by leg length) or ``"auto"``: positions unless SMPL's shape
+            space cannot reach the source's proportions (step 8).
+        hinge_twist: set the twist of hips, knees, shoulders and elbows by the knee and
+            elbow hinge axes (step 3); False keeps the closed form there too (mrlib's
+            retargeting before 2026-12: the same joint positions, the limbs' local
+            rotations twisted by the clip's average).
     """
 
-    betas: np.ndarray
-    fit_betas: bool
-    offsets: np.ndarray | None
-    scale: float | None
-    pelvis_offset: np.ndarray | None
-    ridge: float
-    bound: float
-
-    def at_bound(self, b: np.ndarray) -> tuple[int, ...]:
-        """The indices of the fitted betas ``b`` that reached the bound."""
-        hit = self.fit_betas & (np.abs(b) >= self.bound * 0.999)
-        return tuple(int(i) for i in np.flatnonzero(hit))
-
-    def by_rotations(self, keep_betas: bool) -> ShapeFit:
-        """These settings for a transfer by rotations: no betas fitted, SMPL's mean shape
-        unless ``keep_betas`` (betas were given)."""
-        b = self.betas if keep_betas else np.zeros(len(self.betas))
-        return replace(self, betas=b, fit_betas=False)
+    fit_betas: bool = True
+    betas: np.ndarray | None = None
+    offsets: np.ndarray | None = None
+    scale: float | str = "auto"
+    pelvis_offset: bool | np.ndarray = True
+    shape_ridge: float = 1e-5
+    shape_bound: float = 3.0
+    transfer: str = "auto"
+    hinge_twist: bool = True
 
 
 def shape_fit(
@@ -142,22 +153,17 @@ def shape_fit(
     unit_m: float,
     J_tmpl: np.ndarray,
     D: np.ndarray,
-    *,
-    betas: np.ndarray | None,
-    fit_betas: bool,
-    offsets: np.ndarray | None,
-    scale: float | str,
-    pelvis_offset: bool | np.ndarray,
-    ridge: float,
-    bound: float,
+    options: RetargetOptions,
 ) -> ShapeFit:
-    """The fit's settings from ``retarget_bvh``'s options (its docstring) for the skeleton
-    ``sk`` mapped by ``jmap`` (``src``), turned into mrlib's frame by ``A``.
+    """The fit's settings from ``retarget_bvh``'s ``options`` for the skeleton ``sk``
+    mapped by ``jmap`` (``src``), turned into mrlib's frame by ``A``.
 
     An SMPL-named skeleton whose rest pose is SMPL's T-pose (mrlib's own export) is read
     exactly: its offsets are SMPL's rest joints (betas solved from them), its local
     rotations are SMPL's (``C_j = A^T``, identity when Y up), its root is the pelvis.
     """
+    betas, fit_betas, offsets = options.betas, options.fit_betas, options.offsets
+    scale, pelvis_offset = options.scale, options.pelvis_offset
     B = D.shape[-1]
     smpl_named = jmap is SMPL_JOINT_MAP and is_smpl_rest(sk, src, A, J_tmpl)
     if betas is not None:
@@ -181,7 +187,9 @@ def shape_fit(
         fixed_delta = None if (pelvis_offset and not smpl_named) else np.zeros(3)
     else:
         fixed_delta = np.asarray(pelvis_offset, dtype=np.float64).reshape(3)
-    return ShapeFit(b, fit_b, fixed_C, fixed_s, fixed_delta, ridge, bound)
+    return ShapeFit(
+        b, fit_b, fixed_C, fixed_s, fixed_delta, options.shape_ridge, options.shape_bound
+    )
 
 
 # SMPL's torso chain, pelvis to head: an unmapped joint on it takes a share of the turn
@@ -299,9 +307,8 @@ def fit_rest_and_shape(
             break
         G = smpl_globals(C_all, s.src, s.Rw[s.sub], rot=s.rot)
         b_new, s_fit, delta = fit_shape_scale(
-            G, J_tmpl, D, s.Q[s.sub], s.src, s.placed, b, fit_b, fixed_s, fixed_delta,
-            fit.ridge, fit.bound,
-        )  # fmt: skip
+            G, J_tmpl, D, s.Q[s.sub], s.src, s.placed, replace(fit, betas=b)
+        )
         change = np.abs(b_new - b).max(initial=0.0)
         b = b_new
         if change < 1e-4:
@@ -333,10 +340,8 @@ def root_by_leg_length(
     k = leg_length(J[None], None) / leg_src
     G_sub = smpl_globals(C_all, s.src, s.Rw[s.sub], rot=s.rot)
     legs = np.array([j for j in s.placed if j == 0 or JOINT_NAMES[j] in LEG_NAMES])
-    _, _, delta = fit_shape_scale(
-        G_sub, J_tmpl, D, s.Q[s.sub], s.src, legs, b, False, k, fit.pelvis_offset,
-        fit.ridge, fit.bound,
-    )  # fmt: skip
+    held = replace(fit, betas=b, fit_betas=False, scale=k)  # the pelvis offset alone
+    _, _, delta = fit_shape_scale(G_sub, J_tmpl, D, s.Q[s.sub], s.src, legs, held)
     return k, delta
 
 

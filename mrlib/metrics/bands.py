@@ -7,11 +7,20 @@ is in ``mrlib.evaluation.crossover``'s docstring.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from mrlib.errors import MotionValueError
 
-__all__ = ["FILTER_ORDER", "check_cutoff", "lowpass", "split_bands", "rms_profile"]
+__all__ = [
+    "FILTER_ORDER",
+    "check_cutoff",
+    "check_split_level",
+    "lowpass",
+    "split_bands",
+    "rms_profile",
+]
 
 
 FILTER_ORDER = 4  # Butterworth order of each pass (forward and backward)
@@ -24,6 +33,18 @@ def check_cutoff(fps: float, cutoff_hz: float) -> None:
         raise MotionValueError(
             f"cutoff must lie in (0, fps/2) = (0, {fps / 2:g}) Hz, got {cutoff_hz}"
         )
+
+
+def check_split_level(level: Any, num_levels: int, what: str, meaning: str) -> int:
+    """``level`` as an int if it splits a pyramid of ``num_levels`` levels into ``1..level``
+    and ``level+1..num_levels`` (an integer in ``1..num_levels-1``), else a
+    ``MotionValueError`` naming it ``what`` and saying what the two parts are
+    (``meaning``)."""
+    if isinstance(level, bool) or not isinstance(level, (int, np.integer)):
+        raise MotionValueError(f"{what} must be an integer, got {level!r}")
+    if not 1 <= level <= num_levels - 1:
+        raise MotionValueError(f"{what} must be in 1..{num_levels - 1} ({meaning}), got {level}")
+    return int(level)
 
 
 def lowpass(x: np.ndarray, fps: float, cutoff_hz: float) -> np.ndarray:

@@ -1,8 +1,9 @@
-"""The metrics of ``mrlib.metrics.paper`` written straight from their definitions: slow
-oracles (one row, one window, one segmentation at a time) that the tests and
-``bench/metrics_speed.py`` check the fast, blocked versions against. Not for use on real
-clips: the global diversity here is ``O(T_g^2 * T_r)``, and
-:func:`global_diversity_enumerate` lists every segmentation (tiny inputs only).
+"""The metrics of ``mrlib.metrics.coverage`` and ``mrlib.metrics.diversity`` written
+straight from their definitions (the paper's Eq. 17-20): slow oracles (one row, one
+window, one segmentation at a time) that the tests and ``bench/metrics_speed.py`` check
+the fast, blocked versions against. Not for use on real clips: the global diversity
+here is ``O(T_g^2 * T_r)``, and :func:`global_diversity_enumerate` lists every
+segmentation (tiny inputs only).
 
 Dimension letters (``mrlib`` glossary): T frames, D feature channels, N windows.
 """
@@ -14,7 +15,7 @@ import itertools
 import numpy as np
 
 from mrlib.errors import ClipTooShortError
-from mrlib.metrics.paper import Segmentation
+from mrlib.metrics.diversity import Segmentation
 
 __all__ = [
     "frame_distances_naive",

@@ -1,10 +1,10 @@
 """Physical plausibility of motion: foot skating, jitter, ground penetration, and how far
 the speed distributions of generated motion are from the training data's.
 
-Coverage and diversity (``mrlib.metrics.paper``) compare body poses only. A clip can be fully
-covered and look diverse while its feet slide, its joints shake or it sinks into the
-floor; these measures report that, on joint and foot-vertex *positions* of the posed
-body (``mrlib.representation.body``), in SI units.
+Coverage and diversity (``mrlib.metrics.coverage``, ``mrlib.metrics.diversity``) compare
+body poses only. A clip can be fully covered and look diverse while its feet slide, its
+joints shake or it sinks into the floor; these measures report that, on joint and
+foot-vertex *positions* of the posed body (``mrlib.representation.body``), in SI units.
 
 Quantities, for motions at ``fps`` frames per second:
 
@@ -385,7 +385,6 @@ def plausibility_report(
     *,
     skate_threshold: float = SKATE_SPEED_THRESHOLD,
     penetration_threshold: float = PENETRATION_THRESHOLD,
-    ground: float | None = None,
     ground_percentile: float = GROUND_PERCENTILE,
     kinematics: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
     reference_kinematics: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
@@ -399,8 +398,8 @@ def plausibility_report(
         body: ``BodyModel`` (default body when None).
         skate_threshold: m/s for ``skate_share``.
         penetration_threshold: metres for ``penetration_share``.
-        ground: ground height (metres); None estimates it from ``references``
-            (``estimate_ground`` at ``ground_percentile``).
+        ground_percentile: the ground height is estimated from ``references``
+            (``estimate_ground`` at this percentile of their foot-vertex heights).
         kinematics, reference_kinematics: ``motion_kinematics(m, body)`` of every
             motion / reference, when already computed (saves the body forward).
 
@@ -429,8 +428,7 @@ def plausibility_report(
     body = resolve_body(body)
 
     ref_kin = _kinematics_of(refs, reference_kinematics, body, "reference_kinematics")
-    if ground is None:
-        ground = estimate_ground([f for _, f in ref_kin], ground_percentile)
+    ground = estimate_ground([f for _, f in ref_kin], ground_percentile)
     jerk_ref = float(
         np.concatenate(
             [joint_jerk(j, m.fps).ravel() for (j, _), m in zip(ref_kin, refs, strict=True)]

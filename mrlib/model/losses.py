@@ -1,10 +1,11 @@
-"""Training losses (paper Eq. 6-11, and the terms mrlib adds) as pure functions.
+"""Training losses as pure functions: the paper's terms (Eq. 12-16; their weighted sum,
+Eq. 11, is ``mrlib.training.objective``) and the terms mrlib adds.
 
 Shapes: B batch, C channels, T frames. A batch may be padded ``(B, C, T_max)`` or packed
 ``(1, C, S)`` (``mrlib.model.pyramid.PackedLevels``); either way, ``weights (B, T)`` gives every
 frame its weight in the mean: zero on padding, and ``1 / (frames of its sample * B)``
 on valid frames, so a short clip counts as much as a long one (the paper's
-``1/N sum_k`` in Eq. 10). ``mask_weights`` builds them from a padded batch's mask.
+``1/N sum_k`` in Eq. 15). ``mask_weights`` builds them from a padded batch's mask.
 
 Units: joint and vertex positions in metres, velocities in metres per second at the
 level's own frame rate ``fps_i = fps * T_i / T_L``. With these units the paper's weights
@@ -74,7 +75,7 @@ def _frame_rate(fps: torch.Tensor | float, like: torch.Tensor, extra_dims: int) 
 def critic_loss(
     score_real: torch.Tensor, score_fake: torch.Tensor, w_real: torch.Tensor, w_fake: torch.Tensor
 ) -> torch.Tensor:
-    """``E[D(fake)] - E[D(real)]`` (paper Eq. 7 without the penalty). Scores are per-patch
+    """``E[D(fake)] - E[D(real)]`` (paper Eq. 12 without the penalty, Eq. 13). Scores are per-patch
     ``(B, T)``; a sequence's score is the mean of its patch scores (PatchGAN)."""
     return weighted_mean(score_fake, w_fake) - weighted_mean(score_real, w_real)
 
@@ -186,7 +187,7 @@ def detail_statistics_loss(band_rms: torch.Tensor, target_rms: torch.Tensor) -> 
 def reconstruction_loss(
     pred: torch.Tensor, target: torch.Tensor, weights: torch.Tensor
 ) -> torch.Tensor:
-    """L1 between ``pred`` and ``target (B, C, T)`` (paper Eq. 10): mean absolute error
+    """L1 between ``pred`` and ``target (B, C, T)`` (paper Eq. 15): mean absolute error
     over the frames and channels of each clip, averaged over clips."""
     return weighted_mean((pred - target).abs().transpose(1, 2), weights)
 
@@ -207,7 +208,7 @@ def contact_consistency_loss(
     contacts: torch.Tensor,
     weights: torch.Tensor,
 ) -> torch.Tensor:
-    """Paper Eq. 9: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``.
+    """Paper Eq. 14: ``mean_{t, j} ||v_j^t||^2 * sig(c_j^t)``.
 
     Args:
         foot_velocity: ``(B, T, 6, 3)`` m/s of the contact vertices.
@@ -221,7 +222,7 @@ def contact_consistency_loss(
 
 
 def smoothness_loss(joints: torch.Tensor, weights: torch.Tensor) -> torch.Tensor:
-    """Paper Eq. 11: ``mean_t ||p_t - (p_{t-1} + p_t + p_{t+1}) / 3||_2`` with ``p_t`` all
+    """Paper Eq. 16: ``mean_t ||p_t - (p_{t-1} + p_t + p_{t+1}) / 3||_2`` with ``p_t`` all
     joint positions of frame t as one vector; ``joints (B, T, J, 3)`` metres.
 
     ``weights (B, T)`` must be zero on each sequence's first and last frame (their

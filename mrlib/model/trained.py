@@ -14,13 +14,11 @@ import torch
 from mrlib.errors import ArgumentError, MotionValueError, check_args, check_path, shown
 from mrlib.model.checkpoint import load_checkpoint, reading
 from mrlib.model.config import TrainConfig, config_from_json
-from mrlib.model.networks import MultiResGenerator, build_generator
+from mrlib.model.generator import MultiResGenerator, build_generator
 from mrlib.representation.features import FeatureNormalizer
 
 __all__ = [
     "GenerativeModel",
-    "FINE_NOISE",
-    "GUIDANCE",
     "model_from_state",
     "load_model",
     "model_from_trainer",
@@ -29,34 +27,12 @@ __all__ = [
     "check_device",
 ]
 
-# Amplitude of the finest level's noise at sampling, as a share of its training sigma_L
-# (the paper's sampler: 1). That noise, modulated by the fine label's FiLM parameters,
-# carries the fine label's detail into a crossover; it also reaches the output as
-# frame-to-frame jitter. On the Bandai walks, 0 made samples as smooth as the capture
-# (jerk 1.51x -> 1.04x the clip's) at the same coverage and fidelity, but crossovers
-# took the fine label's detail in 20 of 24 cases instead of 24 (docs/results.md,
-# "Jitter and the finest level's noise").
-FINE_NOISE = 1.0
 
-# Label guidance at sampling: each level's condition vector pushed away from the mean of
-# all labels, W + g (W - 1/K), which moves the FiLM embedding (linear in W) by g times its
-# distance from the average label's. 0 is the paper's sampler. On the Bandai walks
-# (two training seeds) 0.25 raised condition fidelity by 3.4-3.8 points at the same
-# coverage and +0.01-0.02 global diversity; 1 by 6-7 points, but coverage at eps 1 fell
-# to 58-72 % and raw foot skating rose by 23-26 points: the samples exaggerate their
-# label and leave the training poses (docs/results.md, "Label guidance").
-GUIDANCE = 0.0
-
-
-@dataclass
+@dataclass(eq=False)  # compared (and hashed) by identity: a model holds tensors
 class GenerativeModel:
     """A trained generator and what it needs to sample (see ``mrlib.model.checkpoint`` keys).
-
-    ``fine_noise`` scales the finest level's noise at sampling (``FINE_NOISE``, the
-    paper's sampler, by default; 0 for the smoothest single-label motion); ``guidance``
-    exaggerates the labels (``GUIDANCE``, off by default; :func:`guided_weights`).
-    Training and reconstructions use neither.
-    """
+    How it is sampled (fine noise, guidance, the foot clean-up) is no part of it: each
+    sampling call takes a ``mrlib.Sampler``."""
 
     generator: MultiResGenerator
     config: TrainConfig
@@ -71,8 +47,6 @@ class GenerativeModel:
     zstar: list[torch.Tensor]  # N x (1, T_1,k)
     features: list[torch.Tensor]  # N x (T_k, C) training clips, unnormalised
     trained_levels: int  # levels whose training finished (all of them for a done run)
-    fine_noise: float = FINE_NOISE
-    guidance: float = GUIDANCE
     progress: dict | None = None  # the checkpoint's {"block", "iteration", "done"}
 
     @property

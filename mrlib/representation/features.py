@@ -127,21 +127,15 @@ def root_velocity_to_trans(
 
 
 def features_to_motion(
-    x: torch.Tensor | np.ndarray,
-    fps: float,
-    *,
-    betas: np.ndarray | None = None,
-    origin: tuple[float, float] | np.ndarray | None = None,
-    normalizer: FeatureNormalizer | None = None,
-    contact_cutoff: float = 0.5,
-    label: str | None = None,
-    name: str | None = None,
+    x: torch.Tensor | np.ndarray, fps: float, *, name: str | None = None, **options
 ) -> Motion:
     """``(T, 153)`` features -> ``Motion`` (the exact inverse of ``motion_to_features``).
 
-    Rotations go through Gram-Schmidt, so any 6-vector gives a valid rotation;
-    contacts are thresholded at ``contact_cutoff``; translation is integrated from
-    ``origin`` (x0, z0). ``normalizer`` undoes normalisation first when given.
+    ``options``: those of :func:`features_to_motions` (``betas``, ``origin``,
+    ``normalizer``, ``contact_cutoff``, ``label``). Rotations go through Gram-Schmidt, so
+    any 6-vector gives a valid rotation; contacts are thresholded at ``contact_cutoff``;
+    translation is integrated from ``origin`` (x0, z0). ``normalizer`` undoes
+    normalisation first when given.
     """
     x = torch.as_tensor(np.asarray(x) if not isinstance(x, torch.Tensor) else x)
     if x.ndim != 2 or x.shape[-1] != NUM_FEATURES:
@@ -149,10 +143,7 @@ def features_to_motion(
             f"features must have shape (T, {NUM_FEATURES}), got {tuple(x.shape)}"
         )
     names = None if name is None else [name]
-    return features_to_motions(
-        x[None], fps, betas=betas, origin=origin, normalizer=normalizer,
-        contact_cutoff=contact_cutoff, label=label, names=names,
-    )[0]  # fmt: skip
+    return features_to_motions(x[None], fps, names=names, **options)[0]
 
 
 def features_to_motions(

@@ -1,30 +1,26 @@
-"""Sampling a trained model: generation and reconstruction (``generate`` one motion,
-``generate_many`` a list, ``generate_levels`` a motion with every level's output), the foot
-contact clean-up (``cleanup``), restyling a clip of one's own (``restyle``), reference
-samples per label (``references``) and control beyond labels (``constraints``: paths,
+"""Sampling a trained model: generation and reconstruction (``generation``: ``generate``
+one motion, a batch or every level's output; ``reconstruct``), the condition that drives
+each level (``conditions``: ``Condition``) and how the generator is sampled (``sampler``:
+``Sampler``), the foot-contact clean-up (``cleanup``), restyling a clip of one's own
+(``restyling``: ``restyle``) and control beyond labels (``constraints``: paths,
 keyframes, body parts, loops).
 """
 
 from mrlib.model.trained import GenerativeModel, load_model
 from mrlib.sampling import constraints
 from mrlib.sampling.cleanup import cleanup_foot_contacts
-from mrlib.sampling.generation import (
-    generate,
-    generate_levels,
-    generate_many,
-    reconstruct,
-    reconstruct_levels,
-)
+from mrlib.sampling.conditions import Condition
+from mrlib.sampling.generation import generate, reconstruct
 from mrlib.sampling.restyling import restyle
+from mrlib.sampling.sampler import Sampler
 
 __all__ = [
     "GenerativeModel",
     "load_model",
+    "Condition",
+    "Sampler",
     "generate",
-    "generate_many",
-    "generate_levels",
     "reconstruct",
-    "reconstruct_levels",
     "cleanup_foot_contacts",
     "restyle",
     "constraints",

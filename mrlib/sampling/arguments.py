@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Mapping
-from numbers import Integral, Real
+from numbers import Integral
 from typing import Any
 
 from mrlib.errors import (
@@ -24,7 +24,6 @@ from mrlib.errors import (
     check_args,
     check_count,
     check_flag,
-    check_list,
     check_number,
     check_seed,
     shown,
@@ -32,21 +31,20 @@ from mrlib.errors import (
 from mrlib.model.trained import check_label_model
 from mrlib.representation.body import check_body
 from mrlib.representation.motion import check_motion, check_motions
+from mrlib.sampling.conditions import Condition
+from mrlib.sampling.sampler import Sampler
 
 __all__ = [
     "COMMON",
     "checked",
-    "check_level_conditions",
-    "check_blend",
-    "check_fix_contacts",
+    "check_condition",
+    "check_sampler",
     "check_parts",
     "optional_count",
     "optional_label",
     "non_negative",
     "steps",
 ]
-
-CLEANUP_METHODS = ("ik", "optimise")
 
 
 def optional_count(name: str, value: Any) -> int | None:
@@ -78,55 +76,26 @@ def optional_label(name: str, value: Any) -> Any:
     return None if value is None else _label(name, value)
 
 
-def check_level_conditions(name: str, value: Any) -> list | None:
-    """None or a list of ``(label, (first_level, last_level))`` pairs."""
-    if value is None:
-        return None
-    what = "a list of (label, (first_level, last_level)) pairs"
-
-    def pair(n: str, item: Any) -> tuple:
-        if not isinstance(item, (tuple, list)) or len(item) != 2:
-            raise ArgumentError(f"{name} must be {what}; {n} is {shown(item)}")
-        lab, levels = item
-        ok = isinstance(levels, (tuple, list)) and len(levels) == 2
-        if not ok or not all(isinstance(v, Integral) and not isinstance(v, bool) for v in levels):
-            raise ArgumentError(f"{name} must be {what}; {n} has levels {shown(levels)}")
-        return (_label(f"{n} label", lab), (int(levels[0]), int(levels[1])))
-
-    return check_list(name, value, pair, what=what)
-
-
-def check_blend(name: str, value: Any) -> tuple | None:
-    """None or ``(label_a, label_b, w)`` with ``w`` a number or one number per level."""
-    if value is None:
-        return None
-    what = "(label_a, label_b, weight) with a weight or one weight per level"
-    if not isinstance(value, (tuple, list)) or len(value) != 3:
-        raise ArgumentError(f"{name} must be {what}, got {shown(value)}")
-    a, b, w = value
-    if isinstance(w, (list, tuple)):
-        check_list(f"{name} weights", w, _weight)
-    elif not hasattr(w, "shape"):  # an array or tensor of weights: label_weights reads it
-        _weight(f"{name} weight", w)
-    return (_label(f"{name} label_a", a), _label(f"{name} label_b", b), w)
-
-
-def _weight(name: str, value: Any) -> Any:
-    if isinstance(value, bool) or not isinstance(value, Real):
-        raise ArgumentError(f"{name} must be a number, got {shown(value)}")
-    return value
-
-
-def check_fix_contacts(name: str, value: Any) -> bool | str:
-    """True, False or a clean-up method (``"ik"``, ``"optimise"``)."""
-    if isinstance(value, str) and value in CLEANUP_METHODS:
+def check_condition(name: str, value: Any) -> Any:
+    """None, a label name or index, or a ``mrlib.Condition`` (``mrlib.sampling.conditions``)."""
+    if value is None or isinstance(value, Condition):
         return value
-    if isinstance(value, str) or not isinstance(value, bool):
-        raise ArgumentError(
-            f"{name} must be True, False or a method ({', '.join(map(repr, CLEANUP_METHODS))}), "
-            f"got {shown(value)}"
-        )
-    return value
+    if isinstance(value, str) or (isinstance(value, Integral) and not isinstance(value, bool)):
+        return value
+    raise ArgumentError(
+        f"{name} must be a label name or index, or a mrlib.Condition (Condition.crossover, "
+        f"Condition.levels, Condition.blend), got {shown(value)}"
+    )
+
+
+def check_sampler(name: str, value: Any) -> Sampler | None:
+    """None or a ``mrlib.Sampler``."""
+    if value is None or isinstance(value, Sampler):
+        return value
+    raise ArgumentError(
+        f"{name} must be a mrlib.Sampler (e.g. Sampler(fine_noise=0.5, guidance=0.25, "
+        f"fix_contacts=False)) or None, got {shown(value)}"
+    )
 
 
 def check_parts(name: str, value: Any) -> Mapping:
@@ -155,23 +124,21 @@ COMMON: dict[str, Callable[[str, Any], Any]] = {
     "source": check_motion,
     "target": check_motion,
     "motions": check_motions,
-    "condition": optional_label,
+    "condition": check_condition,
     "label": optional_label,
-    "conditions": check_level_conditions,
-    "blend": check_blend,
     "length": optional_count,
     "seed": check_seed,
     "num_samples": check_count,
-    "fix_contacts": check_fix_contacts,
+    "num": optional_count,
+    "sampler": check_sampler,
+    "levels": check_flag,
     "clean": check_flag,
     "progress": check_flag,
     "align": check_flag,
     "align_gait": check_flag,
-    "invert": check_flag,
     "push": check_flag,
     "body": check_body,
     "steps": steps,
-    "invert_steps": steps,
     "sharpen": steps,
     "seconds": lambda n, v: check_number(n, v, low=0, open_low=True, optional=True),
     "blend_s": non_negative,

@@ -1,10 +1,10 @@
 """Foot-contact clean-up: feet that stay put while labelled in contact, on the floor, with
 motion that stays smooth (``cleanup_foot_contacts``); in closed form, vectorised over
-frames, or by a per-frame optimisation (``method="optimise"``).
+frames.
 
 The paper refines predicted contacts by inverse kinematics (Sec. 3.4), as GANimator does
-(Li et al., SIGGRAPH 2022), with a per-frame optimisation. Here the default
-(``style="smooth"``) solves for the corrections of the whole clip at once, the
+(Li et al., SIGGRAPH 2022), with a per-frame optimisation. Here the clean-up solves for
+the corrections of the whole clip at once, the
 least-squares form of Kovar et al.'s footskate clean-up (SCA 2002: the root first, then
 the legs, corrections blended in and out) with the blends replaced by a smoothness term,
 as in spacetime motion editing (Gleicher, SIGGRAPH 1998; Lee and Shin, SIGGRAPH 1999):
@@ -28,17 +28,17 @@ as in spacetime motion editing (Gleicher, SIGGRAPH 1998; Lee and Shin, SIGGRAPH 
 3. **Two-bone IK** (hip - knee - ankle, law of cosines) takes each ankle by its leg's
    offset, the foot keeping its global orientation; bone lengths are kept.
 
-``style="pin"`` is the clean-up before it (:func:`plant_feet`): every contact vertex
-pinned to its mean position over its run, eased in and out over ``BLEND_S`` seconds,
-the root taking the common correction low-passed over ``ROOT_SMOOTH_S``. It plants
-harder but steps the feet's velocity at the blends, changes the leg angles more and
-leaves feet under the floor. ``bench/cleanup_natural.py`` measures both on the Bandai
-walks (coverage, skating, jerk, penetration).
+The clean-up before it pinned every contact run to its mean position and eased it in
+and out; it planted harder but stepped the feet's velocity at the blends, changed the
+leg angles more and left feet under the floor. It, and the per-frame optimisation of
+the leg joints, are kept as reference code in ``bench/experiments/cleanup_studies.py``;
+``bench/cleanup_natural.py`` measures them on the Bandai walks (coverage, skating, jerk,
+penetration; ``docs/notes/2026-12-06-study-options.md``).
 """
 
 from __future__ import annotations
 
-import inspect
+from dataclasses import fields
 
 import numpy as np
 import torch
@@ -48,21 +48,11 @@ from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import (
     axis_angle_to_6d,
-    axis_angle_to_matrix,
     matrix_to_axis_angle,
     sixd_to_axis_angle,
 )
-from mrlib.sampling.leg_ik import (
-    BLEND_S,
-    ROOT_SMOOTH_S,
-    contact_runs,
-)
-from mrlib.sampling.planting import (
-    plant_feet,
-    plant_feet_smooth,
-    smooth_foot_offsets,
-)
-from mrlib.threads import with_policy
+from mrlib.sampling.leg_ik import contact_runs
+from mrlib.sampling.planting import PLANT_DEFAULTS, PlantOptions, move_ankles, smooth_foot_offsets
 
 __all__ = [
     "remove_jitter",
@@ -70,13 +60,11 @@ __all__ = [
     "contact_skating",
     "contact_floor",
     "cleanup_foot_contacts",
-    "LEG_JOINTS",
     "FLOOR_PERCENTILE",
 ]
 
 
 # -- clean-up of a Motion ------------------------------------------------------------------
-LEG_JOINTS = (1, 2, 4, 5, 7, 8, 10, 11)  # hips, knees, ankles, feet
 # Gaussian sigma, in frames, of the jitter filter that opens the smooth clean-up. The
 # finest level's noise reaches a sample as frame-to-frame jitter (FINE_NOISE); half a
 # frame keeps 73 % of the amplitude at a quarter of the frame rate and 29 % at the
@@ -119,41 +107,6 @@ def contact_skating(motion: Motion, body=None) -> float:
     return float(v[both].mean()) if both.any() else 0.0
 
 
-def _cleanup_ik(
-    motion: Motion, body, blend: int, passes: int = 2, move_root: bool = True,
-    root_smooth: float = 0.0,
-) -> Motion:  # fmt: skip
-    if motion.contacts is None:
-        raise MotionValueError("motion has no contact labels to clean up")
-    body = resolve_body(body)
-    R, trans, betas = body.motion_inputs(motion)
-    ids = list(body.foot_vertex_ids)
-    Rn, tn = R.double().cpu().numpy(), trans.double().cpu().numpy()
-    on = dict(device=body.device, dtype=body.dtype)  # a body on an accelerator stays there
-    for _ in range(passes):  # each pass re-poses the feet on the planted ones' means
-        with torch.no_grad():
-            out = body.forward(
-                torch.from_numpy(Rn).to(**on), torch.from_numpy(tn).to(**on), betas, vertex_ids=ids
-            )
-        J, F = out.joints.double().cpu().numpy(), out.vertices.double().cpu().numpy()
-        Rn, offset, info = plant_feet(
-            Rn, J, F, motion.contacts, blend, move_root=move_root, root_smooth=root_smooth
-        )
-        tn = tn + offset
-    poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
-    meta = dict(
-        motion.meta,
-        contact_cleanup={
-            "method": "ik",
-            "blend": blend,
-            "move_root": move_root,
-            "root_smooth": round(float(root_smooth), 3),
-            **info,
-        },  # fmt: skip
-    )
-    return motion.replace(poses=poses, trans=tn.astype(np.float32), meta=meta)
-
-
 FLOOR_PERCENTILE = 50.0  # of the lowest contact vertex's height: the floor a clip stands on
 
 
@@ -178,10 +131,31 @@ def contact_floor(
     return float(np.percentile(low, percentile)) if len(low) else None
 
 
-def _cleanup_smooth(
-    motion: Motion, body, *, move_root: bool, floor_clamp: bool, floor_percentile: float,
-    floor: float | None = None, passes: int = 1, jitter: float = JITTER_SIGMA, **kw,
-) -> Motion:  # fmt: skip
+def cleanup_foot_contacts(
+    motion: Motion,
+    body=None,
+    *,
+    floor: float | None = None,
+    floor_clamp: bool = True,
+    jitter: float = JITTER_SIGMA,
+    move_root: bool = True,
+    options: PlantOptions = PLANT_DEFAULTS,
+) -> Motion:
+    """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
+
+    Frame-to-frame jitter is filtered out first (:func:`remove_jitter`, a Gaussian of
+    ``jitter`` frames; 0 keeps the motion's own), then the root and each leg's ankle move
+    by the smooth offsets of :func:`smooth_foot_offsets` (one sparse least-squares solve
+    per axis: contact vertices held still, the corrections of least jerk, the root before
+    the legs; the body lifted onto the floor and never far below it), analytic two-bone
+    leg IK taking each ankle by its offset. ``floor`` is the height (m) planted feet rest
+    at, when known (``generate`` passes its training clips',
+    ``mrlib.sampling.generation.training_floor``); None estimates it from the motion
+    (``contact_floor`` at ``FLOOR_PERCENTILE``); ``floor_clamp=False`` leaves heights
+    alone. ``move_root=False`` keeps the root path (the legs take everything).
+    ``options``: the solve's knobs (:class:`mrlib.sampling.planting.PlantOptions`:
+    ``smooth_s``, ``pin_weight``, ``leg_hold_s``, ...). Milliseconds per clip.
+    """
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
     motion = remove_jitter(motion, jitter)
@@ -192,140 +166,29 @@ def _cleanup_smooth(
     on = dict(device=body.device, dtype=body.dtype)
     c = np.asarray(motion.contacts) > 0.5
     floor = floor if floor_clamp else None
-    for _ in range(passes):
-        with torch.no_grad():
-            out = body.forward(
-                torch.from_numpy(Rn).to(**on), torch.from_numpy(tn).to(**on), betas, vertex_ids=ids
-            )
-        J, F = out.joints.double().cpu().numpy(), out.vertices.double().cpu().numpy()
-        if floor is None and floor_clamp:
-            floor = contact_floor(F, c, floor_percentile)
-        Rn, offset, info = plant_feet_smooth(
-            Rn, J, F, c, motion.fps, floor=floor, move_root=move_root, **kw
+    with torch.no_grad():
+        out = body.forward(
+            torch.from_numpy(Rn).to(**on), torch.from_numpy(tn).to(**on), betas, vertex_ids=ids
         )
-        tn = tn + offset
+    J, F = out.joints.double().cpu().numpy(), out.vertices.double().cpu().numpy()
+    if floor is None and floor_clamp:
+        floor = contact_floor(F, c, FLOOR_PERCENTILE)
+    offset, legs = smooth_foot_offsets(
+        F, c, motion.fps, floor=floor, move_root=move_root, options=options
+    )
+    Rn, tn = move_ankles(Rn, J, legs), tn + offset
+    runs = sum(len(contact_runs(c[:, v])) for v in range(6))
     poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
+    changed = {
+        f.name: round(float(getattr(options, f.name)), 3)
+        for f in fields(options)
+        if getattr(options, f.name) != f.default
+    }
     meta = dict(
         motion.meta,
         contact_cleanup={"method": "ik", "style": "smooth", "move_root": move_root,
                          "jitter_sigma": float(jitter),
                          "floor": None if floor is None else round(floor, 4),
-                         **{k: round(float(v), 3) for k, v in kw.items()}, **info},
+                         **changed, "runs": int(runs)},
     )  # fmt: skip
     return motion.replace(poses=poses, trans=tn.astype(np.float32), meta=meta)
-
-
-@with_policy
-def cleanup_foot_contacts(
-    motion: Motion,
-    body=None,
-    iterations: int = 150,
-    lr: float = 0.02,
-    weight_reg: float = 1e-2,
-    weight_smooth: float = 1.0,
-    *,
-    method: str = "ik",
-    blend: int | None = None,
-    move_root: bool = True,
-    root_smooth_s: float = ROOT_SMOOTH_S,
-    style: str = "smooth",
-    floor: float | None = None,
-    floor_clamp: bool = True,
-    floor_percentile: float = FLOOR_PERCENTILE,
-    jitter: float = JITTER_SIGMA,
-    **options,
-) -> Motion:
-    """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
-
-    ``method="ik"`` (default), ``style="smooth"`` (default): frame-to-frame jitter is
-    filtered out first (:func:`remove_jitter`, a Gaussian of ``jitter`` frames; 0 keeps
-    the motion's own), then the root and each leg's
-    ankle move by the smooth offsets of :func:`smooth_foot_offsets` (one sparse
-    least-squares solve per axis: contact vertices held still, the corrections of least
-    jerk, the root before the legs; the body lifted onto the floor and never far below
-    it), analytic two-bone leg IK taking each ankle by its offset. ``floor`` is the
-    height (m) planted feet rest at, when known (``generate`` passes its training
-    clips', ``mrlib.sampling.generation.training_floor``); None estimates it from the
-    motion (``contact_floor`` at ``floor_percentile``); ``floor_clamp=False`` leaves
-    heights alone. ``move_root=False`` keeps the root path (the legs take everything).
-    Further keyword ``options`` go to :func:`smooth_foot_offsets` (``smooth_s``,
-    ``pin_weight``, ``leg_hold_s``, ...). Milliseconds per clip.
-
-    ``style="pin"``: the clean-up before (:func:`plant_feet`): every contact vertex is
-    pinned to its mean position over each contact run, eased in and out over ``blend``
-    frames (default ``BLEND_S`` seconds); the root takes the planted feet's common
-    correction, low-passed over ``root_smooth_s`` seconds (``move_root``), and two-bone
-    leg IK the rest, the foot turning as a rigid body so that all its planted vertices
-    hold. It plants harder but steps the feet's velocity at the blends (jerk), changes
-    the leg angles more (coverage) and leaves feet under the floor
-    (``bench/cleanup_natural.py``).
-
-    ``method="optimise"``: for every contact vertex and every run of frames labelled in
-    contact, the target is the vertex's mean position over the run (as GANimator does);
-    axis-angle offsets of the leg joints (hips, knees, ankles, feet) are then optimised
-    with Adam (``iterations``, ``lr``) to reach the targets, with a small penalty on the
-    offsets (``weight_reg``) and on their frame-to-frame change (``weight_smooth``).
-    It leaves the root trajectory untouched.
-    """
-    if method not in ("ik", "optimise"):
-        raise MotionValueError(f"method must be 'ik' or 'optimise', got {method!r}")
-    if style not in ("smooth", "pin"):
-        raise MotionValueError(f"style must be 'smooth' or 'pin', got {style!r}")
-    known = set(inspect.signature(smooth_foot_offsets).parameters) - {
-        "feet", "contacts", "fps", "floor", "move_root"
-    }  # fmt: skip
-    unknown = sorted(set(options) - known)
-    if unknown or (options and (method, style) != ("ik", "smooth")):
-        raise MotionValueError(
-            f"unknown options {unknown or sorted(options)}: only method='ik', style='smooth' "
-            f"takes more, namely {sorted(known)}"
-        )
-    if method == "ik" and style == "smooth":
-        return _cleanup_smooth(
-            motion, body, move_root=move_root, floor=floor, floor_clamp=floor_clamp,
-            floor_percentile=floor_percentile, jitter=jitter, **options,
-        )  # fmt: skip
-    if method == "ik":
-        frames = max(1, round(BLEND_S * motion.fps)) if blend is None else int(blend)
-        return _cleanup_ik(
-            motion, body, frames, move_root=move_root, root_smooth=root_smooth_s * motion.fps
-        )
-    if motion.contacts is None:
-        raise MotionValueError("motion has no contact labels to clean up")
-    body = resolve_body(body)
-    ids = list(body.foot_vertex_ids)
-    R, trans, betas = body.motion_inputs(motion)
-    with torch.no_grad():
-        p0 = body.forward(R, trans, betas, vertex_ids=ids).vertices  # (T, 6, 3)
-    c = np.asarray(motion.contacts) > 0.5
-    target = p0.clone()
-    active = torch.zeros(c.shape, dtype=torch.bool, device=p0.device)
-    for v in range(c.shape[1]):
-        for s, e in contact_runs(c[:, v]).tolist():
-            if e > s:
-                target[s : e + 1, v] = p0[s : e + 1, v].mean(0)
-                active[s : e + 1, v] = True
-    if not active.any():
-        return motion.replace()
-    legs = list(LEG_JOINTS)
-    delta = torch.zeros(len(p0), len(legs), 3, device=R.device, dtype=R.dtype, requires_grad=True)
-    opt = torch.optim.Adam([delta], lr=lr)
-    for _ in range(iterations):
-        opt.zero_grad()
-        Rn = R.clone()
-        Rn[:, legs] = R[:, legs] @ axis_angle_to_matrix(delta)
-        p = body.forward(Rn, trans, betas, vertex_ids=ids).vertices
-        err = ((p - target) ** 2).sum(-1)[active].mean()
-        loss = (
-            err
-            + weight_reg * delta.pow(2).mean()
-            + weight_smooth * (delta[1:] - delta[:-1]).pow(2).mean()
-        )
-        loss.backward()
-        opt.step()
-    with torch.no_grad():
-        Rn = R.clone()
-        Rn[:, legs] = R[:, legs] @ axis_angle_to_matrix(delta)
-        poses = matrix_to_axis_angle(Rn).cpu().numpy()
-    meta = dict(motion.meta, contact_cleanup={"iterations": iterations})
-    return motion.replace(poses=poses, meta=meta)

@@ -1,14 +1,18 @@
-"""Sampling from a trained model: random generation under one or several conditions,
-any length, per-level condition assignment and blending, reconstruction of the training
-clips, and an optional foot-contact clean-up (``mrlib.sampling.cleanup``).
+"""Sampling from a trained model: :func:`generate` (random motion under a label
+condition, any length, one sample or a batch, with or without every level's output) and
+:func:`reconstruct` (a training clip regenerated from its fixed noise), with the
+foot-contact clean-up (``mrlib.sampling.cleanup``) as the sampler asks.
 
-Levels are 1-based in this module's public API (level 1 is the coarsest), as in the
-paper; ``conditions=[("walk_normal", (1, 4)), ("walk_happy", (5, 8))]`` gives levels
-1-4 the first label and levels 5-8 the second.
+What drives each level is a condition (``mrlib.sampling.conditions``: a label, a
+crossover, labels per level range, a blend); how the generator is sampled is a
+:class:`~mrlib.sampling.sampler.Sampler` (fine noise, guidance, the clean-up), passed to
+each call rather than kept on the model. Levels are 1-based in the public API (level 1
+is the coarsest), as in the paper.
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 
 import numpy as np
@@ -21,109 +25,53 @@ from mrlib.representation.features import features_to_motion, features_to_motion
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.cleanup import cleanup_foot_contacts
-from mrlib.threads import with_policy
+from mrlib.sampling.conditions import Condition, as_condition
+from mrlib.sampling.sampler import Sampler
 
 # one sample: a 10-minute walk stays within mrlib.representation.motion's 1000 m
 MAX_SAMPLE_SECONDS = 600.0
-MAX_GUIDANCE = MAX_FINE_NOISE = 10.0  # sampler settings: 1 already leaves the training poses
 MAX_SAMPLE_FRAMES = 200_000  # all samples of one call or command (~0.5 GB while generating)
 
 __all__ = [
-    "label_weights",
+    "generate",
+    "reconstruct",
+    "reconstruction_error",
+    "training_floor",
     "guided_weights",
     "noise_amplitude",
+    "label_inputs",
     "sample_features",
-    "generate",
-    "generate_many",
-    "generate_levels",
-    "reconstruct",
-    "reconstruct_levels",
-    "reconstruct_features",
-    "training_floor",
-    "reconstruction_error",
+    "MAX_SAMPLE_SECONDS",
+    "MAX_SAMPLE_FRAMES",
 ]
 
 
-# -- conditions ---------------------------------------------------------------------------
-def label_weights(
-    model: GenerativeModel,
-    condition: str | int | None = None,
-    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
-    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
-) -> torch.Tensor:
-    """Per-level label weights ``(L, K)``: row i is the condition vector of level i+1.
-
-    Exactly one of: ``condition`` (one label at every level); ``conditions`` (labels
-    assigned to 1-based inclusive level ranges that together cover 1..L once); ``blend``
-    ``(a, b, w)``: ``(1 - w) * a + w * b`` with ``w`` a float or one weight per level
-    (the FiLM embedding is linear in the condition, so this interpolates embeddings).
-    """
-    L, K = model.num_levels, len(model.labels)
-    given = sum(x is not None for x in (condition, conditions, blend))
-    if given != 1:
-        raise MotionValueError("give exactly one of condition, conditions or blend")
-    W = torch.zeros(L, K)
-    if condition is not None:
-        W[:, model.label_index(condition)] = 1
-    elif conditions is not None:
-        covered = np.zeros(L, int)
-        for lab, (lo, hi) in conditions:
-            if not 1 <= lo <= hi <= L:
-                raise MotionValueError(
-                    f"level range ({lo}, {hi}) must satisfy 1 <= lo <= hi <= {L}"
-                )
-            W[lo - 1 : hi, model.label_index(lab)] = 1
-            covered[lo - 1 : hi] += 1
-        if not (covered == 1).all():
-            raise MotionValueError(
-                f"level ranges must cover levels 1..{L} exactly once, coverage {covered.tolist()}"
-            )
-    else:
-        a, b, w = blend
-        w = torch.as_tensor(w, dtype=torch.float32).reshape(-1)
-        if w.numel() == 1:
-            w = w.expand(L)
-        if w.numel() != L:
-            raise MotionValueError(f"blend weights need 1 or {L} values, got {w.numel()}")
-        if not bool(((w >= 0) & (w <= 1)).all()):
-            raise MotionValueError(
-                f"blend weights must be in [0, 1], got {w.tolist()}; to exaggerate a label "
-                "beyond its clips use the model's guidance"
-            )
-        W[:, model.label_index(a)] += 1 - w
-        W[:, model.label_index(b)] += w
-    return W
-
-
-def guided_weights(model: GenerativeModel, W: torch.Tensor) -> torch.Tensor:
-    """Label weights ``W (L, K)`` under ``model.guidance`` g: ``W + g (W - 1/K)``, each
-    level's condition pushed away from the mean of all labels (``GUIDANCE``). Rows still
-    sum to one; with g > 0 some weights are negative, which the linear label embedding
-    takes as extrapolation beyond the label. A one-label model has nothing to push from."""
-    g = float(model.guidance)
-    if not (np.isfinite(g) and 0 <= g <= MAX_GUIDANCE):
-        raise MotionValueError(f"guidance must be in [0, {MAX_GUIDANCE:g}], got {model.guidance!r}")
+# -- the sampler's settings ----------------------------------------------------------------
+def guided_weights(W: torch.Tensor, sampler: Sampler) -> torch.Tensor:
+    """Label weights ``W (L, K)`` under the sampler's guidance g: ``W + g (W - 1/K)``,
+    each level's condition pushed away from the mean of all labels
+    (``mrlib.sampling.sampler.GUIDANCE``). Rows still sum to one; with g > 0 some weights
+    are negative, which the linear label embedding takes as extrapolation beyond the
+    label. A one-label model has nothing to push from."""
+    g = sampler.guidance
     if g == 0:
         return W
     return W + g * (W - 1.0 / W.shape[-1])
 
 
-# -- sampling -----------------------------------------------------------------------------
-def noise_amplitude(model: GenerativeModel, W: torch.Tensor | None = None) -> torch.Tensor:
+def noise_amplitude(
+    model: GenerativeModel, W: torch.Tensor | None, sampler: Sampler
+) -> torch.Tensor:
     """``(L,)`` sigma of each level's sampling noise: the training ``sigma_i`` of the
-    level's label mix ``W (L, K)`` (:func:`label_weights`; default: the first label),
-    the finest level's scaled by ``model.fine_noise``."""
-    fine = float(model.fine_noise)
-    if not (np.isfinite(fine) and 0 <= fine <= MAX_FINE_NOISE):
-        raise MotionValueError(
-            f"fine_noise must be in [0, {MAX_FINE_NOISE:g}], got {model.fine_noise!r}"
-        )
+    level's label mix ``W (L, K)`` (``Condition.weights``; None: the first label), the
+    finest level's scaled by the sampler's ``fine_noise``."""
     sigma = model.sigma.float()  # (K, L)
     amp = sigma[0].clone() if W is None else (W.float() * sigma.T).sum(1)
-    amp[-1] = amp[-1] * fine
+    amp[-1] = amp[-1] * sampler.fine_noise
     return amp
 
 
+# -- sampling -----------------------------------------------------------------------------
 def sample_features(
     model: GenerativeModel,
     conds: list[torch.Tensor],
@@ -175,7 +123,7 @@ def check_sample_length(model: GenerativeModel, frames: int, num_samples: int = 
         )
     if frames * num_samples > MAX_SAMPLE_FRAMES:
         raise MotionValueError(
-            f"num_samples: {num_samples} samples of {frames} frames are more than the "
+            f"num: {num_samples} samples of {frames} frames are more than the "
             f"{MAX_SAMPLE_FRAMES} frames generated in one call; generate them in smaller batches"
         )
 
@@ -255,13 +203,13 @@ def _to_motions(
 
 
 def label_inputs(
-    model: GenerativeModel, W: torch.Tensor, length: int | None = None
+    model: GenerativeModel, W: torch.Tensor, length: int | None, sampler: Sampler
 ) -> tuple[list[int], torch.Tensor, list[torch.Tensor]]:
     """What :func:`sample_features` needs for label weights ``W (L, K)``
-    (:func:`label_weights`): the level lengths for ``length`` output frames (default:
-    the first training clip of the coarsest level's main label), the noise amplitude
-    ``(L,)`` of each level's label mix (:func:`noise_amplitude`), and the per-level
-    conditions ``(1, T_i, K)`` (under ``model.guidance``, :func:`guided_weights`)."""
+    (``Condition.weights``): the level lengths for ``length`` output frames (None: the
+    first training clip of the coarsest level's main label), the noise amplitude ``(L,)``
+    of each level's label mix (:func:`noise_amplitude`), and the per-level conditions
+    ``(1, T_i, K)`` under the sampler's guidance (:func:`guided_weights`)."""
     L = model.num_levels
     main = int(W[0].argmax())
     if length is None:
@@ -273,37 +221,45 @@ def label_inputs(
     length = check_count("length", length)  # its bound: sample_features
     pad = (model.config.model.kernel_size - 1) // 2
     lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
-    amp = noise_amplitude(model, W)
-    G = guided_weights(model, W)
+    amp = noise_amplitude(model, W, sampler)
+    G = guided_weights(W, sampler)
     conds = [G[i].expand(1, lengths[i], -1) for i in range(L)]
     return lengths, amp, conds
 
 
-def sampler_record(model: GenerativeModel, seed: int | None, index: int, W: torch.Tensor) -> dict:
+def sampler_record(
+    model: GenerativeModel, sampler: Sampler, seed: int | None, index: int, W: torch.Tensor
+) -> dict:
     """What made a label sample, as ``meta["sampler"]`` records it: seed, index in the
     batch, the sampler's fine_noise and guidance, the labels and per-level weights ``W``."""
     return {
-        "seed": seed, "index": index, "fine_noise": float(model.fine_noise),
-        "guidance": float(model.guidance), "labels": list(model.labels),
+        "seed": seed, "index": index, "fine_noise": sampler.fine_noise,
+        "guidance": sampler.guidance, "labels": list(model.labels),
         "label_weights": W.tolist(),
     }  # fmt: skip
 
 
-@with_policy
+# training_floor's cache: per model (weakly held: a model dropped is gone from it), per
+# clips and body; 0.1 s per 120-frame clip otherwise, as much as the draw itself
+_FLOORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def training_floor(model: GenerativeModel, labels: Sequence[int] | None = None, body=None):
     """The height (m) the planted feet of the model's training clips rest at
     (``mrlib.sampling.cleanup.contact_floor``), over the clips of ``labels`` (indices;
     all clips when None or when none has them): the floor the foot-contact clean-up
-    puts generated feet on. None without contact labels. Cached on the model."""
+    puts generated feet on. None without contact labels. Computed once per model, clips
+    and body (a module-level cache that does not keep the model alive)."""
     from mrlib.metrics.plausibility import motion_kinematics
     from mrlib.sampling.cleanup import contact_floor
 
-    cache = model.__dict__.setdefault("_training_floor", {})
+    cache = _FLOORS.setdefault(model, {})
     clips = [k for k, lab in enumerate(model.clip_labels) if labels is None or lab in labels]
-    key = tuple(clips or range(len(model.clip_labels)))
+    clips = tuple(clips or range(len(model.clip_labels)))
+    key = (clips, body)
     if key not in cache:
         feet, cs = [], []
-        for k in key:
+        for k in clips:
             m = features_to_motion(model.features[k], model.fps, betas=model.betas)
             if m.contacts is not None:
                 feet.append(motion_kinematics(m, body)[1])
@@ -314,63 +270,57 @@ def training_floor(model: GenerativeModel, labels: Sequence[int] | None = None, 
 
 def _label_samples(
     model: GenerativeModel,
-    num_samples: int,
-    condition,
+    condition: Condition,
+    num: int,
     length: int | None,
     seed: int | None,
-    conditions,
-    blend,
-    fix_contacts: bool | str,
+    sampler: Sampler,
     body,
     levels: bool,
 ) -> tuple[list[Motion], list[list[Motion]] | None]:
-    """What :func:`generate`, :func:`generate_many` and :func:`generate_levels` share:
-    ``num_samples`` samples and, with ``levels``, each one's per-level Motions."""
-    W = label_weights(model, condition, conditions, blend)  # (L, K)
+    """``num`` samples of ``condition`` and, with ``levels``, each one's per-level
+    Motions (raw)."""
+    W = condition.weights(model)  # (L, K)
     L = model.num_levels
-    lengths, amp, conds = label_inputs(model, W, length)
-    outs = sample_features(
-        model, conds, lengths, amp, seed=seed, num_samples=num_samples, keep=True
-    )
-    names = [model.labels[int(k)] for k in W.argmax(1)]
-    label = (
-        names[0]
-        if len(set(names)) == 1 and float(W.max(1).values.min()) == 1.0
-        else "+".join(dict.fromkeys(names))
-    )
-    names = [f"{label}_seed{seed}_{b}" for b in range(num_samples)]
+    lengths, amp, conds = label_inputs(model, W, length, sampler)
+    outs = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num, keep=True)
+    label = condition.name(model)
+    names = [f"{label}_seed{seed}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
     for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)
-        m.meta["sampler"] = sampler_record(model, seed, b, W)
-    if fix_contacts:
-        method = fix_contacts if isinstance(fix_contacts, str) else "ik"
+        m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
+    if sampler.fix_contacts:
         floor = training_floor(model, [int(k) for k in W.argmax(1).unique()], body)
-        motions = [cleanup_foot_contacts(m, body, method=method, floor=floor) for m in motions]
+        motions = [cleanup_foot_contacts(m, body, floor=floor) for m in motions]
     if not levels:
         return motions, None
     fps_i = level_fps(model.fps, lengths)
     per_level = [
         [_to_motion(model, outs[i][b], fps_i[i], label, f"{label}_level{i + 1}") for i in range(L)]
-        for b in range(num_samples)
+        for b in range(num)
     ]
     return motions, per_level
 
 
+def shaped_samples(motions: list, per_level: list | None, num: int | None):
+    """The return convention of :func:`generate` (and ``generate_from_audio``)."""
+    out = motions if per_level is None else list(zip(motions, per_level, strict=True))
+    return out[0] if num is None else out
+
+
 @checked()
-@with_policy
 def generate(
     model: GenerativeModel,
-    condition: str | int | None = None,
+    condition: str | int | Condition | None = None,
+    *,
     length: int | None = None,
     seed: int | None = None,
-    *,
-    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
-    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
-    fix_contacts: bool | str = True,
+    num: int | None = None,
+    sampler: Sampler | None = None,
+    levels: bool = False,
     body=None,
-) -> Motion:
-    """One random motion under label conditions (several: :func:`generate_many`; every
-    level's output too: :func:`generate_levels`).
+):
+    """Random motion of a label model: one sample, a batch, and every level's output.
 
     Args:
         model: a loaded model (``mrlib.load_model(checkpoint)``). A checkpoint's path is
@@ -378,74 +328,52 @@ def generate(
             loads a model behind a sampling call (a loop of calls would read the file
             every time, on a device the caller did not choose). Arguments of the wrong
             type are refused the same way before any work (``mrlib.sampling.arguments``).
-        condition: a label name (``"walk_happy"``) or index for every level; or use
-            ``conditions`` / ``blend`` (see :func:`label_weights`).
+        condition: a label name (``"walk_happy"``) or index, the same at every level, or
+            a ``mrlib.Condition`` (``Condition.crossover(a, b, level)``,
+            ``Condition.levels([...])``, ``Condition.blend(a, b, w)``); None: the
+            model's first label.
         length: frames of the output (any length, also longer than the training clips,
             up to ``MAX_SAMPLE_SECONDS``); default: the first training clip of the
             coarsest level's main label.
-        seed: for reproducible noise (the sample is stream ``(seed, 0)``, the first of
-            ``generate_many`` with the same seed).
-        fix_contacts: plant the feet with :func:`cleanup_foot_contacts` (default: its
-            ``"ik"`` method, milliseconds per clip); a method name (``"ik"``,
-            ``"optimise"``), or False for the generator's raw output.
+        seed: for reproducible noise: sample ``b`` is noise stream ``(seed, b)``, so it
+            does not depend on ``num`` (the single sample is ``b = 0``).
+        num: None for one sample; a count ``k`` for a batch of ``k``.
+        sampler: a ``mrlib.Sampler`` (fine noise, guidance, the foot-contact clean-up;
+            ``Sampler(fix_contacts=False)`` gives the generator's raw output); default
+            ``Sampler()``, the paper's sampler with the feet planted by
+            :func:`cleanup_foot_contacts` (milliseconds per clip).
+        levels: also return every level's output ``[level 1, ..., level L]`` as Motions
+            at the level's frame rate (``fps * T_i / T_L``), always raw: the pyramid
+            coarse to fine.
     Returns:
-        a ``Motion`` (SMPL parameters at the training fps); ``meta["sampler"]`` records
-        what made it (seed, index in the batch, fine_noise, guidance, the per-level label
-        weights), and ``save_motion`` keeps it in the .npz.
+        One type per call shape:
+
+        * ``num=None, levels=False``: a ``Motion``;
+        * ``num=k, levels=False``: a list of ``k`` Motions (also for ``k = 1``);
+        * ``num=None, levels=True``: ``(motion, [level Motions])``;
+        * ``num=k, levels=True``: a list of ``k`` such pairs.
+
+        Motions are SMPL parameters at the training fps; ``meta["sampler"]`` records
+        what made each (seed, index in the batch, fine_noise, guidance, the per-level
+        label weights), and ``save_motion`` keeps it in the .npz.
     """
-    motions, _ = _label_samples(
-        model, 1, condition, length, seed, conditions, blend, fix_contacts, body, False
+    condition = as_condition(0 if condition is None else condition)
+    sampler = Sampler() if sampler is None else sampler
+    if condition.parts_of is not None:
+        raise MotionValueError(
+            "a body-part condition splices samples of several labels: generate it with "
+            "mrlib.sampling.constraints.generate_parts(model, condition, ...), which takes "
+            "the same length, seed, num and sampler"
+        )
+    count = 1 if num is None else num
+    motions, per_level = _label_samples(
+        model, condition, count, length, seed, sampler, body, levels
     )
-    return motions[0]
-
-
-@checked()
-@with_policy
-def generate_many(
-    model: GenerativeModel,
-    condition: str | int | None = None,
-    length: int | None = None,
-    seed: int | None = None,
-    *,
-    num_samples: int,
-    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
-    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
-    fix_contacts: bool | str = True,
-    body=None,
-) -> list[Motion]:
-    """``num_samples`` motions of :func:`generate`'s kind in one batch: always a list.
-    Sample ``b`` is noise stream ``(seed, b)``, so it does not depend on the batch size
-    (sample 0 is ``generate(..., seed=seed)``)."""
-    motions, _ = _label_samples(
-        model, num_samples, condition, length, seed, conditions, blend, fix_contacts, body, False
-    )
-    return motions
-
-
-@checked()
-@with_policy
-def generate_levels(
-    model: GenerativeModel,
-    condition: str | int | None = None,
-    length: int | None = None,
-    seed: int | None = None,
-    *,
-    conditions: Sequence[tuple[str | int, tuple[int, int]]] | None = None,
-    blend: tuple[str | int, str | int, float | Sequence[float]] | None = None,
-    fix_contacts: bool | str = True,
-    body=None,
-) -> tuple[Motion, list[Motion]]:
-    """:func:`generate`'s motion and every level's output ``[level 1, ..., level L]`` as
-    Motions at the level's frame rate (``fps * T_i / T_L``), always raw: the pyramid
-    coarse to fine, for plots such as notebook 02's."""
-    motions, levels = _label_samples(
-        model, 1, condition, length, seed, conditions, blend, fix_contacts, body, True
-    )
-    return motions[0], levels[0]
+    return shaped_samples(motions, per_level, num)
 
 
 @checked(clip_index=lambda n, v: check_number(n, v, low=0, integer=True))
-def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.Tensor]:
+def _reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.Tensor]:
     """Normalised features ``[(1, C, T_i)]`` of every level of training clip
     ``clip_index`` regenerated from its fixed noise (z*_1 at level 1, zero above) and
     its own label, as in the reconstruction loss."""
@@ -466,34 +394,30 @@ def reconstruct_features(model: GenerativeModel, clip_index: int) -> list[torch.
 
 
 @checked(clip_index=lambda n, v: check_number(n, v, low=0, integer=True))
-def reconstruct(model: GenerativeModel, clip_index: int) -> Motion:
-    """Training clip ``clip_index`` regenerated from z* and its label (with every level:
-    :func:`reconstruct_levels`)."""
-    outs = reconstruct_features(model, clip_index)
-    label = model.labels[model.clip_labels[clip_index]]
-    name = f"{model.clip_names[clip_index]}_reconstruction"
-    return _to_motion(model, outs[-1][0], model.fps, label, name)
-
-
-@checked(clip_index=lambda n, v: check_number(n, v, low=0, integer=True))
-def reconstruct_levels(model: GenerativeModel, clip_index: int) -> tuple[Motion, list[Motion]]:
-    """:func:`reconstruct`'s motion and every level's output as Motions at the level's
-    frame rate (``fps * T_i / T_L``)."""
-    outs = reconstruct_features(model, clip_index)
+def reconstruct(
+    model: GenerativeModel, clip_index: int, *, levels: bool = False
+) -> Motion | tuple[Motion, list[Motion]]:
+    """Training clip ``clip_index`` regenerated from its fixed noise z* and its label
+    (no sampler: the reconstruction the training loss sees). Returns a ``Motion``; with
+    ``levels``, ``(motion, [level Motions])``, every level's output at the level's frame
+    rate (``fps * T_i / T_L``)."""
+    outs = _reconstruct_features(model, clip_index)
     label = model.labels[model.clip_labels[clip_index]]
     name = f"{model.clip_names[clip_index]}_reconstruction"
     motion = _to_motion(model, outs[-1][0], model.fps, label, name)
+    if not levels:
+        return motion
     fps_i = level_fps(model.fps, [o.shape[-1] for o in outs])
-    levels = [
+    per_level = [
         _to_motion(model, o[0], f, label, f"{name}_level{i + 1}")
         for i, (o, f) in enumerate(zip(outs, fps_i, strict=True))
     ]
-    return motion, levels
+    return motion, per_level
 
 
 def reconstruction_error(model: GenerativeModel, clip_index: int) -> float:
     """Mean absolute error between the normalised features of the reconstruction and of
     the training clip: the training's L_rec at the finest level."""
-    out = reconstruct_features(model, clip_index)[-1][0]
+    out = _reconstruct_features(model, clip_index)[-1][0]
     target = model.normalizer.normalize(model.features[clip_index].to(out.device)).T
     return float((out - target).abs().mean())

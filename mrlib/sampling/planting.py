@@ -1,29 +1,24 @@
 """How the feet are planted, for the foot-contact clean-up (``mrlib.sampling.cleanup``,
-whose docstring explains both): ``style="smooth"``, one banded least-squares solve per
-axis for a root offset and an ankle offset per foot (:func:`plant_feet_smooth`), and
-``style="pin"``, every contact run pinned to its mean position and eased in and out
-(:func:`plant_feet`)."""
+whose docstring explains it): one banded least-squares solve per axis for a root offset
+and an ankle offset per foot (:func:`smooth_foot_offsets`, its knobs
+:class:`PlantOptions`), two-bone leg IK taking each ankle by its offset
+(:func:`move_ankles`)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from mrlib.errors import MotionValueError
 from mrlib.representation.skeleton import NUM_JOINTS, PARENTS
-from mrlib.sampling.leg_ik import (
-    LEGS,
-    contact_runs,
-    foot_transform,
-    global_rotations,
-    pin_corrections,
-    two_bone_ik,
-)
+from mrlib.sampling.leg_ik import LEGS, global_rotations, two_bone_ik
 
 __all__ = [
-    "plant_feet",
+    "PlantOptions",
+    "PLANT_DEFAULTS",
     "smooth_foot_offsets",
-    "plant_feet_smooth",
+    "move_ankles",
     "SMOOTH_S",
     "ROOT_HOLD_S",
     "LEG_HOLD_S",
@@ -37,110 +32,17 @@ __all__ = [
 ]
 
 
-def _leg_arrays(name: str, R, joints, feet, contacts):
-    """The planting functions' inputs as float64 arrays and boolean contacts, or a
-    ``MotionValueError`` naming ``name`` and the shapes it got."""
-    R = np.asarray(R, np.float64)
-    J = np.asarray(joints, np.float64)
-    F = np.asarray(feet, np.float64)
-    c = np.asarray(contacts) > 0.5
+def _leg_arrays(R, joints, legs):
+    """:func:`move_ankles`'s inputs as float64 arrays, or a ``MotionValueError`` with the
+    shapes it got."""
+    R, J, L = (np.asarray(a, np.float64) for a in (R, joints, legs))
     T = len(R)
-    shapes = (R.shape, J.shape, F.shape, c.shape)
-    if shapes != ((T, NUM_JOINTS, 3, 3), (T, NUM_JOINTS, 3), (T, 6, 3), (T, 6)):
+    shapes = (R.shape, J.shape, L.shape)
+    if shapes != ((T, NUM_JOINTS, 3, 3), (T, NUM_JOINTS, 3), (2, T, 3)):
         raise MotionValueError(
-            f"{name} needs R (T, 24, 3, 3), joints (T, 24, 3), feet (T, 6, 3) and "
-            f"contacts (T, 6), got {shapes}"
+            f"move_ankles needs R (T, 24, 3, 3), joints (T, 24, 3) and legs (2, T, 3), got {shapes}"
         )
-    return R, J, F, c
-
-
-def plant_feet(
-    R: np.ndarray,
-    joints: np.ndarray,
-    feet: np.ndarray,
-    contacts: np.ndarray,
-    blend: int = 4,
-    *,
-    rotate_foot: bool = True,
-    move_root: bool = True,
-    root_smooth: float = 0.0,
-) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """Local rotations ``(T, 24, 3, 3)`` and a root offset ``(T, 3)`` that plant the
-    contact vertices.
-
-    1. Every contact vertex is pinned over each of its contact runs
-       (:func:`pin_corrections`); per foot and frame, the rigid motion that keeps its
-       pinned vertices on their targets (:func:`foot_transform`) gives the ankle's target
-       and, with ``rotate_foot``, the foot's new orientation (else the foot keeps its
-       angle and the ankle moves by the mean correction).
-    2. With ``move_root`` the whole body first moves by the feet's corrections, weighted
-       by how pinned each foot is: a single planted foot is then held by the root alone,
-       which changes no joint angle.
-    3. Two-bone leg IK takes each ankle the rest of the way.
-
-    Args:
-        R: ``(T, 24, 3, 3)`` local rotations (``R[:, 0]`` the global orientation).
-        joints: ``(T, 24, 3)`` joint positions of ``R`` (from the body model).
-        feet: ``(T, 6, 3)`` positions of the six contact vertices.
-        contacts: ``(T, 6)`` contact labels (> 0.5 is contact).
-        blend: frames over which a correction eases in before and out after a run.
-        root_smooth: Gaussian sigma (frames) of the root offset; 0 leaves it raw.
-    Returns:
-        The new rotations, the root offset (add it to the translation), and
-        ``{"runs": number of vertex contact runs planted}``.
-    """
-    R, J, F, c = _leg_arrays("plant_feet", R, joints, feet, contacts)
-    T = len(R)
-    G = global_rotations(R)
-    out = R.copy()
-    runs = 0
-    # one floor for the clip: the median height of the vertices while in contact
-    floor = float(np.median(F[..., 1][c])) if c.any() else None
-    # 1. per foot: how pinned it is, its ankle target and orientation
-    plans = []
-    for (hip, knee, ankle), chans in LEGS:
-        corr = np.zeros((T, len(chans), 3))
-        weight = np.zeros((T, len(chans)))
-        for k, v in enumerate(chans):
-            runs += len(contact_runs(c[:, v]))
-            corr[:, k], weight[:, k] = pin_corrections(F[:, v], c[:, v], blend, floor)
-        pinned = weight.max(1)  # (T,)
-        if rotate_foot:
-            pts = F[:, chans]
-            Rf, cf, df = foot_transform(pts, pts + corr, weight, floor=floor)
-            target = (Rf @ (J[:, ankle] - cf)[..., None])[..., 0] + df
-            foot_G = Rf @ G[:, ankle]
-        else:
-            w = weight.sum(1)
-            target = J[:, ankle] + corr.sum(1) / np.maximum(w, 1.0)[:, None]
-            foot_G = G[:, ankle]
-        moved = pinned > 1e-9
-        target = np.where(moved[:, None], target, J[:, ankle])
-        plans.append((hip, knee, ankle, moved, pinned, target, foot_G))
-    # 2. the root takes the feet's common correction
-    offset = np.zeros((T, 3))
-    if move_root:
-        total = sum(p[4] for p in plans)  # (T,)
-        moves = sum(p[4][:, None] * (p[5] - J[:, p[2]]) for p in plans)
-        offset = moves / np.maximum(total, 1.0)[:, None]
-        if root_smooth > 0:  # a smooth root; the legs take what the smoothing leaves
-            offset = gaussian_filter1d(offset, root_smooth, axis=0, mode="nearest", truncate=3.0)
-    # 3. leg IK for what is left
-    for hip, knee, ankle, moved, _, target, foot_G in plans:
-        if not moved.any():
-            continue
-        Ga, Gb = G[:, hip], G[:, knee]
-        Ga1, Gb1 = two_bone_ik(
-            J[:, hip], J[:, knee], J[:, ankle], target - offset, Ga, Gb, bend_axis=Gb[:, :, 0]
-        )
-        Ga1 = np.where(moved[:, None, None], Ga1, Ga)
-        Gb1 = np.where(moved[:, None, None], Gb1, Gb)
-        foot_G = np.where(moved[:, None, None], foot_G, G[:, ankle])
-        Gp = G[:, PARENTS[hip]]
-        out[:, hip] = np.swapaxes(Gp, -1, -2) @ Ga1
-        out[:, knee] = np.swapaxes(Ga1, -1, -2) @ Gb1
-        out[:, ankle] = np.swapaxes(Gb1, -1, -2) @ foot_G
-    return out, offset, {"runs": int(runs)}
+    return R, J, L
 
 
 # -- smooth planting: one banded least-squares problem per axis ----------------------------
@@ -159,6 +61,40 @@ FLOOR_WEIGHT = 100.0  # 1/s^2: pull of a planted foot's lowest vertex onto the f
 STIFF = 2e5  # 1/s^2: the springs that hold the feet above the floor (a soft constraint)
 FLOOR_SLACK = 3e-3  # m: how far below the floor (where planted feet rest) a vertex may go
 FLOOR_MARGIN = 1e-3  # m: the floor the feet are kept above, above the estimated floor
+
+
+@dataclass(frozen=True)
+class PlantOptions:
+    """The knobs of :func:`smooth_foot_offsets`, today's defaults (the module constants;
+    ``bench/cleanup_natural.py`` measures other values).
+
+    Attributes:
+        smooth_s: time scale (s) below which a correction may not bend (its jerk weight).
+        root_hold_s, leg_hold_s: how far the root's and a leg's ground correction may
+            drift (their size weights); ``lift_hold_s`` the same for a leg's vertical one.
+        pin_weight: weight of the contact vertices' speed against the other terms.
+        floor_weight: pull (1/s^2) of a planted foot's lowest vertex onto the floor.
+        floor_slack: how far (m) below the floor a vertex may go; ``floor_stiffness``
+            (1/s^2) the springs that hold it there.
+        slide: contact vertices still faster (m/s) than this are pinned harder, over
+            ``reweight`` re-solves (0: one solve).
+        iterations: solves of the floor's active set at most.
+    """
+
+    smooth_s: float = SMOOTH_S
+    root_hold_s: float = ROOT_HOLD_S
+    leg_hold_s: float = LEG_HOLD_S
+    lift_hold_s: float = LIFT_HOLD_S
+    pin_weight: float = PIN_WEIGHT
+    floor_weight: float = FLOOR_WEIGHT
+    floor_slack: float = FLOOR_SLACK
+    floor_stiffness: float = STIFF
+    slide: float = SLIDE
+    reweight: int = REWEIGHT
+    iterations: int = 6
+
+
+PLANT_DEFAULTS = PlantOptions()
 
 
 def _central_diff(T: int):
@@ -185,20 +121,22 @@ def _diff(T: int, n: int):
 
 
 def _vertical(
-    y: np.ndarray, c: np.ndarray, floor: float, J3, fps: float, *, root_hold_s: float,
-    leg_hold_s: float, floor_weight: float, iterations: int, move_root: bool = True,
-    slack: float = 0.0, stiffness: float = STIFF,
+    y: np.ndarray, c: np.ndarray, floor: float, J3, fps: float, o: PlantOptions,
+    move_root: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Vertical offsets of the root ``(T,)`` and of each foot ``(2, T)``, the smoothest
-    (least jerk, weighted by the joints each moves, and least size) that set each
-    foot's lowest vertex labelled in contact on ``floor`` (springs of stiffness
-    ``floor_weight`` on the frames with one) and keep every vertex of ``y (T, 6)`` above
-    it (stiff springs on the frames that would be below, an active set grown over
-    ``iterations`` solves). The root, cheap in size but dear in jerk (it moves all 24
+    (least jerk, weighted by the joints each moves, and least size: ``o.root_hold_s``,
+    ``o.lift_hold_s``) that set each foot's lowest vertex labelled in contact on
+    ``floor`` (springs of stiffness ``o.floor_weight`` on the frames with one) and keep
+    every vertex of ``y (T, 6)`` above it, less ``o.floor_slack`` (springs of
+    ``o.floor_stiffness`` on the frames that would be below, an active set grown over
+    ``o.iterations`` solves). The root, cheap in size but dear in jerk (it moves all 24
     joints), takes the slow part; a leg, dear in size, the brief dips of its foot."""
     from scipy import sparse
     from scipy.sparse.linalg import spsolve
 
+    root_hold_s, leg_hold_s, floor_weight = o.root_hold_s, o.lift_hold_s, o.floor_weight
+    slack, stiffness = o.floor_slack, o.floor_stiffness
     T = len(y)
     dt = 1.0 / fps
     level = floor + FLOOR_MARGIN
@@ -211,7 +149,7 @@ def _vertical(
         rest.append(np.where(touching, level - np.where(cf, yf, np.inf).min(1), 0.0))
         need.append(level - slack - yf.min(1))  # the lift each frame needs
     active = [np.zeros(T, bool), np.zeros(T, bool)]
-    for _ in range(max(1, iterations)):
+    for _ in range(max(1, o.iterations)):
         W = [rest_w[f] + active[f] * (stiffness * dt) for f in range(2)]
         tgt = [rest_w[f] * rest[f] + active[f] * (stiffness * dt) * need[f] for f in range(2)]
         ll = [sparse.diags(W[f]) + 3 * J3 + I * (dt / leg_hold_s**2) for f in range(2)]
@@ -241,18 +179,8 @@ def smooth_foot_offsets(
     fps: float,
     *,
     floor: float | None = None,
-    smooth_s: float = SMOOTH_S,
-    root_hold_s: float = ROOT_HOLD_S,
-    leg_hold_s: float = LEG_HOLD_S,
     move_root: bool = True,
-    pin_weight: float = PIN_WEIGHT,
-    floor_weight: float = FLOOR_WEIGHT,
-    floor_slack: float = FLOOR_SLACK,
-    floor_stiffness: float = STIFF,
-    lift_hold_s: float = LIFT_HOLD_S,
-    slide: float = SLIDE,
-    reweight: int = REWEIGHT,
-    iterations: int = 6,
+    options: PlantOptions = PLANT_DEFAULTS,
 ) -> tuple[np.ndarray, np.ndarray]:
     """A root offset ``(T, 3)`` and one offset per foot ``(2, T, 3)`` that stop the feet
     while they are labelled in contact and keep them above ``floor``, as smooth as
@@ -291,14 +219,17 @@ def smooth_foot_offsets(
         contacts: ``(T, 6)`` labels, > 0.5 is contact.
         fps: frames per second.
         move_root: False keeps the root where it is (the legs take everything).
-        reweight: how many times to re-solve with the contact vertices still faster than
-            ``slide`` weighted up (``REWEIGHT``; 0 solves once).
+        options: the energy's weights and the solves (:class:`PlantOptions`; ``reweight``:
+            how many times to re-solve with the contact vertices still faster than
+            ``slide`` weighted up, 0 solves once).
     Returns:
         ``(root offset (T, 3), leg offsets (2, T, 3))``.
     """
     from scipy import sparse
     from scipy.sparse.linalg import splu
 
+    o = options
+    smooth_s, root_hold_s, leg_hold_s = o.smooth_s, o.root_hold_s, o.leg_hold_s
     F = np.asarray(feet, np.float64)
     c = np.asarray(contacts) > 0.5
     T = len(F)
@@ -309,18 +240,14 @@ def smooth_foot_offsets(
     J3 = _diff(T, 3) * fps**3
     J3 = (J3.T @ J3) * (dt * smooth_s**4)
     if floor is not None:  # vertical: on the floor and never below it
-        root[:, 1], legs[:, :, 1] = _vertical(
-            F[..., 1], c, floor, J3, fps, root_hold_s=root_hold_s, leg_hold_s=lift_hold_s,
-            floor_weight=floor_weight, iterations=iterations, move_root=move_root,
-            slack=floor_slack, stiffness=floor_stiffness,
-        )  # fmt: skip
+        root[:, 1], legs[:, :, 1] = _vertical(F[..., 1], c, floor, J3, fps, o, move_root)
     if not c.any():
         return root, legs
     D1 = _central_diff(T) * fps  # m/s
     I = sparse.identity(T, format="csr")
     P = F[..., [0, 2]]  # (T, 6, 2) ground positions
-    weight = c * (dt * pin_weight)  # (T, 6)
-    reweight = int(reweight)
+    weight = c * (dt * o.pin_weight)  # (T, 6)
+    reweight, slide = int(o.reweight), o.slide
     for it in range(max(1, reweight + 1)):
         # per vertex: weighted speed operator; per foot: their sum
         A_k = [D1.T @ sparse.diags(weight[:, k]) @ D1 for k in range(6)]
@@ -353,22 +280,12 @@ def smooth_foot_offsets(
     return root, legs
 
 
-def plant_feet_smooth(
-    R: np.ndarray,
-    joints: np.ndarray,
-    feet: np.ndarray,
-    contacts: np.ndarray,
-    fps: float,
-    *,
-    floor: float | None = None,
-    move_root: bool = True,
-    **kw,
-) -> tuple[np.ndarray, np.ndarray, dict[str, int]]:
-    """:func:`plant_feet` with the corrections of :func:`smooth_foot_offsets`: the root
-    moves by its offset and two-bone IK takes each ankle by its leg's offset, the foot
-    keeping its global orientation (so its vertices move with the ankle)."""
-    R, J, F, c = _leg_arrays("plant_feet_smooth", R, joints, feet, contacts)
-    offset, legs = smooth_foot_offsets(F, c, fps, floor=floor, move_root=move_root, **kw)
+def move_ankles(R: np.ndarray, joints: np.ndarray, legs: np.ndarray) -> np.ndarray:
+    """Local rotations ``R (T, 24, 3, 3)`` (``R[:, 0]`` the global orientation; ``joints
+    (T, 24, 3)`` their positions) with two-bone IK taking each ankle by its leg's offset
+    ``legs (2, T, 3)`` (:func:`smooth_foot_offsets`), the foot keeping its global
+    orientation (so its vertices move with the ankle)."""
+    R, J, legs = _leg_arrays(R, joints, legs)
     G = global_rotations(R)
     out = R.copy()
     for ((hip, knee, ankle), _), l in zip(LEGS, legs, strict=True):
@@ -385,5 +302,4 @@ def plant_feet_smooth(
         out[:, hip] = np.swapaxes(Gp, -1, -2) @ Ga1
         out[:, knee] = np.swapaxes(Ga1, -1, -2) @ Gb1
         out[:, ankle] = np.swapaxes(Gb1, -1, -2) @ G[:, ankle]
-    runs = sum(len(contact_runs(c[:, v])) for v in range(6))
-    return out, offset, {"runs": int(runs)}
+    return out

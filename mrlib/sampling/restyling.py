@@ -4,7 +4,7 @@ the reverse).
 The pyramid of a trained model splits motion by temporal resolution: level ``k`` runs at
 ``fps_k = fps * T_k / T_L`` and holds what varies slower than its Nyquist frequency
 ``fps_k / 2``; levels ``k+1..L`` add the rest, each a residual on the upsampled level
-below (paper Eq. 5-6). :func:`restyle` feeds a clip that is not the model's own into
+below (paper Eq. 6-7). :func:`restyle` feeds a clip that is not the model's own into
 that chain:
 
 - ``keep="coarse"`` (default): the clip is resampled to the model's frame rate, turned
@@ -35,18 +35,13 @@ from the clip, so the root travels exactly as the clip's. The root height is gen
 like any other channel. The result starts where the clip starts and has the clip's body
 shape (``betas``).
 
-**Inversion.** The direct route puts the clip itself at level ``k``; when the clip is
-far from anything the coarse levels produce, the fine levels see input unlike anything
-they were trained on. ``coarse_gap`` (``mrlib.evaluation.restyle_evidence``) measures
-how far (the per-frame distance from the clip's level-k frames to the nearest level-k
-frame of the training clips, over how far the training clips are from one another),
-and ``invert=True`` fits the coarse levels' noise (``mrlib.sampling.constraints.optimise``,
-the networks frozen, under the target label) so that their level-k output comes as close
-to the clip's level k as the model can make it, and uses that output instead. It costs
-about 2 s per clip where the direct route costs milliseconds, and on the unseen Bandai
-clips measured (walks, side walks, a bow and a wave; coarse gaps 0.7-2.1) it kept less
-of the clip (its low band 1.4-4 times further from the clip's) and gave the label as
-often, once in a while one pair more: the direct route is the default.
+**Not inverted.** The clip itself stands at level ``k``; when it is far from anything the
+coarse levels produce (``coarse_gap``, ``mrlib.evaluation.restyle_evidence``), the fine
+levels see input unlike their training. Fitting the coarse levels' noise to the clip
+first and restyling the model's own version of it was measured and did worse: on the
+unseen Bandai clips it kept less of the clip (its low band 1.4-4 times further from the
+clip's) and gave the label as often, once in a while one pair more, at about 2 s per
+clip (``docs/notes/2026-12-04-restyle.md``, ``docs/notes/2026-12-06-study-options.md``).
 
 The measures of a result are ``mrlib.evaluation.restyle_evidence``'s (evaluation sits
 above sampling): ``restyle_evidence`` against the three claims (the path kept, the low
@@ -64,7 +59,6 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -77,8 +71,7 @@ from mrlib.errors import (
     check_choice,
     shown,
 )
-from mrlib.metrics.bands import lowpass
-from mrlib.model.networks import MultiResGenerator
+from mrlib.metrics.bands import check_split_level, lowpass
 from mrlib.model.pyramid import level_fps, pyramid_lengths, resample_linear
 from mrlib.model.trained import check_model
 from mrlib.representation.features import (
@@ -90,11 +83,9 @@ from mrlib.representation.features import (
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import matrix_to_6d, sixd_to_matrix
 from mrlib.sampling.arguments import checked
-from mrlib.threads import with_policy
 
 __all__ = [
     "KEEP",
-    "INVERT_STEPS",
     "RESTYLE_LEVELS_ABOVE",
     "restyle",
     "restyle_level",
@@ -102,9 +93,6 @@ __all__ = [
 ]
 
 KEEP = ("coarse", "detail")  # what of the clip survives: its coarse levels, or its detail
-INVERT_STEPS = 200  # Adam steps of the coarse noise fit (invert=True)
-INVERT_LR = 0.05
-INVERT_PRIOR = 1e-3  # weight of mean(e_i^2) on the whitened noise (1e-2 kept less of clips)
 # The default level k is this many levels below the finest (k = 6 of 8): on the demo model
 # of four Bandai walks, the lowest k at which the residual took the target label's detail
 # in >= 80 % of (unseen clip, other label) pairs on both training seeds (82 % and 82 %;
@@ -143,14 +131,10 @@ def restyle_level(model: Any, level: int | None) -> int:
     L = model.num_levels
     if level is None:
         return max(1, L - RESTYLE_LEVELS_ABOVE)
-    if isinstance(level, bool) or not isinstance(level, (int, np.integer)):
-        raise MotionValueError(f"restyle level must be an integer, got {level!r}")
-    if not 1 <= level <= L - 1:
-        raise MotionValueError(
-            f"restyle level must be in 1..{L - 1} (the clip keeps levels 1..k, the label "
-            f"makes k+1..{L}; keep='detail' the reverse), got {level}"
-        )
-    return int(level)
+    return check_split_level(
+        level, L, "restyle level",
+        f"the clip keeps levels 1..k, the label makes k+1..{L}; keep='detail' the reverse",
+    )  # fmt: skip
 
 
 def at_model_rate(model: Any, motion: Motion | str | Path, resample: bool = True) -> Motion:
@@ -259,17 +243,6 @@ def training_heading(model: Any) -> float:
 
 
 # -- the generator, level by level ---------------------------------------------------------
-class _Levels(torch.nn.Module):
-    """The first ``k`` level generators of a model as a generator of their own (what
-    ``mrlib.sampling.constraints.optimise.optimise_noise`` runs while it fits the coarse noise)."""
-
-    run_batch = MultiResGenerator.run_batch
-
-    def __init__(self, generator: MultiResGenerator, k: int) -> None:
-        super().__init__()
-        self.levels = generator.levels[:k]
-
-
 def _run_levels(model: Any, x: torch.Tensor | None, start: int, stop: int, noises, conds):
     """Levels ``start..stop-1`` (0-based) on ``x``, the output of level ``start - 1``
     (None at level 0): ``(1, C, T_{stop-1})``."""
@@ -282,32 +255,6 @@ def _run_levels(model: Any, x: torch.Tensor | None, start: int, stop: int, noise
     return x
 
 
-def _fit_coarse(model: Any, target: torch.Tensor, noises, conds, steps: int, progress: bool):
-    """Noise of levels ``1..k`` fitted so that level ``k`` comes close to ``target
-    (1, C, T_k)``; returns that output and the RMS error before and after the fit.
-
-    Each level's noise is fitted per channel, starting from the seed's draw on every
-    channel (sampling shares one map over the channels): one map per level was too
-    few to follow a clip (on the demo model, walk_sad_002 at level 4: RMS 0.32 -> 0.19
-    in 200 steps against 0.32 -> 0.05 per channel)."""
-    from mrlib.sampling.constraints.optimise import optimise_noise
-
-    k = len(noises)
-    view = SimpleNamespace(generator=_Levels(model.generator, k))
-    noises = [z.expand(-1, target.shape[1], -1).clone() for z in noises]
-
-    def loss_fn(x: torch.Tensor) -> torch.Tensor:
-        return (x - target).pow(2).mean()
-
-    with torch.no_grad():
-        before = float(loss_fn(view.generator.run_batch(noises, conds)).sqrt())
-    fitted, _ = optimise_noise(view, noises, conds, loss_fn, steps=int(steps), lr=INVERT_LR,
-                               prior=INVERT_PRIOR, progress=progress)  # fmt: skip
-    with torch.no_grad():
-        out = view.generator.run_batch(fitted, conds)
-    return out, before, float(loss_fn(out).sqrt())
-
-
 # -- restyle -------------------------------------------------------------------------------
 def _clip(name: str, value: Any) -> Any:
     import os
@@ -318,7 +265,6 @@ def _clip(name: str, value: Any) -> Any:
 
 
 @checked(model=check_model, motion=_clip, keep=lambda n, v: check_choice(n, v, KEEP))
-@with_policy
 def restyle(
     model: Any,
     motion: Motion | str | Path,
@@ -327,12 +273,9 @@ def restyle(
     *,
     keep: str = "coarse",
     seed: int | None = None,
-    invert: bool = False,
-    invert_steps: int = INVERT_STEPS,
     align: bool = True,
-    fix_contacts: bool | str = True,
+    sampler: Any = None,
     body: Any = None,
-    progress: bool = False,
 ) -> Motion:
     """``motion`` restyled towards ``label`` (method: module docstring).
 
@@ -347,13 +290,10 @@ def restyle(
             (:func:`restyle_level`).
         keep: ``"coarse"`` or ``"detail"``.
         seed: the noise of the label's levels (None: a fresh draw).
-        invert: ``keep="coarse"`` only: fit the coarse levels' noise to the clip
-            (``invert_steps`` Adam steps) and run the fine levels on the model's own
-            level-k output instead of the clip's (for clips far from the training data,
-            ``mrlib.evaluation.restyle_evidence.coarse_gap``).
         align: turn the clip to the training clips' mean facing first (and back after).
-        fix_contacts: plant the feet (``mrlib.sampling.generation.cleanup_foot_contacts``; a method
-            name, or False for the raw result).
+        sampler: a ``mrlib.Sampler``: the fine noise and guidance of the label's levels,
+            and whether the feet are planted (``fix_contacts``,
+            ``mrlib.sampling.cleanup.cleanup_foot_contacts``; False for the raw result).
         body: body model for the contact labels of a clip that has none and for the
             clean-up (default: mrlib's).
     Returns:
@@ -362,24 +302,20 @@ def restyle(
     """
     from mrlib.representation.body import resolve_body
     from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.conditions import Condition
     from mrlib.sampling.generation import (
         check_conditions,
         draw_noise,
         guided_weights,
-        label_weights,
         noise_amplitude,
     )
+    from mrlib.sampling.sampler import Sampler
 
     t0 = time.perf_counter()
+    sampler = Sampler() if sampler is None else sampler
     model = check_label_model(model)
     if keep not in KEEP:
         raise MotionValueError(f"keep must be one of {KEEP}, got {keep!r}")
-    if invert and keep != "coarse":
-        raise MotionValueError("invert fits the coarse levels to the clip: keep='coarse' only")
-    if invert:
-        from mrlib.sampling.constraints.optimise import check_fit_steps
-
-        invert_steps = check_fit_steps(invert_steps, "invert_steps", minimum=1)
     k = restyle_level(model, level)
     lab = model.label_index(label)
     motion = at_model_rate(model, motion, resample=False)
@@ -397,18 +333,12 @@ def restyle(
     x = model.normalizer.normalize(torch.from_numpy(f_in).float()).T[None].to(dev)  # (1, C, T)
     x_k = resample_linear(x, lengths[k - 1])
 
-    W = label_weights(model, condition=lab)
-    G = guided_weights(model, W)
+    W = Condition.label(lab).weights(model)
+    G = guided_weights(W, sampler)
     conds = check_conditions(model, [G[i].expand(1, n, -1) for i, n in enumerate(lengths)], lengths)
-    noises = draw_noise(lengths, noise_amplitude(model, W), seed, 1, dev)
-    fit = None
+    noises = draw_noise(lengths, noise_amplitude(model, W, sampler), seed, 1, dev)
     if keep == "coarse":
-        start = x_k
-        if invert:
-            start, before, after = _fit_coarse(model, x_k, noises[:k], conds[:k],
-                                               invert_steps, progress)  # fmt: skip
-            fit = {"steps": int(invert_steps), "rms_before": before, "rms_after": after}
-        y = _run_levels(model, start, k, L, noises, conds)
+        y = _run_levels(model, x_k, k, L, noises, conds)
     else:
         y_k = _run_levels(model, None, 0, k, noises, conds)
         y = resample_linear(y_k, T) + (x - resample_linear(x_k, T))
@@ -436,10 +366,9 @@ def restyle(
     m.meta["restyle"] = {
         "source": str(source.meta.get("source", name)), "source_fps": float(motion.fps),
         "label": tag, "level": k, "keep": keep, "seed": seed, "align_deg": float(np.degrees(turn)),
-        "cutoff_hz": float(cutoff), "invert": fit, "fine_noise": float(model.fine_noise),
-        "guidance": float(model.guidance), "seconds": time.perf_counter() - t0,
+        "cutoff_hz": float(cutoff), "fine_noise": sampler.fine_noise,
+        "guidance": sampler.guidance, "seconds": time.perf_counter() - t0,
     }  # fmt: skip
-    if fix_contacts:
-        method = fix_contacts if isinstance(fix_contacts, str) else "ik"
-        m = cleanup_foot_contacts(m, body, method=method)
+    if sampler.fix_contacts:
+        m = cleanup_foot_contacts(m, body)
     return m

@@ -395,6 +395,7 @@ def evaluate_speech_sync(
     references: Sequence[Motion | None] | None = None,
     body=None,
     max_lag_s: float = 0.3,
+    sampler=None,
 ) -> SyncResult:
     """How well generated gestures follow the speech, against the same model driven by
     the wrong audio.
@@ -417,11 +418,15 @@ def evaluate_speech_sync(
 
     Args:
         utterances: ``(wav (N,), sr)`` pairs, at least two.
+        sampler: a ``mrlib.Sampler`` for the gestures; default the raw output
+            (``Sampler(fix_contacts=False)``).
     Returns:
         a :class:`SyncResult` (``.summary()``, ``.to_markdown()``).
     """
+    from mrlib.sampling.sampler import raw_sampler
     from mrlib.speech.sample import generate_from_audio
 
+    sampler = raw_sampler(sampler)
     if len(utterances) < 2:
         raise MotionValueError("the shuffled control needs at least two utterances")
     body = resolve_body(body)
@@ -447,8 +452,8 @@ def evaluate_speech_sync(
         ref = None if references is None else references[k]
         extra = {} if ref is None else score(ref, wav, sr, onsets, "data")
         for seed in seeds:
-            own = generate_from_audio(model, wav, seed, sr=sr, fix_contacts=False)
-            shuf = generate_from_audio(model, other, seed, sr=sr, fix_contacts=False)
+            own = generate_from_audio(model, wav, sr=sr, seed=seed, sampler=sampler)
+            shuf = generate_from_audio(model, other, sr=sr, seed=seed, sampler=sampler)
             rows.append(
                 {
                     "utterance": k,

@@ -10,6 +10,8 @@ Typical use::
 
     model = load_speech_model("runs/speech/checkpoint.pt")
     motion = generate_from_audio(model, "new_talk.wav", seed=0)
+    takes = generate_from_audio(model, "new_talk.wav", seed=0, num=4,
+                                sampler=Sampler(fine_noise=0.5))  # a list of 4
 """
 
 from __future__ import annotations
@@ -22,14 +24,24 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import (
+    ArgumentError,
+    MotionValueError,
+    check_args,
+    check_flag,
+    check_seed,
+    shown,
+)
 from mrlib.model.checkpoint import CheckpointError, load_checkpoint, reading
 from mrlib.model.pyramid import level_fps
 from mrlib.model.trained import GenerativeModel, model_from_state
+from mrlib.representation.body import check_body
 from mrlib.representation.features import features_to_motion
 from mrlib.representation.motion import Motion
+from mrlib.sampling.arguments import check_sampler, optional_count
 from mrlib.sampling.cleanup import cleanup_foot_contacts
-from mrlib.sampling.generation import noise_amplitude, sample_features
+from mrlib.sampling.generation import noise_amplitude, sample_features, shaped_samples
+from mrlib.sampling.sampler import Sampler
 from mrlib.speech.align import SpeechNormalizer, level_lengths, speech_conditions
 from mrlib.speech.audio import (
     MAX_AUDIO_SECONDS,
@@ -39,7 +51,6 @@ from mrlib.speech.audio import (
 )
 from mrlib.speech.data import SPEECH_LABEL
 from mrlib.speech.features import SpeechFeatureConfig, SpeechFeatureExtractor
-from mrlib.threads import with_policy
 
 __all__ = [
     "SpeechModel",
@@ -48,8 +59,6 @@ __all__ = [
     "is_speech_checkpoint",
     "audio_conditions",
     "generate_from_audio",
-    "generate_many_from_audio",
-    "generate_levels_from_audio",
 ]
 
 
@@ -177,18 +186,16 @@ def audio_conditions(
 
 
 def _audio_samples(
-    model, audio, seed, num_samples: int, sr, fix_contacts: bool, body, levels: bool
+    model: SpeechModel, audio, sr, seed, num: int, sampler: Sampler, body, levels: bool
 ) -> tuple[list[Motion], list[list[Motion]] | None]:
-    """What the three audio samplers share: ``num_samples`` Motions and, with
-    ``levels``, each one's per-level Motions."""
-    if not isinstance(model, SpeechModel):
-        model = load_speech_model(model)
+    """``num`` Motions of an utterance and, with ``levels``, each one's per-level
+    Motions (raw)."""
     name = Path(audio).stem if isinstance(audio, (str, Path)) else "audio"
     conds, lengths, wav, rate = audio_conditions(model, audio, sr)
     gm = model.model
-    amp = noise_amplitude(gm)  # (L,)
+    amp = noise_amplitude(gm, None, sampler)  # (L,)
     outs = sample_features(
-        gm, [c[None] for c in conds], lengths, amp, seed=seed, num_samples=num_samples, keep=True
+        gm, [c[None] for c in conds], lengths, amp, seed=seed, num_samples=num, keep=True
     )
     meta = {"audio": name, "audio_seconds": round(len(wav) / rate, 4), "seed": seed}
 
@@ -198,72 +205,77 @@ def _audio_samples(
         )
         return m.replace(meta=dict(meta))
 
-    motions = [to_motion(outs[-1][b], gm.fps, f"{name}_seed{seed}_{b}") for b in range(num_samples)]
-    if fix_contacts:
+    motions = [to_motion(outs[-1][b], gm.fps, f"{name}_seed{seed}_{b}") for b in range(num)]
+    if sampler.fix_contacts:
         motions = [cleanup_foot_contacts(m, body) for m in motions]
     if not levels:
         return motions, None
     fps_i = level_fps(gm.fps, lengths)
     per_level = [
         [to_motion(outs[i][b], fps_i[i], f"{name}_level{i + 1}") for i in range(len(lengths))]
-        for b in range(num_samples)
+        for b in range(num)
     ]
     return motions, per_level
 
 
-@with_policy
+def _speech_model(name: str, value) -> SpeechModel:
+    """A :class:`SpeechModel`, or a checkpoint path (loaded on CPU)."""
+    if isinstance(value, SpeechModel):
+        return value
+    if isinstance(value, (str, Path)):
+        return load_speech_model(value)
+    raise ArgumentError(
+        f"{name} must be a speech model (mrlib.speech.load_speech_model(checkpoint)) or its "
+        f"checkpoint, got {shown(value)}"
+    )
+
+
+def _speech_sampler(name: str, value) -> Sampler | None:
+    value = check_sampler(name, value)
+    if value is not None and value.guidance != 0:
+        raise MotionValueError(
+            f"{name}: guidance pushes label mixes apart; a speech model's condition is "
+            "audio: leave guidance at 0"
+        )
+    return value
+
+
+@check_args(
+    model=_speech_model, seed=check_seed, num=optional_count, sampler=_speech_sampler,
+    levels=check_flag, body=check_body,
+)  # fmt: skip
 def generate_from_audio(
     model: SpeechModel | str | Path,
     audio,
-    seed: int | None = None,
     *,
     sr: int | None = None,
-    fix_contacts: bool = True,
+    seed: int | None = None,
+    num: int | None = None,
+    sampler: Sampler | None = None,
+    levels: bool = False,
     body=None,
-) -> Motion:
-    """Gestures for an utterance: one motion frame per ``1 / fps`` s of audio (several:
-    :func:`generate_many_from_audio`; every level too: :func:`generate_levels_from_audio`).
+):
+    """Gestures for an utterance: one motion frame per ``1 / fps`` s of audio.
 
     Args:
         model: a :class:`SpeechModel` (or a checkpoint path, loaded on CPU).
         audio: a file path (any rate, mixed to mono, resampled to 16 kHz), or a waveform
             ``(N,)`` with ``sr``.
-        seed: noise seed (sample b of a batch uses stream ``(seed, b)``, as
-            ``mrlib.sampling.generation``; this one is b = 0).
-        fix_contacts: foot-contact clean-up (``mrlib.sampling.generation.cleanup_foot_contacts``).
+        sr: the sample rate (Hz) of a waveform.
+        seed: noise seed: sample b is noise stream ``(seed, b)``, as
+            ``mrlib.generate``'s, whatever ``num``.
+        num: None for one sample; a count ``k`` for a batch of ``k``.
+        sampler: a ``mrlib.Sampler``: its ``fine_noise`` and ``fix_contacts`` (the
+            foot-contact clean-up, ``mrlib.sampling.cleanup.cleanup_foot_contacts``);
+            guidance applies to label models only (refused here unless 0).
+        levels: also return every level's raw output as Motions at the level's frame
+            rate (``fps * T_i / T_L``).
     Returns:
-        a ``Motion`` of ``round(duration * fps)`` frames (label ``"speech"``).
+        As ``mrlib.generate``: a ``Motion`` of ``round(duration * fps)`` frames (label
+        ``"speech"``); with ``num=k`` a list of k; with ``levels`` ``(motion, [level
+        Motions])`` in place of each motion.
     """
-    return _audio_samples(model, audio, seed, 1, sr, fix_contacts, body, False)[0][0]
-
-
-@with_policy
-def generate_many_from_audio(
-    model: SpeechModel | str | Path,
-    audio,
-    seed: int | None = None,
-    *,
-    num_samples: int,
-    sr: int | None = None,
-    fix_contacts: bool = True,
-    body=None,
-) -> list[Motion]:
-    """``num_samples`` motions of :func:`generate_from_audio`'s kind in one batch: always
-    a list; sample b is noise stream ``(seed, b)``, whatever the batch size."""
-    return _audio_samples(model, audio, seed, num_samples, sr, fix_contacts, body, False)[0]
-
-
-@with_policy
-def generate_levels_from_audio(
-    model: SpeechModel | str | Path,
-    audio,
-    seed: int | None = None,
-    *,
-    sr: int | None = None,
-    fix_contacts: bool = True,
-    body=None,
-) -> tuple[Motion, list[Motion]]:
-    """:func:`generate_from_audio`'s motion and every level's raw output as Motions at
-    the level's frame rate (``fps * T_i / T_L``)."""
-    motions, levels = _audio_samples(model, audio, seed, 1, sr, fix_contacts, body, True)
-    return motions[0], levels[0]
+    sampler = Sampler() if sampler is None else sampler
+    count = 1 if num is None else num
+    motions, per_level = _audio_samples(model, audio, sr, seed, count, sampler, body, levels)
+    return shaped_samples(motions, per_level, num)

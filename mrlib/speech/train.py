@@ -1,14 +1,17 @@
 """Co-speech gesture training (paper, Sec. 6).
 
 The speech-conditioned model is the label-conditioned one with another control signal:
-the same networks (``mrlib.model.networks``), the same block-wise WGAN-GP training loop
-(``mrlib.training.trainer.Trainer``), the same sampler (``mrlib.sampling.generation.sample_features``). Only the
-condition changes: instead of a one-hot label, level i of the generator receives per-frame
+the same networks (``mrlib.model.generator``, ``mrlib.model.critic``), the same block-wise
+WGAN-GP training loop (``mrlib.training.trainer``), the same sampler
+(``mrlib.sampling.generation.sample_features``). Only the condition changes: instead of a
+one-hot label, level i of the generator receives per-frame
 speech features ``s_i (T_i, D)`` (``mrlib.speech.speech_conditions``: features aligned to
 the motion's frame rate, downsampled to every pyramid level, residuals above level 1),
 and FiLM modulates only the upper body (``ModelConfig.film_joints``).
 
-What differs from label training, all in :class:`SpeechTrainer`:
+What differs from label training, all in :class:`SpeechSignal` (the control signal,
+``mrlib.training.signals``) and :class:`SpeechTrainer` (the trainer that uses it, and
+what its checkpoint holds):
 
 * **reconstruction** (``L_rec``) runs on the *paired* clips only, each with its own
   speech and its fixed noise z* (paper: "we train with the reconstruction loss using
@@ -27,14 +30,14 @@ What differs from label training, all in :class:`SpeechTrainer`:
   with unpaired audio, so the critic would tell fakes apart by their audio alone: its
   loss ran away to -1e5 within 1,400 iterations when we let it). With
   ``LossWeights.mismatch`` the critic also sees every real clip with its own speech
-  shifted out of step (:meth:`SpeechTrainer.mismatched_real_conditions`) as a fake, so it
+  shifted out of step (:meth:`SpeechSignal.mismatched_real_conditions`) as a fake, so it
   learns whether motion and speech go *together*, not only whether each looks real;
   that is what ties the hand speed to the loudness at the syllable level
   (``docs/results.md``). With conditional critics the random generations take paired
   audio by default;
 * the paper alternates reconstruction and random generation; here both run in every
-  generator step (the Trainer sums ``L_rec`` of the reconstruction half of its batch and
-  the other terms of the random half, see ``mrlib.model.config``), so every iteration visits
+  generator step (the trainer sums ``L_rec`` of the reconstruction half of its batch and
+  the other terms of the random half, ``mrlib.training.objective``), so every iteration visits
   the paired and the unpaired data once;
 * style mixing becomes *speech mixing*: with probability ``TrainConfig.mix_prob`` a
   random generation takes a second audio window from a random crossover level on. The
@@ -53,7 +56,7 @@ frames at the motion fps, L levels, B samples, S packed frames (``mrlib.model.py
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -62,18 +65,18 @@ import torch
 from mrlib.errors import MotionValueError
 from mrlib.model.checkpoint import CheckpointError
 from mrlib.model.config import ConfigError, TrainConfig
-from mrlib.model.networks import build_critics, build_generator
 from mrlib.model.pyramid import PackedLevels
 from mrlib.speech.align import downsample_levels, levels_to_residuals, speech_conditions
 from mrlib.speech.data import SpeechTrainingSet
-from mrlib.training.build import RandomDraw
-from mrlib.training.run import TrainResult, check_run_folder
+from mrlib.training.run import TrainResult
+from mrlib.training.signals import LabelSignal, RandomDraw
 from mrlib.training.trainer import Trainer
 
 __all__ = [
     "RANDOM_AUDIO",
     "residual_operators",
     "SpeechDraw",
+    "SpeechSignal",
     "SpeechTrainer",
     "speech_train",
 ]
@@ -133,8 +136,8 @@ def _back_and_forth(pos: torch.Tensor, n: torch.Tensor) -> torch.Tensor:
 
 @dataclass
 class SpeechDraw:
-    """The speech of a batch of random generations (what ``SpeechTrainer.draw_random``
-    returns in place of a label table).
+    """The speech of a batch of random generations (what ``SpeechSignal.draw_speech``
+    draws in place of a label table).
 
     Attributes:
         source, start: ``(B,)`` audio clip (index into the trainer's bank: paired clips
@@ -151,79 +154,27 @@ class SpeechDraw:
     cross: torch.Tensor
 
 
-class SpeechTrainer(Trainer):
-    """``mrlib.training.trainer.Trainer`` with speech as the control signal.
-
-    Overrides only the Trainer's two condition hooks (``rec_conditions``, ``draw_random``)
-    and what the checkpoint holds (``state_dict``, ``from_checkpoint``); the networks,
-    losses, loop, logging, resume and Ctrl-C handling are the Trainer's.
+class SpeechSignal(LabelSignal):
+    """Speech as the control signal (``mrlib.training.signals``): per-frame speech
+    features ``(1, S_i, D)`` per level. Overrides what the label signal gives the steps:
+    ``dim`` (D), ``real_conds`` (each paired clip's own speech), :meth:`rec_conditions`,
+    :meth:`draw_random`, :meth:`critic_keep` and :meth:`mismatched_real_conditions`; the
+    noise amplitudes are those of the one label every paired clip carries (their mean).
 
     Args:
-        data: a :class:`SpeechTrainingSet`.
-        config: a ``TrainConfig`` (``mrlib.model.config.speech_tutorial()``, ``speech_paper()``).
-        random_audio: where random generations take their speech: ``"unpaired"`` (paper),
-            ``"all"`` (paired and unpaired) or ``"paired"``; None (default): ``"paired"``
-            with conditional critics (they hear paired audio only, see
-            :meth:`critic_keep`), else ``"unpaired"`` (``"paired"`` when there is no
-            unpaired audio).
+        data: the training set; ``b``, ``config``, ``rng``: the trainer's batches, config
+            and generator of random draws; ``random_audio``: see :class:`SpeechTrainer`.
     """
 
-    def __init__(
-        self,
-        data: SpeechTrainingSet,
-        config: TrainConfig,
-        out_dir: str | Path,
-        body=None,
-        *,
-        random_audio: str | None = None,
-    ):
-        if not isinstance(data, SpeechTrainingSet):
-            raise MotionValueError(
-                f"SpeechTrainer needs a SpeechTrainingSet, got {type(data).__name__}"
-            )
-        if config.loss.detail:
-            raise ConfigError(
-                "loss.detail pulls each level to its label's detail statistics; speech has "
-                "no labels (set LossWeights(detail=0))"
-            )
-        if random_audio is None:
-            conditional = config.model.critic_condition
-            random_audio = "paired" if conditional or data.num_unpaired == 0 else "unpaired"
-        if random_audio not in RANDOM_AUDIO:
-            raise MotionValueError(
-                f"random_audio must be one of {RANDOM_AUDIO}, got {random_audio!r}"
-            )
-        if random_audio == "unpaired" and data.num_unpaired == 0:
-            raise MotionValueError(
-                "random_audio='unpaired' needs unpaired audio clips; add some or pass "
-                "random_audio='paired'"
-            )
-        if config.model.critic_condition and random_audio == "unpaired":
-            warnings.warn(
-                "conditional critics hear the speech of paired audio only; with "
-                "random_audio='unpaired' they judge realism alone (use 'paired')",
-                stacklevel=2,
-            )
-        if config.model.film_joints is None:
-            warnings.warn(
-                "FiLM modulates every joint; the paper modulates the upper body only "
-                "(ModelConfig(film_joints=mrlib.representation.skeleton.UPPER_BODY_JOINTS))",
-                stacklevel=2,
-            )
+    def __init__(self, data: SpeechTrainingSet, b, config: TrainConfig, rng, random_audio: str):
+        super().__init__(data.motion, b, config, rng)
         self.speech = data
-        self.random_audio = random_audio
-        super().__init__(data.motion, config, out_dir, body=body)
+        self.dim = data.dim
+        self.mismatch = bool(config.loss.mismatch)
 
-        # 1. the networks again, for D-dimensional speech instead of one label ----------------
-        torch.manual_seed(config.seed)
-        self.cond_dim = data.dim
-        self.generator = build_generator(config.model, self.cond_dim).to(self.device)
-        critic_cond = self.cond_dim if config.model.critic_condition else 0
-        self.critics = build_critics(config.model, critic_cond).to(self.device)
-
-        # 2. the audio bank: every clip's normalised features at the motion frame rate ---------
+        # the audio bank: every clip's normalised features at the motion frame rate
         finest, kinds = data.finest()
-        self.bank = torch.cat(finest).to(self.device)  # (sum T, D)
+        self.bank = torch.cat(finest).to(b.device)  # (sum T, D)
         self.bank_lengths = torch.tensor([f.shape[0] for f in finest])
         self.bank_offsets = torch.cumsum(self.bank_lengths, 0) - self.bank_lengths
         use = {"unpaired": ("unpaired",), "paired": ("paired",), "all": ("paired", "unpaired")}
@@ -231,14 +182,14 @@ class SpeechTrainer(Trainer):
             [k for k, kind in enumerate(kinds) if kind in use[random_audio]]
         )
 
-        # 3. reconstruction conditions: each paired clip with its own speech -----------------
+        # reconstruction conditions: each paired clip with its own speech
         L = config.model.num_levels
         per_clip = [
             speech_conditions(
                 f,
                 data.audio_fps,
                 data.fps,
-                self.lengths[k].tolist(),
+                b.lengths[k].tolist(),
                 normalizer=data.normalizer,
                 offset_s=data.frame_offset_s,
                 method=data.downsample,
@@ -246,13 +197,13 @@ class SpeechTrainer(Trainer):
             for k, f in enumerate(data.paired_features)
         ]
         self.rec_conds = [
-            self.rec_layout.pack([c[i].T for c in per_clip], i).transpose(1, 2) for i in range(L)
+            b.rec_layout.pack([c[i].T for c in per_clip], i).transpose(1, 2) for i in range(L)
         ]  # (1, S_i, D)
         self._per_clip = per_clip
         # a conditional critic sees every real clip with its own speech
-        self.real_rand_conds = (
+        self.real_conds = (
             [
-                self.rand_layout.pack([per_clip[k][i].T for k in self.rand_clip], i).transpose(1, 2)
+                b.rand_layout.pack([per_clip[k][i].T for k in b.rand_clip], i).transpose(1, 2)
                 for i in range(L)
             ]
             if config.model.critic_condition
@@ -260,7 +211,6 @@ class SpeechTrainer(Trainer):
         )
         self._ops: dict[int, tuple[PackedLevels, list[torch.Tensor], torch.Tensor]] = {}
 
-    # -- conditions ----------------------------------------------------------------------------
     def _operators(self, layout: PackedLevels) -> tuple[list[torch.Tensor], torch.Tensor]:
         key = id(layout)
         if key not in self._ops:
@@ -339,8 +289,8 @@ class SpeechTrainer(Trainer):
         paired = torch.where(second, draw.source_b[:, None] < P, draw.source[:, None] < P)
         noises = []
         for i in range(stop):
-            z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.device)
-            noises.append(z * self.sigma[0, i].to(self.device))
+            z = torch.randn(1, 1, layout.sizes[i], generator=self.rng).to(self.b.device)
+            noises.append(z * self.sigma[0, i].to(self.b.device))
         conds = self.draw_conditions(draw, layout, stop)
         return RandomDraw(conds, noises, second, paired=paired)
 
@@ -355,13 +305,80 @@ class SpeechTrainer(Trainer):
         """Speech that does not go with the real clips (``loss.mismatch``): each clip's own
         speech, circularly shifted by a random 25-75 % of its length, so the critic sees
         the same frames of speech, out of step with the motion."""
-        ks = self.rand_clip.tolist()
+        ks = self.b.rand_clip.tolist()
         frac = 0.25 + 0.5 * torch.rand(len(ks), generator=self.rng)
         shifted = []
         for f, k in zip(frac.tolist(), ks, strict=True):
             c = self._per_clip[k][level]
             shifted.append(c.roll(max(1, round(f * len(c))), 0).T)
-        return self.rand_layout.pack(shifted, level).transpose(1, 2).to(self.device)
+        return self.b.rand_layout.pack(shifted, level).transpose(1, 2).to(self.b.device)
+
+
+class SpeechTrainer(Trainer):
+    """``mrlib.training.trainer.Trainer`` with speech as the control signal.
+
+    Overrides only the signal (:meth:`control_signal`: a :class:`SpeechSignal`) and what
+    the checkpoint holds (``state_dict``, ``from_checkpoint``); the networks, losses,
+    loop, logging, resume and Ctrl-C handling are the Trainer's.
+
+    Args:
+        data: a :class:`SpeechTrainingSet`.
+        config: a ``TrainConfig`` (``mrlib.model.presets.speech_tutorial()``, ``speech_paper()``).
+        random_audio: where random generations take their speech: ``"unpaired"`` (paper),
+            ``"all"`` (paired and unpaired) or ``"paired"``; None (default): ``"paired"``
+            with conditional critics (they hear paired audio only, see
+            :meth:`SpeechSignal.critic_keep`), else ``"unpaired"`` (``"paired"`` when
+            there is no unpaired audio).
+    """
+
+    def __init__(
+        self,
+        data: SpeechTrainingSet,
+        config: TrainConfig,
+        out_dir: str | Path,
+        body=None,
+        *,
+        random_audio: str | None = None,
+    ):
+        if not isinstance(data, SpeechTrainingSet):
+            raise MotionValueError(
+                f"SpeechTrainer needs a SpeechTrainingSet, got {type(data).__name__}"
+            )
+        if config.loss.detail:
+            raise ConfigError(
+                "loss.detail pulls each level to its label's detail statistics; speech has "
+                "no labels (set LossWeights(detail=0))"
+            )
+        if random_audio is None:
+            conditional = config.model.critic_condition
+            random_audio = "paired" if conditional or data.num_unpaired == 0 else "unpaired"
+        if random_audio not in RANDOM_AUDIO:
+            raise MotionValueError(
+                f"random_audio must be one of {RANDOM_AUDIO}, got {random_audio!r}"
+            )
+        if random_audio == "unpaired" and data.num_unpaired == 0:
+            raise MotionValueError(
+                "random_audio='unpaired' needs unpaired audio clips; add some or pass "
+                "random_audio='paired'"
+            )
+        if config.model.critic_condition and random_audio == "unpaired":
+            warnings.warn(
+                "conditional critics hear the speech of paired audio only; with "
+                "random_audio='unpaired' they judge realism alone (use 'paired')",
+                stacklevel=2,
+            )
+        if config.model.film_joints is None:
+            warnings.warn(
+                "FiLM modulates every joint; the paper modulates the upper body only "
+                "(ModelConfig(film_joints=mrlib.representation.skeleton.UPPER_BODY_JOINTS))",
+                stacklevel=2,
+            )
+        self.speech = data
+        self.random_audio = random_audio
+        super().__init__(data.motion, config, out_dir, body=body)
+
+    def control_signal(self) -> SpeechSignal:
+        return SpeechSignal(self.speech, self.batches, self.config, self.rng, self.random_audio)
 
     # -- checkpoints ---------------------------------------------------------------------------
     def state_dict(self) -> dict:
@@ -391,22 +408,16 @@ def speech_train(
     resume: str | Path | None = None,
     random_audio: str | None = None,
     body=None,
-    device: str | None = None,
     progress: bool = True,
-    callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
     overwrite: bool = False,
 ) -> TrainResult:
-    """Train a speech-conditioned model (or continue one); ``mrlib.training.trainer.train`` for
-    speech. ``data``, ``config`` and ``random_audio`` are ignored when resuming (the
-    checkpoint holds them); ``device`` then moves the run to another device.
-    ``overwrite`` replaces a run already in ``out_dir`` (refused otherwise)."""
-    check_run_folder(out_dir, resume=resume, overwrite=overwrite)
-    if resume is not None:
-        trainer = SpeechTrainer.from_checkpoint(resume, out_dir=out_dir, body=body, device=device)
-    else:
-        if data is None or config is None:
-            raise CheckpointError(
-                None, "speech_train() needs data and config unless resume is given"
-            )
-        trainer = SpeechTrainer(data, config, out_dir, body=body, random_audio=random_audio)
-    return trainer.fit(progress=progress, callback=callback, overwrite=overwrite)
+    """Train a speech-conditioned model (or continue one); ``mrlib.training.trainer.train``
+    for speech. ``data``, ``config`` and ``random_audio`` are ignored when resuming (the
+    checkpoint holds them). ``overwrite`` replaces a run already in ``out_dir`` (refused
+    otherwise). For a callback after every iteration, or to resume on another device:
+    ``SpeechTrainer.start(..., device=...).fit(callback=...)``."""
+    options = {"random_audio": random_audio}
+    trainer = SpeechTrainer.start(
+        data, config, out_dir, resume=resume, body=body, overwrite=overwrite, options=options
+    )
+    return trainer.fit(progress=progress, overwrite=overwrite)

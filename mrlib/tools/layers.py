@@ -32,9 +32,9 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("io",),  # files in and out
     ("datasets",),  # the Bandai Namco clips, synthetic clips
     ("metrics",),  # measures of motion: the paper's metrics, plausibility, bands
-    ("model",),  # config and presets, pyramid, networks, losses, checkpoints
-    ("training",),
-    ("sampling",),  # generation, clean-up, restyle, constraints
+    ("model",),  # config and presets, pyramid, generator, critic, losses, checkpoints
+    ("sampling",),  # conditions, generation, clean-up, restyle, constraints
+    ("training",),  # the training set, the objective, the training loop
     ("evaluation",),
     ("speech",),
     ("viz",),  # the only package that draws

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from mrlib.errors import (
+    ArgumentError,
     ClipTooShortError,
     MotionValueError,
     check_args,
@@ -22,17 +23,30 @@ from mrlib.errors import (
     check_number,
     check_path,
     check_text,
+    shown,
 )
 from mrlib.io.jointmap import check_joint_map
+from mrlib.model.config import ConfigError
 from mrlib.representation.body import check_body
 from mrlib.representation.features import NUM_FEATURES, FeatureNormalizer, motion_to_features
 from mrlib.representation.motion import MAX_FPS, Motion, check_motions
 
-__all__ = ["TrainingSet", "MAX_TRAIN_CLIP_FRAMES"]
+__all__ = ["TrainingSet", "MAX_TRAIN_CLIP_FRAMES", "check_training_fps"]
 
 # frames of one training clip at the training rate: 10 minutes at 30 fps (the bound of
 # `mrlib train`, mrlib.app.cli.train, which says it in the command's words)
 MAX_TRAIN_CLIP_FRAMES = 18_000
+
+
+def instance_or_none(kind: type, what: str):
+    """An argument check (``mrlib.errors.check_args``): ``kind`` or None."""
+
+    def check(name: str, value):
+        if value is None or isinstance(value, kind):
+            return value
+        raise ArgumentError(f"{name} must be {what} or None, got {shown(value)}")
+
+    return check
 
 
 def _labels(name: str, value):
@@ -207,3 +221,23 @@ class TrainingSet:
             f"TrainingSet({self.num_clips} clips, labels={self.labels}, fps={self.fps:g}, "
             f"lengths={self.lengths})"
         )
+
+
+def check_training_fps(data: TrainingSet, fps: float | None) -> None:
+    """Refuse a training set whose frame rate is not ``fps``, the rate a config trains at
+    (``TrainConfig.fps``; None: any). A training set holds features, not motions, so it
+    cannot be resampled exactly here: it is built at the right rate instead, as
+    ``mrlib train`` does.
+
+    Raises:
+        ConfigError: the two rates, and how to build the set at the config's.
+    """
+    if fps is None or abs(float(data.fps) - float(fps)) <= 1e-6:
+        return
+    raise ConfigError(
+        f"the config trains at {fps:g} fps (TrainConfig.fps) but the training set is at "
+        f"{data.fps:g} fps; build it at the config's rate, TrainingSet.from_files(paths, "
+        f"fps=config.fps) or TrainingSet.from_motions(motions, fps=config.fps) (speech: "
+        f"SpeechTrainingSet.from_folders(..., fps=config.fps)), or train at the clips' own "
+        f"rate with config.replace(fps=None)"
+    )

@@ -1,6 +1,6 @@
-"""A training run's folder: what a run writes there, the check before a run starts, what
-a run returns, and the reuse of a finished run (the model cache of notebooks and
-benchmarks).
+"""A training run's folder: what a run writes there, the check before a run starts, the
+lock and the thread count a fit holds (:meth:`RunFolder.fitting`), what a run returns,
+and the reuse of a finished run (the model cache of notebooks and benchmarks).
 
 Nothing here builds networks or trains: :func:`mrlib.training.trainer.train` and the
 ``train_*`` functions beside it start a :class:`~mrlib.training.trainer.Trainer` and use
@@ -16,22 +16,28 @@ import json
 import os
 import time
 import warnings
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import torch
 
-from mrlib.io.outputs import OutputExistsError
+from mrlib.io.outputs import OutputExistsError, RunLock
 from mrlib.io.paths import cache_root
-from mrlib.io.transaction import put_back, with_note
+from mrlib.io.transaction import outside_transactions, put_back, with_note
 from mrlib.model.config import TrainConfig, config_to_json
 from mrlib.model.trained import load_model
+from mrlib.threads import run_threads, usable_cpus
 from mrlib.training.data import TrainingSet
 
 __all__ = [
     "RUN_FILES",
     "RunExistsError",
     "RunAttempt",
+    "RunFolder",
+    "thread_count_of_fit",
+    "resume_thread_count",
     "stage_run",
     "progress_text",
     "check_run_folder",
@@ -189,6 +195,90 @@ class RunAttempt:
             else:
                 note += f"nothing was kept ({self.out} is as it was before)"
         return with_note(e, note, self.out)
+
+
+class RunFolder:
+    """One trainer's run folder across its fits: the checkpoint it resumed from, whether
+    an earlier fit checked the folder (:func:`check_run_folder`), and the checkpoints it
+    wrote (what a failed fit says it kept)."""
+
+    def __init__(self, out_dir: str | Path, resumed_from: Path | None = None):
+        self.out = Path(out_dir)
+        self.resumed_from = resumed_from  # the checkpoint the trainer continues
+        self.claimed = False  # checked (check_run_folder) by an earlier fit
+        self.saves = 0
+        self.last_saved: str | None = None
+
+    def saved(self, path: Path, where: str) -> None:
+        """Note a checkpoint written at ``where`` (:func:`progress_text`)."""
+        self.saves += 1
+        self.last_saved = f"the checkpoint of {where} ({path})"
+
+    @contextlib.contextmanager
+    def fitting(self, overwrite: bool, where: str) -> Iterator[None]:
+        """Around one fit: outside any output transaction of the caller (the run's files reach the disk as it goes),
+        the folder locked (``mrlib.io.outputs.RunLock``: a second run there is refused)
+        and checked first. A fit that fails before its first checkpoint leaves the folder
+        as it was (:class:`RunAttempt`), and its error says what was kept. ``where``: the
+        trainer's position now (:func:`progress_text`)."""
+        attempt, saves, claiming = RunAttempt(self.out), self.saves, False
+        ckpt, earlier, elsewhere = self.out / "checkpoint.pt", None, None
+        if self.last_saved is not None:  # by an earlier fit
+            earlier = self.last_saved
+        elif self.resumed_from is not None and same_file(self.resumed_from, ckpt):
+            earlier = f"the checkpoint it resumed from ({where})"
+        elif self.resumed_from is not None:
+            elsewhere = self.resumed_from
+        try:
+            with outside_transactions(), RunLock(self.out):
+                claiming = not self.claimed
+                if claiming:
+                    check_run_folder(self.out, resume=self.resumed_from, overwrite=overwrite)
+                # a fresh start moves the old run aside: nothing of it remains in the way
+                attempt.claim(fresh=overwrite and claiming and self.resumed_from is None)
+                self.claimed = True
+                yield
+        except BaseException as e:
+            wrote = self.last_saved if self.saves > saves else None
+            if wrote is None and claiming and attempt.claimed:
+                self.claimed = False  # the folder is as it was: check it again next time
+            err = attempt.failed(e, wrote=wrote, earlier=earlier, resumed_from=elsewhere)
+            if err is e:
+                raise
+            raise err from e
+        attempt.drop()
+
+
+def thread_count_of_fit(recorded: int | None) -> int:
+    """The torch thread count a fit runs on: the process's, unchanged; with a warning
+    where it differs from ``recorded``, the count of the run it resumes (its weights may
+    then differ from an uninterrupted run's by float rounding)."""
+    n = torch.get_num_threads()
+    if recorded is not None and n != recorded:
+        warnings.warn(
+            f"this run was started with {recorded} torch threads and continues with "
+            f"{n}: its weights may differ (by float rounding) from an uninterrupted run's; "
+            f"--threads {recorded} (mrlib.threads.use({recorded})) continues it exactly",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return n
+
+
+def resume_thread_count(recorded: int | None) -> int:
+    """The count the command line resumes a run on (``mrlib.threads.run_threads``: the
+    user's choice, else ``recorded``, else mrlib's default), with a warning where the
+    recorded count is more than the CPUs usable here."""
+    n, why = run_threads(recorded)
+    if why == "resumed" and n > usable_cpus():
+        warnings.warn(
+            f"this run was started with {n} torch threads, more than the {usable_cpus()} "
+            "CPUs usable here; it keeps that count so that it continues exactly "
+            "(--threads N trades that for speed)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
+    return n
 
 
 def stage_run(tx, scratch: Path, out: Path, *, overwrite: bool) -> None:

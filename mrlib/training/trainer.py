@@ -1,58 +1,49 @@
-"""The :class:`Trainer` of the multi-resolution conditional GAN, and :func:`train`.
+"""Training the multi-resolution GAN (paper Sec. 3.4). Read this file top to bottom:
 
-One run, from construction to the last checkpoint, in four modules:
+1. :func:`train` makes a :class:`Trainer`, fresh or resumed (:meth:`Trainer.start`).
+2. ``Trainer(data, config, out_dir)`` builds the run's state: the fixed batches (every
+   clip's pyramid, packed; ``build``), the control signal (labels; ``signals``), the
+   generator and the critics, where the schedule stands; each block brings its
+   optimisers (:class:`BlockState`).
+3. :meth:`Trainer.fit` holds the run folder (``run.RunFolder``: lock, thread count)
+   around :func:`run_blocks`, the block loop: per block of two levels, freeze the levels
+   below, new Adam optimisers, iterations until the block's budget, each logged to
+   ``losses.csv``, a checkpoint every ``checkpoint_every`` iterations and at the block's
+   end; the first Ctrl-C finishes the iteration, checkpoints and returns (``monitor``).
+4. :meth:`Trainer.step`: :func:`critic_steps` (Adam steps on WGAN-GP, Eq. 12-13) and
+   :func:`generator_step` (one Adam step on Eq. 11), summed over the block's levels from
+   the pure terms of ``objective``.
 
-* ``mrlib.training.build``: what the run builds first (pyramids, noise, networks,
-  packed batch layouts, each block's optimisers) and the hooks that turn labels into
-  conditions (:class:`~mrlib.training.build.TrainerBase`, which the Trainer extends);
-* ``mrlib.training.steps``: one iteration, the paper's objectives as sums of pure loss
-  functions (``n_critic`` WGAN-GP critic steps, Eq. 7-8; one generator step, Eq. 6);
-* ``mrlib.training.loop``: the block loop, the loss log, Ctrl-C;
-* ``mrlib.training.run``: the run folder, what a run returns, and the model cache.
-
-Here: the Trainer itself (one iteration, checkpoints that resume bit-exactly on CPU:
-networks, optimizers, iteration and the RNG states; the locked run), :func:`train`, and
-the functions that train or reuse a model (:func:`train_or_reuse`, :func:`train_cached`,
-:func:`train_cached_many`). ``mrlib.speech.SpeechTrainer`` subclasses the Trainer.
+Checkpoints are ``checkpoints``; at the end, the functions that train or reuse a model
+(:func:`train_or_reuse`, :func:`train_cached`, :func:`train_cached_many`).
+``mrlib.speech.SpeechTrainer`` is a Trainer with another :meth:`Trainer.control_signal`.
+(Module names are those of ``mrlib.training``.)
 """
 
 from __future__ import annotations
 
 import dataclasses
-import warnings
+import functools
+import random
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from mrlib.errors import (
-    ArgumentError,
-    check_args,
-    check_flag,
-    check_optional_path,
-    check_path,
-    shown,
-)
-from mrlib.io.outputs import RunLock
-from mrlib.io.transaction import outside_transactions
-from mrlib.model.checkpoint import (
-    CheckpointError,
-    global_rng_state,
-    load_checkpoint,
-    reading,
-    save_checkpoint,
-    set_global_rng_state,
-)
-from mrlib.model.config import TrainConfig, config_from_json, config_to_json
-from mrlib.model.trained import check_device, load_model
+from mrlib.errors import check_args, check_flag, check_optional_path, check_path
+from mrlib.model.checkpoint import CheckpointError
+from mrlib.model.config import TrainConfig
+from mrlib.model.generator import MultiResGenerator
+from mrlib.model.trained import load_model
 from mrlib.representation.body import check_body
-from mrlib.threads import policy, run_threads, usable_cpus
-from mrlib.training.build import TrainerBase
-from mrlib.training.data import TrainingSet
-from mrlib.training.loop import TrainingDivergedError, run_blocks
+from mrlib.threads import usable_cpus
+from mrlib.training import checkpoints, objective
+from mrlib.training.build import Batches, Kinematics, build_batches, build_networks, make_adam
+from mrlib.training.data import TrainingSet, check_training_fps, instance_or_none
+from mrlib.training.monitor import CtrlC, LossLog, block_bar, check_finite
 from mrlib.training.run import (
-    RunAttempt,
+    RunFolder,
     TrainRecord,
     TrainResult,
     cache_folder,
@@ -61,90 +52,210 @@ from mrlib.training.run import (
     progress_text,
     reuse_finished_run,
     same_file,
+    thread_count_of_fit,
 )
-from mrlib.training.steps import critic_steps, generator_step
+from mrlib.training.signals import LabelSignal, RandomDraw
 
-__all__ = [
-    "train",
-    "train_or_reuse",
-    "train_cached",
-    "train_cached_many",
-    "Trainer",
-]
+__all__ = ["train", "train_or_reuse", "train_cached", "train_cached_many", "Trainer"]
+
+Losses = dict[int, dict[str, torch.Tensor]]  # {level: {term: value}}, 0-based levels
 
 
-class Trainer(TrainerBase):
-    """Holds the networks, data pyramids, layouts and optimizers of one training run.
+# -- 1. the entry point -------------------------------------------------------------------------
+@check_args(
+    data=instance_or_none(TrainingSet, "a TrainingSet (TrainingSet.from_motions / from_files)"),
+    config=instance_or_none(TrainConfig, "a TrainConfig (e.g. mrlib.get_preset('demo'))"),
+    out_dir=check_path,
+    resume=check_optional_path,
+    body=check_body,
+    progress=check_flag,
+    callback=lambda n, v: (
+        v if v is None or callable(v) else instance_or_none(type(None), "a function")(n, v)
+    ),
+    overwrite=check_flag,
+)
+def train(
+    data: TrainingSet | None,
+    config: TrainConfig | None,
+    out_dir: str | Path,
+    *,
+    resume: str | Path | None = None,
+    body=None,
+    progress: bool = True,
+    callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
+    overwrite: bool = False,
+) -> TrainResult:
+    """Train a model, or continue one.
 
-    Use :func:`train` unless you need step-level control (``step`` runs one iteration of
-    the current block and returns its losses). Creating a trainer seeds torch's, numpy's
-    and Python's global generators with ``config.seed`` (network initialisation); every
-    random draw of training then comes from the trainer's own generator ``rng``.
+    Args:
+        data: the clips (ignored when resuming: the checkpoint holds them), at the
+            config's frame rate when it sets one (``TrainConfig.fps``: build them with
+            ``TrainingSet.from_files(paths, fps=config.fps)``).
+        config: a ``TrainConfig`` (e.g. ``mrlib.model.presets.tutorial()``); ignored when resuming.
+        out_dir: folder for ``checkpoint.pt`` (+ ``checkpoint.pt.json``) and ``losses.csv``.
+        resume: a checkpoint to continue from, exactly where it stopped (on the
+            checkpoint's device; ``Trainer.start(..., device=...)`` moves it).
+        body: body model for the contact and smoothness losses (default ``load_body_model()``).
+        progress: show a tqdm bar per block with the latest losses.
+        callback: called after every iteration with the trainer and the last logged losses
+            ``{level: {name: value}}``; raising ``KeyboardInterrupt`` in it stops training
+            like Ctrl-C (a checkpoint is written first).
+        overwrite: replace a run already in ``out_dir`` (another run's files are refused
+            otherwise, ``mrlib.training.run.check_run_folder``; resuming in the
+            checkpoint's own folder needs no flag).
+    Returns:
+        a :class:`TrainResult`; ``interrupted`` tells whether it stopped early.
+    Raises:
+        RunExistsError: ``out_dir`` holds another run (checked before any work).
+        mrlib.io.outputs.RunLockedError: another process is training into ``out_dir``.
+        ConfigError: ``config.fps`` is set and ``data`` is at another frame rate.
+    """
+    trainer = Trainer.start(data, config, out_dir, resume=resume, body=body, overwrite=overwrite)
+    return trainer.fit(progress=progress, callback=callback, overwrite=overwrite)
+
+
+# -- 2. the state of a run ------------------------------------------------------------------------
+@dataclasses.dataclass
+class BlockState:
+    """The block being trained: its 0-based levels, its Adam optimisers, and the frozen
+    levels' reconstruction of every clip (its input; from the block's first step on)."""
+
+    levels: list[int]
+    opt_g: torch.optim.Adam
+    opt_d: torch.optim.Adam
+    frozen: torch.Tensor | None = None
+
+
+class Trainer:
+    """The state of one training run: data and config; ``rng``, the generator of every
+    random draw of training; ``kinematics`` (the body model); ``batches``, the fixed
+    packed batches (``mrlib.training.build.Batches``); ``signal``, the conditions
+    (``mrlib.training.signals``); ``generator`` and ``critics``; ``block``,
+    ``iteration`` and ``done``, where the schedule stands; ``active``, the block being
+    trained (None between blocks); ``folder``, the run folder's bookkeeping.
+
+    Step-level control: :meth:`start_block`, then :meth:`step` (returns the losses).
+    Creating a trainer seeds torch's, numpy's and Python's global generators.
     """
 
-    # -- one iteration ---------------------------------------------------------------------
-    def step(self) -> dict[int, dict[str, torch.Tensor]]:
-        """One iteration (critic steps + one generator step, ``mrlib.training.steps``) of
-        the current block; returns the losses ``{level: {name: value}}`` (0-based levels)."""
-        losses: dict[int, dict[str, torch.Tensor]] = {i: {} for i in self.block_levels}
-        if self.config.n_critic > 0:
-            critic_steps(self, losses)
-        generator_step(self, losses)
+    def __init__(self, data: TrainingSet, config: TrainConfig, out_dir: str | Path, body=None):
+        check_training_fps(data, config.fps)
+        self.data, self.config, self.out_dir = data, config, Path(out_dir)
+        self.device = torch.device(config.device)
+        self.folder = RunFolder(self.out_dir)
+        self.threads: int | None = None  # the run's torch thread count, fixed by fit()
+        self.rng = torch.Generator().manual_seed(config.seed)  # every random draw of training
+        torch.manual_seed(config.seed)  # network initialisation
+        np.random.seed(config.seed)
+        random.seed(config.seed)
+        self.kinematics = Kinematics(data, body, self.device)
+        self.batches: Batches = build_batches(data, config, self.rng, self.device)
+        self.signal = self.control_signal()
+        self.generator: MultiResGenerator
+        self.generator, self.critics = build_networks(config.model, self.signal.dim, self.device)
+        self.block, self.iteration, self.done = 0, 0, False
+        self.active: BlockState | None = None
+
+    def control_signal(self) -> LabelSignal:
+        """The conditions of this run: labels (a subclass returns its own signal, see
+        ``mrlib.training.signals`` for what it provides)."""
+        return LabelSignal(self.data, self.batches, self.config, self.rng)
+
+    @classmethod
+    def start(
+        cls,
+        data,
+        config: TrainConfig | None,
+        out_dir: str | Path,
+        *,
+        resume: str | Path | None = None,
+        device: str | None = None,
+        body=None,
+        overwrite: bool = False,
+        options: dict | None = None,
+    ) -> Trainer:
+        """A trainer for :meth:`fit`: fresh (``cls(data, config, out_dir, body=body,
+        **options)``), or resumed from the checkpoint ``resume`` (``data``, ``config``
+        and ``options`` ignored; ``device``: continue there instead of the checkpoint's
+        device). The run folder is checked first (``check_run_folder``)."""
+        check_run_folder(out_dir, resume=resume, overwrite=overwrite)
+        if resume is not None:
+            return cls.from_checkpoint(resume, out_dir=out_dir, body=body, device=device)
+        if data is None or config is None:
+            raise CheckpointError(None, "training needs data and config unless resume is given")
+        return cls(data, config, out_dir, body=body, **(options or {}))
+
+    @property
+    def block_levels(self) -> list[int]:
+        return self.config.blocks[self.block]
+
+    def start_block(self) -> None:
+        """Freeze the levels below the current block and create its optimisers."""
+        levels, c = self.block_levels, self.config
+        for i, (g, d) in enumerate(zip(self.generator.levels, self.critics, strict=False)):
+            g.requires_grad_(levels[0] <= i <= levels[-1])
+            d.requires_grad_(levels[0] <= i <= levels[-1])
+        g_params = [p for i in levels for p in self.generator.levels[i].parameters()]
+        d_params = [p for i in levels for p in self.critics[i].parameters()]
+        opt_g = make_adam(g_params, c.lr, c.betas, self.device)
+        self.active = BlockState(levels, opt_g, make_adam(d_params, c.lr, c.betas, self.device))
+
+    # -- 3. the run ---------------------------------------------------------------------------
+    def fit(
+        self,
+        progress: bool = True,
+        callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
+        *,
+        overwrite: bool = False,
+    ) -> TrainResult:
+        """Train every remaining block (:func:`run_blocks`); see :func:`train`. The run
+        uses the torch thread count the process has (it changes no count: the command
+        line and ``mrlib.threads.use`` do), records it in its checkpoints, and warns when
+        a resumed run continues on another count than it was started with."""
+        self.threads = thread_count_of_fit(self.threads)
+        ckpt = self.out_dir / "checkpoint.pt"
+        with self.folder.fitting(overwrite, progress_text(self)):
+            result = run_blocks(self, progress, callback)
+            if self.folder.saves == 0 and not same_file(ckpt, self.folder.resumed_from or ckpt):
+                self.save()  # resumed from a finished run into another folder: copy it there
+        return result
+
+    # -- 4. one iteration -----------------------------------------------------------------------
+    def step(self) -> Losses:
+        """One iteration of the current block: ``n_critic`` critic steps, then one
+        generator step; returns the losses ``{level: {name: value}}`` (0-based levels)."""
+        a, b, G, sig, c = self.active, self.batches, self.generator, self.signal, self.config
+        if a.frozen is None and a.levels[0] > 0:  # the frozen levels' output, once per block
+            lo = a.levels[0]
+            with torch.no_grad():
+                a.frozen = G.run(b.rec_layout, b.rec_noises(lo), sig.rec_conditions(lo), 0, lo)
+        losses: Losses = {i: {} for i in a.levels}
+        if c.n_critic > 0:
+            losses = critic_steps(G, self.critics, a, b, sig, c, self.rng)
+        for i, t in generator_step(G, self.critics, a, b, sig, c, self.kinematics).items():
+            losses[i].update(t)
         return losses
 
-    # -- checkpoints -------------------------------------------------------------------------
+    # -- checkpoints (mrlib.training.checkpoints) ------------------------------------------------
     def state_dict(self) -> dict:
-        d = self.data
-        return {
-            "config": config_to_json(self.config),
-            "labels": list(d.labels),
-            "clip_labels": [int(k) for k in d.clip_labels],
-            "clip_names": list(d.names),
-            "fps": float(d.fps),
-            "betas": torch.as_tensor(np.asarray(d.betas), dtype=torch.float32),
-            "cond_dim": int(self.cond_dim),
-            "normalizer": d.normalizer.state_dict(),
-            "features": [f.detach().cpu().clone() for f in d.features],
-            "lengths": self.lengths.clone(),
-            "sigma_clip": self.sigma_clip.clone(),
-            "sigma": self.sigma.clone(),
-            "zstar": [z.clone() for z in self.zstar],
-            "generator": {k: v.cpu() for k, v in self.generator.state_dict().items()},
-            "critics": {k: v.cpu() for k, v in self.critics.state_dict().items()},
-            "progress": {
-                "block": int(self.block),
-                "iteration": int(self.iteration),
-                "done": bool(self.done),
-            },
-            "optim_g": None if self.opt_g is None else self.opt_g.state_dict(),
-            "optim_d": None if self.opt_d is None else self.opt_d.state_dict(),
-            "rng": {**global_rng_state(), "trainer": self.rng.get_state()},
-            "threads": None if self.threads is None else int(self.threads),
-        }
+        return checkpoints.trainer_state(self)
+
+    def load_state_dict(self, state: dict) -> None:
+        checkpoints.load_trainer_state(self, state)
+
+    def save(self, path: Path | None = None) -> Path:
+        """Write the checkpoint; refuses (keeping the previous file) when a network holds
+        a non-finite weight."""
+        return checkpoints.save_trainer(self, path)
 
     @classmethod
     def from_checkpoint(
-        cls,
-        path: str | Path,
-        out_dir: str | Path | None = None,
-        body=None,
-        device: str | None = None,
+        cls, path: str | Path, out_dir: str | Path | None = None, body=None, device=None
     ) -> Trainer:
-        """Rebuild a trainer (data included) from a checkpoint to continue training.
-        A subclass with state of its own (``mrlib.speech.SpeechTrainer``) supplies it
-        through :meth:`_check_state`, :meth:`_data_from_state` and :meth:`_init_from_state`."""
-        state = load_checkpoint(path)
-        with reading(path):
-            cls._check_state(Path(path), state)
-            config = config_from_json(state["config"])
-            if device is not None:
-                config = config.replace(device=device)
-            data = cls._data_from_state(state)
-            out = Path(path).parent if out_dir is None else out_dir
-            trainer = cls(data, config, out, body=body, **cls._init_from_state(state))
-            trainer.load_state_dict(state)
-            trainer.resumed_from = Path(path)
-        return trainer
+        """Rebuild a trainer (data included) from a checkpoint to continue training. A
+        subclass with state of its own (``mrlib.speech.SpeechTrainer``) supplies it
+        through :meth:`_check_state`, :meth:`_data_from_state`, :meth:`_init_from_state`."""
+        return checkpoints.trainer_from_checkpoint(cls, path, out_dir, body, device)
 
     @classmethod
     def _check_state(cls, path: Path, state: dict) -> None:
@@ -159,178 +270,136 @@ class Trainer(TrainerBase):
         """Keyword arguments of the constructor that the checkpoint holds."""
         return {}
 
-    def load_state_dict(self, state: dict) -> None:
-        if state["lengths"].shape != self.lengths.shape or not torch.equal(
-            state["lengths"], self.lengths
-        ):
-            raise CheckpointError(None, "checkpoint pyramid lengths do not match the training data")
-        self.zstar = [z.clone() for z in state["zstar"]]
-        self.zstar_packed = self.rec_layout.pack(self.zstar, 0)
-        self.generator.load_state_dict(state["generator"])
-        self.critics.load_state_dict(state["critics"])
-        p = state["progress"]
-        self.block, self.iteration, self.done = (
-            int(p["block"]),
-            int(p["iteration"]),
-            bool(p["done"]),
-        )
-        if not self.done and self.block < self.config.num_blocks:
-            self.start_block()
-            if state["optim_g"] is not None:
-                self.opt_g.load_state_dict(state["optim_g"])
-                self.opt_d.load_state_dict(state["optim_d"])
-        set_global_rng_state(state["rng"])
-        self.rng.set_state(state["rng"]["trainer"])
-        recorded = state.get("threads")  # absent in checkpoints of earlier versions
-        self.threads = int(recorded) if isinstance(recorded, int) and recorded >= 1 else None
 
-    def save(self, path: Path | None = None) -> Path:
-        """Write the checkpoint; refuses (keeping the previous file) when a network holds
-        a non-finite weight."""
-        for name, net in (("generator", self.generator), ("critics", self.critics)):
-            if not all(bool(torch.isfinite(p).all()) for p in net.parameters()):
-                raise TrainingDivergedError(
-                    f"the {name} has non-finite weights at block {self.block + 1}, iteration "
-                    f"{self.iteration}; the checkpoint was not overwritten"
-                )
-        out = save_checkpoint(path or self.out_dir / "checkpoint.pt", self.state_dict())
-        self._saved = True
-        self._saves = getattr(self, "_saves", 0) + 1  # what a failed fit says it kept:
-        self._last_saved = f"the checkpoint of {progress_text(self)} ({out})"
-        return out
-
-    # -- the run -------------------------------------------------------------------------------
-    def fit(
-        self,
-        progress: bool = True,
-        callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
-        *,
-        overwrite: bool = False,
-    ) -> TrainResult:
-        """Train every remaining block (``mrlib.training.loop``); see :func:`train`. The
-        output folder is locked while it runs (``mrlib.io.outputs.RunLock``: a second run
-        there is refused) and checked first (:func:`check_run_folder`). The run keeps one
-        torch thread count from start to end (``mrlib.threads.run_threads``: the user's
-        choice, else the count recorded by the run it resumes, else mrlib's default), and
-        records it in its checkpoints."""
-        n, why = run_threads(self.threads)
-        if why == "user" and self.threads is not None and n != self.threads:
-            warnings.warn(
-                f"this run was started with {self.threads} torch threads and continues with "
-                f"{n}: its weights may differ (by float rounding) from an uninterrupted run's; "
-                f"--threads {self.threads} continues it exactly",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-        elif why == "resumed" and n > usable_cpus():
-            warnings.warn(
-                f"this run was started with {n} torch threads, more than the {usable_cpus()} "
-                "CPUs usable here; it keeps that count so that it continues exactly "
-                "(--threads N trades that for speed)",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-        self.threads = n
-        # a run that fails before its first checkpoint leaves the folder as it was
-        # (mrlib.training.run.RunAttempt); its files reach the disk as it goes, outside
-        # any output transaction of the caller
-        attempt, saves, claiming = RunAttempt(self.out_dir), getattr(self, "_saves", 0), False
-        ckpt, earlier, elsewhere = self.out_dir / "checkpoint.pt", None, None
-        if getattr(self, "_last_saved", None) is not None:  # by an earlier fit
-            earlier = self._last_saved
-        elif self.resumed_from is not None and same_file(self.resumed_from, ckpt):
-            earlier = f"the checkpoint it resumed from ({progress_text(self)})"
-        elif self.resumed_from is not None:
-            elsewhere = self.resumed_from
-        try:
-            with policy(n), outside_transactions(), RunLock(self.out_dir):
-                claiming = not self._claimed
-                if claiming:
-                    check_run_folder(self.out_dir, resume=self.resumed_from, overwrite=overwrite)
-                # a fresh start moves the old run aside: nothing of it remains in the way
-                attempt.claim(fresh=overwrite and claiming and self.resumed_from is None)
-                self._claimed = True
-                result = run_blocks(self, progress, callback)
-                if not self._saved and not same_file(ckpt, self.resumed_from or ckpt):
-                    self.save()  # resumed from a finished run into another folder: copy it there
-        except BaseException as e:
-            wrote = self._last_saved if getattr(self, "_saves", 0) > saves else None
-            if wrote is None and claiming and attempt.claimed:
-                self._claimed = False  # the folder is as it was: check it again next time
-            err = attempt.failed(e, wrote=wrote, earlier=earlier, resumed_from=elsewhere)
-            if err is e:
-                raise
-            raise err from e
-        attempt.drop()
-        return result
+# -- 3. the block loop --------------------------------------------------------------------------
+def run_blocks(tr: Trainer, progress: bool, callback: Callable | None) -> TrainResult:
+    """Train every remaining block of ``tr`` from where it stands (paper Sec. 3.4: two
+    consecutive levels at a time, the levels of earlier blocks frozen)."""
+    c = tr.config
+    log = LossLog(tr.out_dir, tr.folder.resumed_from, tr.block, tr.iteration)
+    with log, CtrlC() as ctrl_c:
+        while tr.block < c.num_blocks and not ctrl_c.pressed:
+            if tr.active is None:
+                tr.start_block()
+            n_iter = c.block_iterations[tr.block]
+            with block_bar(c, tr.block, tr.iteration, progress) as bar, ctrl_c.catch():
+                while tr.iteration < n_iter:
+                    with ctrl_c.step():  # a KeyboardInterrupt in here propagates, unsaved
+                        losses = tr.step()
+                        check_finite(losses, tr.block, tr.iteration, tr.out_dir)
+                        tr.iteration += 1
+                    if tr.iteration % c.log_every == 0 or tr.iteration == n_iter:
+                        top = log.write(tr.block, tr.iteration, losses)
+                        bar.set_postfix({k: f"{v:.3g}" for k, v in top.items()}, refresh=False)
+                    bar.update(1)
+                    if callback is not None:
+                        callback(tr, log.last)
+                    every = c.checkpoint_every
+                    if every and tr.iteration % every == 0 and tr.iteration < n_iter:
+                        tr.save()
+                    if ctrl_c.pressed:
+                        break
+            if not ctrl_c.pressed:  # the block is done: on to the next
+                tr.block, tr.iteration, tr.active = tr.block + 1, 0, None
+                tr.done = tr.block >= c.num_blocks
+            tr.save()
+    ckpt = tr.out_dir / "checkpoint.pt"
+    return TrainResult(ckpt, log.path, ctrl_c.pressed, log.elapsed(), log.last)
 
 
-def _instance(kind: type, what: str):
-    def check(name: str, value):
-        if value is None or isinstance(value, kind):
-            return value
-        raise ArgumentError(f"{name} must be {what} or None, got {shown(value)}")
+# -- 4. the steps -------------------------------------------------------------------------------
+# G: the generator; a: the block being trained; b: the run's batches; signal: its conditions
+def critic_steps(G, critics, a: BlockState, b: Batches, signal, config, rng) -> Losses:
+    """``n_critic`` Adam steps of the block's critics, each on the sum over its levels of
+    the critic loss (``objective.critic_terms``: WGAN-GP, Eq. 12-13, + the mismatch
+    term). The fakes of all steps come from one batched, gradient-free generation (the
+    generator does not change between critic steps: GANimator's one generation per
+    step, in distribution). Returns ``D``, ``gp`` (and ``mis``) of the last step."""
+    hi, lay, B = a.levels[-1], b.rand_layout, len(b.rand_clip)
+    losses: Losses = {i: {} for i in a.levels}
+    draw = signal.draw_random(b.fake_layout, hi + 1)
+    with torch.no_grad():
+        fakes = G.run(b.fake_layout, draw.noises, draw.conds, 0, hi + 1, keep=True)
+    keep = cond_fake = None  # conditional critics: which fakes keep their condition, and it
+    if signal.real_conds is not None:
+        keep, cond_fake = signal.critic_keep(draw), signal.critic_conditions(draw, b.fake_layout)
+    alphas = torch.rand(config.n_critic, B, generator=rng).to(b.device)
+    for j in range(config.n_critic):
+        a.opt_d.zero_grad(set_to_none=True)
+        total = 0.0
+        for i in a.levels:
+            S = lay.sizes[i]
+            fake = fakes[i][..., j * S : (j + 1) * S]  # the j-th copy of the random layout
+            conds = wrong = None
+            if keep is not None:
+                # a real clip is shown without its condition where its fake partner (same
+                # sample slot) is: both sides see the same kind of condition
+                k = lay.per_sample(keep[j * B : (j + 1) * B, i], i)[None, :, None]
+                conds = (signal.real_conds[i] * k, cond_fake[i][:, j * S : (j + 1) * S])
+                if signal.mismatch:
+                    wrong = signal.mismatched_real_conditions(i) * k
+            alpha = lay.per_sample(alphas[j], i)[None, None]  # (1, 1, S)
+            pads = (lay.pad_index(i, G.pad), b.critic_layout.pad_index(i, G.pad))
+            real, w = b.levels[i].real_rand, b.levels[i].w_rand
+            t = objective.critic_terms(critics[i], real, fake, w, alpha, pads, conds, wrong)
+            total = total + objective.critic_objective(t, config.loss)
+            losses[i].update({name: value.detach() for name, value in t.items()})
+        total.backward()
+        a.opt_d.step()
+    return losses
 
-    return check
+
+def generator_step(G, critics, a: BlockState, b: Batches, signal, config, kinematics) -> Losses:
+    """One Adam step of the block's generator levels on the sum over those levels of
+    Eq. 11 (``objective.generator_terms``): ``L_rec`` of the reconstructions (every clip
+    with its fixed noise z* and its own condition), the other terms of the random
+    generations (one per clip; with ``mix_prob``, two conditions from a random crossover
+    level on), both from one generator run (:func:`generator_outputs`)."""
+    losses: Losses = {i: {} for i in a.levels}
+    a.opt_g.zero_grad(set_to_none=True)
+    draw = signal.draw_random(b.rand_layout, a.levels[-1] + 1)
+    critic_conds = None  # what conditional critics see with the random generations
+    if signal.real_conds is not None:
+        critic_conds = signal.critic_conditions(draw, b.rand_layout)
+    outs = generator_outputs(G, a, b, signal, draw)
+    total = 0.0
+    for i, (out_rec, out_rand) in zip(a.levels, outs, strict=True):
+        lay, on = b.rand_layout, objective.terms_on(config, i)
+        cond = None if critic_conds is None else critic_conds[i]
+        critic = functools.partial(critics[i], pad_index=lay.pad_index(i, G.pad), cond=cond)
+        detail = None  # the band level i adds, and its label's statistics
+        if "detail" in on:
+            detail = functools.partial(_band_rms, lay, i), signal.detail_targets(draw, i)
+        lv = b.levels[i]
+        t = objective.generator_terms(out_rec, out_rand, lv, on, critic, kinematics, detail)
+        total = total + objective.generator_objective(t, config.loss)
+        losses[i].update({name: value.detach() for name, value in t.items()})
+    total.backward()
+    a.opt_g.step()
+    return losses
 
 
-@check_args(
-    data=_instance(TrainingSet, "a TrainingSet (TrainingSet.from_motions / from_files)"),
-    config=_instance(TrainConfig, "a TrainConfig (e.g. mrlib.get_preset('demo'))"),
-    out_dir=check_path,
-    resume=check_optional_path,
-    body=check_body,
-    device=lambda n, v: None if v is None else check_device(n, v),
-    progress=check_flag,
-    callback=lambda n, v: (
-        v if v is None or callable(v) else _instance(type(None), "a function")(n, v)
-    ),
-    overwrite=check_flag,
-)
-def train(
-    data: TrainingSet | None,
-    config: TrainConfig | None,
-    out_dir: str | Path,
-    *,
-    resume: str | Path | None = None,
-    body=None,
-    device: str | None = None,
-    progress: bool = True,
-    callback: Callable[[Trainer, dict[int, dict[str, float]]], None] | None = None,
-    overwrite: bool = False,
-) -> TrainResult:
-    """Train a model, or continue one.
+def _band_rms(layout, level: int, x: torch.Tensor) -> torch.Tensor:
+    return layout.per_sample_rms(layout.level_band(x, level), level)  # (B, C)
 
-    Args:
-        data: the clips (ignored when resuming: the checkpoint holds them).
-        config: a ``TrainConfig`` (e.g. ``mrlib.model.config.tutorial()``); ignored when resuming.
-        out_dir: folder for ``checkpoint.pt`` (+ ``checkpoint.pt.json``) and ``losses.csv``.
-        resume: a checkpoint to continue from, exactly where it stopped.
-        body: body model for the contact and smoothness losses (default ``load_body_model()``).
-        device: when resuming, continue on this device instead of the checkpoint's
-            (the config's device otherwise).
-        progress: show a tqdm bar per block with the latest losses.
-        callback: called after every iteration with the trainer and the last logged losses
-            ``{level: {name: value}}``; raising ``KeyboardInterrupt`` in it stops training
-            like Ctrl-C (a checkpoint is written first).
-        overwrite: replace a run already in ``out_dir`` (another run's files are refused
-            otherwise, :func:`check_run_folder`; resuming in the checkpoint's own folder
-            needs no flag).
-    Returns:
-        a :class:`TrainResult`; ``interrupted`` tells whether it stopped early.
 
-    Raises:
-        RunExistsError: ``out_dir`` holds another run (checked before any work).
-        mrlib.io.outputs.RunLockedError: another process is training into ``out_dir``.
-    """
-    check_run_folder(out_dir, resume=resume, overwrite=overwrite)
-    if resume is not None:
-        trainer = Trainer.from_checkpoint(resume, out_dir=out_dir, body=body, device=device)
-    else:
-        if data is None or config is None:
-            raise CheckpointError(None, "train() needs data and config unless resume is given")
-        trainer = Trainer(data, config, out_dir, body=body)
-    return trainer.fit(progress=progress, callback=callback, overwrite=overwrite)
+def generator_outputs(G, a: BlockState, b: Batches, signal, draw: RandomDraw) -> list:
+    """``(reconstructions, random generations)`` ``(1, C, S_i)`` of every level of the
+    block, from one generator run on ``[reconstructions; random]``: every clip with its
+    z* and its own condition, and the random generations of ``draw``. Below the block
+    the levels are frozen: the reconstructions come from ``a.frozen``."""
+    lo, hi = a.levels[0], a.levels[-1]
+    rec_conds, rec_noises = signal.rec_conditions(hi + 1), b.rec_noises(hi + 1)
+    x_in = None
+    if lo > 0:
+        with torch.no_grad():
+            x_rand = G.run(b.rand_layout, draw.noises, draw.conds, 0, lo)
+        x_in = torch.cat([a.frozen, x_rand], -1)
+    noises = [torch.cat([zr, zn], -1) for zr, zn in zip(rec_noises, draw.noises, strict=True)]
+    conds = [torch.cat([cr, cn], 1) for cr, cn in zip(rec_conds, draw.conds, strict=True)]
+    outs = G.run(b.g_layout, noises, conds, lo, hi + 1, x=x_in, keep=True)
+    cuts = [b.g_layout.split(i, b.num_clips) for i in a.levels]
+    return [(out[..., :cut], out[..., cut:]) for out, cut in zip(outs, cuts, strict=True)]
 
 
 # -- trained once, reused after (notebooks and benchmarks) -------------------------------------
@@ -344,10 +413,9 @@ def train_or_reuse(
 ):
     """Train with :func:`train` unless ``out_dir`` already holds a finished run with the
     same config (field for field, as saved next to the checkpoint) and the same clips;
-    then load it. Notebooks and benchmarks use this so that a long run is not repeated
-    on every execution. A run there that cannot be reused is not overwritten: its files
-    move to ``out_dir/previous-<time>/``, with a warning saying why
-    (``mrlib.training.run.reuse_finished_run``).
+    then load it (notebooks and benchmarks: a long run is not repeated on every
+    execution). A run there that cannot be reused moves to ``out_dir/previous-<time>/``
+    with a warning saying why (``mrlib.training.run.reuse_finished_run``).
 
     Returns:
         ``(model, record)``: the ``GenerativeModel`` and a :class:`TrainRecord`; for a
@@ -372,11 +440,10 @@ def train_cached(
     cache_dir: str | Path | None = None,
 ):
     """:func:`train_or_reuse` in a folder of mrlib's model cache named by
-    :func:`model_cache_key`, so a model trained once (by one notebook, say) is loaded by
-    every later call with the same config and clips instead of trained again.
-
-    The cache is ``cache_dir``, else ``$MRLIB_CACHE_DIR/models``, else the user's cache
-    folder (``~/.cache/mrlib/models`` on Linux); delete a folder there to retrain.
+    ``mrlib.training.run.model_cache_key``: a model trained once (by one notebook, say)
+    is loaded by every later call with the same config and clips. The cache is
+    ``cache_dir``, else ``$MRLIB_CACHE_DIR/models``, else the user's cache folder
+    (``~/.cache/mrlib/models`` on Linux); delete a folder there to retrain.
 
     Returns:
         ``(model, record)`` as :func:`train_or_reuse`.
@@ -415,8 +482,6 @@ def train_cached_many(
     """
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
-
-    from mrlib.threads import usable_cpus
 
     root = models_root(cache_dir)
     todo = [d for d in sets if not (cache_folder(root, d, config) / "checkpoint.pt").exists()]

@@ -9,13 +9,14 @@ as the views of ``mrlib.viz.widgets`` do (the plumbing they share is
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
 from typing import Any
 
 from mrlib.errors import ArgumentError, MotionValueError, check_number, check_text, shown
 from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion, check_motion
 from mrlib.sampling.arguments import steps
+from mrlib.sampling.conditions import Condition
+from mrlib.sampling.sampler import GUIDANCE, Sampler
 from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
 from mrlib.viz.widget_kit import (
     BUSY,
@@ -50,10 +51,10 @@ def _clips(name: str, value: Any) -> dict:
 def interactive_path(
     model: Any, body: Any = None, *, label: str | None = None, seconds: float = 20.0
 ) -> tuple[Any, Callable[[], Motion]]:
-    """An ipywidgets UI for path following: path preset and size, label, seed and
-    method (``bend`` / ``optimise``); every change regenerates and redraws the top-down
-    plot of target and generated paths (``mrlib.viz.control_plots.plot_ground_paths``),
-    the status line the pelvis's distance to the path.
+    """An ipywidgets UI for path following: path preset and size, label and seed; every
+    change regenerates and redraws the top-down plot of target and generated paths
+    (``mrlib.viz.control_plots.plot_ground_paths``), the status line the pelvis's
+    distance to the path.
 
     Returns:
         ``(widget, update)``; ``update()`` regenerates and returns the Motion.
@@ -72,37 +73,25 @@ def interactive_path(
     lab = w.Dropdown(options=list(model.labels), value=label or model.labels[0],
                      description="label", style=WIDE)  # fmt: skip
     seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    method = w.ToggleButtons(
-        options=["bend", "optimise"], value="bend", description="method", style=WIDE,
-        tooltips=["bend the model's own walk onto the path (fast)",
-                  "fit the noise, networks frozen (a few seconds)"],
-    )  # fmt: skip
-    controls = [kind, size, lab, seed, method]
+    controls = [kind, size, lab, seed]
     out, status, player, runner = view_parts(w, controls, lambda: body, in_place=False)
 
     def draw() -> tuple[Motion, str]:
         spec = f"{kind.value}:{checked(size):g}"
         s = int(checked(seed))
-        m = generate_on_path(model, spec, lab.value, seconds=seconds, seed=s,
-                             method=method.value, body=body)  # fmt: skip
+        m = generate_on_path(model, spec, lab.value, seconds=seconds, seed=s, body=body)
         fig, ax = plt.subplots(figsize=(6, 7))
-        plot_ground_paths(spec, {f"{lab.value} ({method.value})": m}, body, ax)
+        plot_ground_paths(spec, {lab.value: m}, body, ax)
         fig.tight_layout()
         show_figure(out, fig)
         player.show(m)
         e = path_error(m, spec, body)
-        return m, (f"'{lab.value}' on {spec} ({method.value}, seed {s}): the pelvis "
+        return m, (f"'{lab.value}' on {spec} (seed {s}): the pelvis "
                    f"{100 * e['mean_m']:.1f} cm from the path on average, "
                    f"{100 * e['max_m']:.0f} cm at most")  # fmt: skip
 
-    def busy() -> str:
-        return BUSY + (" (fitting the noise: a few seconds)" if method.value == "optimise" else "")
-
-    def update(*_: Any) -> Motion:
-        return runner.run(draw, busy())
-
-    wire(runner, player, controls, draw, busy)
-    rows = [w.HBox([kind, size]), w.HBox([lab, seed]), w.HBox([method, player.toggle]),
+    update = wire(runner, player, controls, draw, lambda: BUSY)
+    rows = [w.HBox([kind, size]), w.HBox([lab, seed]), w.HBox([player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
     return w.VBox(rows), update
 
@@ -112,14 +101,14 @@ def interactive_parts(
     model: Any, body: Any = None, *, frames: int = 5, length: int | None = None
 ) -> tuple[Any, Callable[[], Motion]]:
     """An ipywidgets UI for body-part composition: a label for the upper body, one for
-    the lower body, the method (``splice`` / ``film``), the seed and the sampler's label
-    ``guidance`` for this view (``mrlib.sampling.generation.guided_weights``: above 0 each part keeps
-    its label more often, at some distance from the training motion); every change
+    the lower body, the seed and this view's ``mrlib.Sampler`` label ``guidance``
+    (``mrlib.sampling.generation.guided_weights``: above 0 each part keeps its label more
+    often, at some distance from the training motion); every change
     regenerates and shows a mesh render of ``frames`` frames, titled (and the status line
     too) with each part's condition fidelity (``mrlib.sampling.constraints.part_fidelity``).
-    "arms in step" retimes a splice's upper body to the legs' gait (``align_gait``; film
-    has nothing to retime, so it is disabled there); "sharpen" fits the noise so that
-    each part shows its label (``generate_parts(..., sharpen=SHARPEN_STEPS)``)."""
+    "arms in step" retimes the upper body to the legs' gait
+    (``Condition.parts(..., in_step=True)``); "sharpen" fits the noise so that each part
+    shows its label (``generate_parts(..., sharpen=SHARPEN_STEPS)``)."""
     import ipywidgets as w
 
     from mrlib.sampling.constraints import (
@@ -133,17 +122,11 @@ def interactive_parts(
     labels = list(model.labels)
     upper = w.Dropdown(options=labels, value=labels[0], description="upper body", style=WIDE)
     lower = w.Dropdown(options=labels, value=labels[-1], description="lower body", style=WIDE)
-    method = w.ToggleButtons(
-        options=["splice", "film"], value="splice", description="method", style=WIDE,
-        tooltips=["each part's joints from its own label's sample",
-                  "one generator run, each part's channels modulated by its own label"],
-    )  # fmt: skip
     in_step = w.Checkbox(
-        value=False, description="arms in step with the legs (splice)", indent=False,
+        value=False, description="arms in step with the legs", indent=False,
         layout=w.Layout(width="auto"), style=WIDE,
-        tooltip="splice only: retime the upper body's sample to the legs' gait phase, so "
-        "that the arms swing in step with the legs (align_gait); film makes one sample, "
-        "with nothing to retime",
+        tooltip="retime the upper body's sample to the legs' gait phase, so that the arms "
+        "swing in step with the legs (Condition.parts(..., in_step=True))",
     )  # fmt: skip
     sharpen = w.Checkbox(
         value=False, description="sharpen each part's label (takes seconds)", indent=False,
@@ -153,31 +136,24 @@ def interactive_parts(
     )  # fmt: skip
     seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
     guidance = strict(w.FloatSlider)(
-        value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
+        value=GUIDANCE, min=0.0, max=max(1.0, GUIDANCE), step=0.05,
         description="guidance", continuous_update=False, style=WIDE,
     )  # fmt: skip
-    controls = [upper, lower, method, in_step, sharpen, seed, guidance]
+    controls = [upper, lower, in_step, sharpen, seed, guidance]
     out, status, player, runner = view_parts(w, controls, lambda: body)
-
-    def film_has_no_step(change: Any = None) -> None:
-        in_step.disabled = method.value == "film"
-
-    method.observe(film_has_no_step, names="value")  # before the redraw's observer
-    film_has_no_step()
 
     def draw() -> tuple[Motion, str]:
         parts = {"upper": upper.value, "lower": lower.value}
         s, g = int(checked(seed)), checked(guidance)
-        aligned = bool(in_step.value) and method.value == "splice"
-        sampler = replace(model, guidance=g)  # shares the networks
-        m = generate_parts(sampler, parts, length, seed=s, method=method.value,
-                           align_gait=aligned, body=body,
+        aligned = bool(in_step.value)
+        m = generate_parts(model, Condition.parts(parts, in_step=aligned), length=length,
+                           seed=s, sampler=Sampler(guidance=g), body=body,
                            sharpen=SHARPEN_STEPS if sharpen.value else 0)  # fmt: skip
         windows = min(len(m), int(model.lengths[:, -1].min())) >= 30
         fid = part_fidelity([m], model, parts) if windows else {}
         coordination = arm_leg_coordination(m, body)
         image = crop_to_bodies(render_meshes(m, body, frames=evenly_spaced_frames(len(m), frames)))
-        how = ", ".join([method.value] + ["arms in step"] * aligned + ["sharpened"] * sharpen.value)
+        how = ", ".join(["splice"] + ["arms in step"] * aligned + ["sharpened"] * sharpen.value)
         kept = ", ".join(f"{p} {100 * f:.0f}%" for p, f in fid.items())
         title = (f"upper body {upper.value}, lower body {lower.value} ({how}, seed {s})"
                  + (f"; windows keeping their part's label: {kept}" if kept else "")
@@ -190,11 +166,8 @@ def interactive_parts(
     def busy() -> str:
         return BUSY + (" (sharpening: several seconds)" if sharpen.value else "")
 
-    def update(*_: Any) -> Motion:
-        return runner.run(draw, busy())
-
-    wire(runner, player, controls, draw, busy)
-    rows = [w.HBox([upper, lower]), w.HBox([method, in_step]), w.HBox([seed, guidance]),
+    update = wire(runner, player, controls, draw, busy)
+    rows = [w.HBox([upper, lower]), w.HBox([in_step]), w.HBox([seed, guidance]),
             w.HBox([sharpen, player.toggle]), w.VBox([status, out, player.out])]  # fmt: skip
     return w.VBox(rows), update
 
@@ -213,7 +186,12 @@ def interactive_inbetween(
     between them; the status line the error at the keyframes."""
     import ipywidgets as w
 
-    from mrlib.sampling.constraints import Keyframe, generate_with_keyframes, keyframe_errors
+    from mrlib.sampling.constraints import (
+        Keyframe,
+        KeyframeFit,
+        generate_with_keyframes,
+        keyframe_errors,
+    )
 
     body = resolve_body(body, shared=True)
     names = list(clips)
@@ -255,8 +233,8 @@ def interactive_inbetween(
             Keyframe.from_motion(clip_of(a), i, 0),
             Keyframe.from_motion(clip_of(b), j, N - 1, root=False),
         ]
-        fit = {} if steps is None else {"steps": steps}
-        m = generate_with_keyframes(model, kfs, N, lab.value, seed=s, body=body, **fit)
+        fit = KeyframeFit() if steps is None else KeyframeFit(steps=steps)
+        m = generate_with_keyframes(model, kfs, N, lab.value, seed=s, body=body, fit=fit)
         shown = [0, N // 4, N // 2, 3 * N // 4, N - 1]
         image = crop_to_bodies(render_meshes(m, body, frames=shown))
         title = f"{a.value}[{i}] -> {lab.value} -> {b.value}[{j}] (seed {s})"
@@ -266,13 +244,10 @@ def interactive_inbetween(
         e = keyframe_errors(m, kfs)
         return m, f"{title}; keyframe error {e['rotation_deg']:.3f} deg, {e['trans_cm']:.3f} cm"
 
-    def update(*_: Any) -> Motion:
-        return runner.run(draw, BUSY + " (fitting the noise to the keyframes)")
-
     a.observe(lambda change: clamp(fa, a), names="value")
     b.observe(lambda change: clamp(fb, b), names="value")
-    wire(runner, player, controls, draw,
-         lambda: BUSY + " (fitting the noise to the keyframes)")  # fmt: skip
+    update = wire(runner, player, controls, draw,
+                  lambda: BUSY + " (fitting the noise to the keyframes)")  # fmt: skip
     rows = [w.HBox([a, fa]), w.HBox([b, fb]), w.HBox([lab, seed, player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
     return w.VBox(rows), update

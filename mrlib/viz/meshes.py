@@ -39,6 +39,7 @@ __all__ = [
 
 SKIN = (0.83, 0.70, 0.58)
 CONTACT_COLOUR = (0.85, 0.1, 0.1)
+STRIP_SPACING = 0.9  # metres between the frames of a render_meshes strip
 
 
 def evenly_spaced_frames(num_frames: int, count: int = 5) -> list[int]:
@@ -84,9 +85,7 @@ def render_meshes(
     layout: str = "strip",
     highlight_contacts: bool = True,
     contacts: np.ndarray | None = None,
-    spacing: float = 0.9,
     window_size: tuple[int, int] = (1200, 520),
-    colour: tuple[float, float, float] = SKIN,
     path: str | Path | None = None,
 ) -> np.ndarray:
     """Render the body mesh of ``motion`` at several frames, off-screen.
@@ -101,7 +100,6 @@ def render_meshes(
         highlight_contacts: draw a red sphere on each foot vertex that is in contact.
         contacts: ``(T, 6)`` labels to show; default ``motion.contacts``, else computed
             with ``mrlib.representation.contacts.foot_contacts``.
-        spacing: distance between frames in the strip layout (metres).
         window_size: ``(width, height)`` in pixels.
         path: also save the image there (PNG).
     Returns:
@@ -136,7 +134,9 @@ def render_meshes(
     if layout == "strip":
         root = np.asarray(motion.trans, np.float64)[frames]
         offsets = np.zeros((len(frames), 3))
-        offsets[:, 0] = (np.arange(len(frames)) - (len(frames) - 1) / 2) * spacing - root[:, 0]
+        offsets[:, 0] = (np.arange(len(frames)) - (len(frames) - 1) / 2) * STRIP_SPACING - root[
+            :, 0
+        ]
         offsets[:, 2] = -root[:, 2]
         verts = verts + offsets[:, None, :].astype(np.float32)
     ground = float(verts[..., 1].min())
@@ -145,7 +145,7 @@ def render_meshes(
     pl = pv.Plotter(off_screen=True, window_size=list(window_size))
     pl.set_background("white")
     for i, f in enumerate(frames):
-        pl.add_mesh(pv.PolyData(verts[i], faces), color=colour, smooth_shading=True)
+        pl.add_mesh(pv.PolyData(verts[i], faces), color=SKIN, smooth_shading=True)
         if highlight_contacts and contacts is not None:
             on = np.flatnonzero(contacts[f] > 0.5)
             if len(on):
@@ -198,6 +198,7 @@ def render_mesh_animation(
         fps: frame rate of the GIF; the motions are sampled at that rate.
         seconds: length of the GIF (default: the shortest motion).
         titles: one caption per motion, written above it.
+        spacing: metres between the bodies of the row.
         progress: show a progress bar over the frames.
     Returns:
         The path written.

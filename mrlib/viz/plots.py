@@ -2,11 +2,11 @@
 well the training timeline is covered, and how quality evolves during training.
 
 * :func:`plot_segmentation` draws the patched-nearest-neighbour (PNN) segmentation of
-  ``mrlib.metrics.paper.global_diversity(..., return_segmentation=True)``: generated frames on
+  ``mrlib.metrics.diversity.global_diversity(..., return_segmentation=True)``: generated frames on
   the x axis, the training frames each segment is matched to on the y axis. A copy of
   the training clip is one long diagonal; a generator that recombines the clip shows
   many short diagonals that jump around.
-* :func:`plot_coverage_strip` draws ``mrlib.metrics.paper.coverage_profile`` as a heat strip
+* :func:`plot_coverage_strip` draws ``mrlib.metrics.coverage.coverage_profile`` as a heat strip
   over the training timeline: for every training window (by its first frame), the
   distance to its nearest generated window, green below the coverage threshold ``eps``
   (covered) and red above it.
@@ -182,7 +182,7 @@ def plot_coverage_strip(
     Args:
         profile: ``(N,)`` or ``(B, N)``: for each of the ``N = T_ref - window + 1``
             training windows (by first frame), the distance to the closest window of a
-            generated clip (``mrlib.metrics.paper.coverage_profile``); one row per sample.
+            generated clip (``mrlib.metrics.coverage.coverage_profile``); one row per sample.
         eps: the coverage threshold; windows closer than it are covered. The colour
             scale runs from green (0) through yellow (``eps``) to red (``2 eps`` and
             beyond).

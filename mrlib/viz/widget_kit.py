@@ -205,10 +205,16 @@ class Player3D:
         self.out.clear_output()
 
 
-def wire(runner: Runner, player: Player3D, controls: list[Any],
-         draw: Callable[[], tuple[Any, str]], busy: Callable[[], str]) -> None:  # fmt: skip
+def wire(
+    runner: Runner,
+    player: Player3D,
+    controls: list[Any],
+    draw: Callable[[], tuple[Any, str]],
+    busy: Callable[[], str],
+) -> Callable[..., Any]:
     """Redraw (``draw``, through ``runner``) on every change of ``controls``, and open
-    or close the 3D player when its toggle changes."""
+    or close the 3D player when its toggle changes. Returns the view's ``update``: a
+    redraw now, its result returned (and its error raised)."""
     for c in controls:
         c.observe(runner.on_change(draw, busy), names="value")
         if hasattr(c, "on_refused"):
@@ -220,6 +226,11 @@ def wire(runner: Runner, player: Player3D, controls: list[Any],
         ),
         names="value",
     )
+
+    def update(*_: Any) -> Any:
+        return runner.run(draw, busy())
+
+    return update
 
 
 def status_widget(w: Any) -> Any:

@@ -20,7 +20,7 @@ backend in a live JupyterLab, an animated GIF where there is none).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -34,7 +34,8 @@ from mrlib.evaluation.fidelity import (
 )
 from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion
-from mrlib.sampling.generation import generate, label_weights
+from mrlib.sampling.generation import generate
+from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
 from mrlib.viz.control_plots import plot_nearest_sequence
 from mrlib.viz.meshes import crop_to_bodies, evenly_spaced_frames, render_meshes
 from mrlib.viz.widget_kit import (
@@ -62,9 +63,7 @@ class CrossoverView:
     """What one call of the interactive view made."""
 
     motion: Motion
-    weights: (
-        np.ndarray
-    )  # (L, K) per-level label weights used (mrlib.sampling.generation.label_weights)
+    weights: np.ndarray  # (L, K) per-level label weights used (mrlib.Condition.weights)
     strip: NearestSequenceStrip
     image: np.ndarray | None  # (H, W, 3) mesh render, None when rendering is off
     title: str
@@ -104,13 +103,14 @@ def interactive_crossover(
     Controls: *coarse* label (levels ``1..i``), *fine* label (levels ``i+1..L``), the
     crossover level ``i``, the seed, and *fine weight* ``w`` in [0, 1]: the fine levels get
     the condition ``(1 - w) * coarse + w * fine`` (FiLM is linear in the condition, so this
-    interpolates the two labels' embeddings; see ``mrlib.sampling.generation.label_weights``), the
-    coarse levels stay pure. ``w = 1`` is the plain crossover of the paper, ``w = 0`` the
-    coarse label alone; one number per control keeps the UI readable (per-level weights
-    are available through ``generate(blend=(a, b, [w_1, ..., w_L]))``). *fine noise* sets
-    the sampler's ``fine_noise`` for this view (the model itself is left as it is): lower
-    is smoother and carries less of the fine label's detail; *guidance* its ``guidance``
-    (``mrlib.sampling.generation.guided_weights``): above 0 the labels are exaggerated.
+    interpolates the two labels' embeddings; ``mrlib.Condition.blend``), the coarse
+    levels stay pure. ``w = 1`` is the plain crossover of the paper, ``w = 0`` the coarse
+    label alone; one number per control keeps the UI readable (per-level weights are
+    available through ``generate(model, Condition.blend(a, b, [w_1, ..., w_L]))``).
+    *fine noise* and *guidance* are this view's ``mrlib.Sampler`` settings (the paper's
+    sampler at first): a lower fine noise is smoother and carries less of the fine
+    label's detail; guidance above 0 exaggerates the labels
+    (``mrlib.sampling.generation.guided_weights``).
 
     Every change regenerates the sample and redraws, into an ``Output`` widget, a mesh
     render of ``frames`` frames (``mrlib.viz.render.render_meshes``) titled with the labels
@@ -156,11 +156,11 @@ def interactive_crossover(
     weight = strict(w.FloatSlider)(value=1.0, min=0.0, max=1.0, step=0.05, description="fine weight",
                            continuous_update=False, style=WIDE)  # fmt: skip
     noise = strict(w.FloatSlider)(
-        value=float(model.fine_noise), min=0.0, max=max(1.0, float(model.fine_noise)), step=0.1,
+        value=FINE_NOISE, min=0.0, max=max(1.0, FINE_NOISE), step=0.1,
         description="fine noise", continuous_update=False, style=WIDE,
     )  # fmt: skip
     guidance = strict(w.FloatSlider)(
-        value=float(model.guidance), min=0.0, max=max(1.0, float(model.guidance)), step=0.05,
+        value=GUIDANCE, min=0.0, max=max(1.0, GUIDANCE), step=0.05,
         description="guidance", continuous_update=False, style=WIDE,
     )  # fmt: skip
     controls = [coarse, fine, level, seed, weight, noise, guidance]
@@ -171,10 +171,9 @@ def interactive_crossover(
         i, s, wt = int(checked(level)), int(checked(seed)), checked(weight)
         fine_noise, g = checked(noise), checked(guidance)
         blend = crossover_blend(model, a, b, i, wt)
-        W = label_weights(model, blend=blend).numpy()
-        # a view of the model with this UI's sampler settings; it shares the networks
-        sampler = replace(model, fine_noise=fine_noise, guidance=g)
-        motion = generate(sampler, blend=blend, length=length, seed=s)
+        W = blend.weights(model).numpy()
+        sampler = Sampler(fine_noise=fine_noise, guidance=g)
+        motion = generate(model, blend, length=length, seed=s, sampler=sampler)
         strip = nearest_sequence_strip(motion, references, window)
         title = crossover_title(a, b, wt, i, L, s)
         image = None
@@ -199,10 +198,7 @@ def interactive_crossover(
         view = CrossoverView(motion=motion, weights=W, strip=strip, image=image, title=title)
         return view, f"{title}; nearest-window labels: {shares}"
 
-    def update(*_: Any) -> CrossoverView:
-        return runner.run(draw)
-
-    wire(runner, player, controls, draw, lambda: BUSY)
+    update = wire(runner, player, controls, draw, lambda: BUSY)
     box = w.VBox(
         [
             w.HBox([coarse, fine]),
@@ -238,8 +234,7 @@ def interactive_restyle(
 
     Controls: the target *label*, the *level* ``k``, what to *keep* of the clip (its
     ``coarse`` levels ``1..k``, the label adding the detail; or its ``detail``, the label
-    giving levels ``1..k``), the seed and *invert* (fit the coarse noise to the clip,
-    seconds per redraw; ``keep="coarse"`` only). Every change redraws the input, the
+    giving levels ``1..k``) and the seed. Every change redraws the input, the
     restyled clip and the target label's own sample (same seed and length) side by side
     as mesh renders of ``frames`` frames (off with ``render=False``), their paths on the
     ground, and per level the share of the result that is the input's and the label's
@@ -272,42 +267,24 @@ def interactive_restyle(
                   "the label's levels 1..k, the clip's detail on top"],
     )  # fmt: skip
     seed = strict(w.BoundedIntText)(value=0, min=0, max=2**31 - 1, description="seed", style=WIDE)
-    invert = w.Checkbox(
-        value=False, description="invert (fit the coarse noise; seconds)", indent=False,
-        layout=w.Layout(width="auto"), style=WIDE,
-        tooltip="fit the coarse levels' noise to the clip and restyle the model's own "
-        "version of it (for clips far from the training data; keep=coarse only)",
-    )  # fmt: skip
-    controls = [lab, lvl, keep, seed, invert]
+    controls = [lab, lvl, keep, seed]
     out, status, player, runner = view_parts(w, controls, lambda: shared_body)
     cache: dict[tuple, Any] = {}
 
-    def detail_has_no_inversion(change: Any = None) -> None:
-        invert.disabled = keep.value == "detail"
-
-    keep.observe(detail_has_no_inversion, names="value")  # before the redraw's observer
-    detail_has_no_inversion()
-
     def draw() -> tuple[RestyleView, str]:
-        from mrlib.sampling.generation import generate
-
         k, s = int(checked(lvl)), int(checked(seed))
-        inv = bool(invert.value) and keep.value == "coarse"
-        m = restyle(model, source, lab.value, k, keep=keep.value, seed=s, invert=inv,
-                    body=shared_body)  # fmt: skip
+        m = restyle(model, source, lab.value, k, keep=keep.value, seed=s, body=shared_body)
         key = (lab.value, keep.value, s)
         if key not in cache:
-            sample = generate(model, lab.value, length=source.num_frames, seed=s,
-                              fix_contacts=False)  # fmt: skip
             shares = restyle_shares(model, source, lab.value, keep=keep.value, seed=s,
-                                    body=shared_body, label_sample=sample)  # fmt: skip
-            cache[key] = (sample, shares)
+                                    body=shared_body)  # fmt: skip
+            cache[key] = (shares.label_sample, shares)
         sample, shares = cache[key]
         share = float(shares.source_share[k - 1])
         path_cm = 100 * np.linalg.norm(m.trans[:, [0, 2]] - source.trans[:, [0, 2]], 1).mean()
         low, high = f"1-{k}", f"{k + 1}-{L}"
         mine, theirs = (low, high) if keep.value == "coarse" else (high, low)
-        title = (f"{source.name or 'input'} at levels {mine}{' (inverted)' * inv}, "
+        title = (f"{source.name or 'input'} at levels {mine}, "
                  f"'{lab.value}' at levels {theirs} (seed {s})")  # fmt: skip
         clips = {"input": source, "restyled": m, f"'{lab.value}' sample": sample}
         image = None
@@ -348,14 +325,7 @@ def interactive_restyle(
                       f"{100 * (1 - share):.0f}% label; its root {path_cm:.1f} cm from the "
                       "input's on average")  # fmt: skip
 
-    def busy() -> str:
-        inv = invert.value and keep.value == "coarse"
-        return BUSY + (" (fitting the coarse noise: a few seconds)" if inv else "")
-
-    def update(*_: Any) -> RestyleView:
-        return runner.run(draw, busy())
-
-    wire(runner, player, controls, draw, busy)
-    rows = [w.HBox([lab, lvl]), w.HBox([keep, seed]), w.HBox([invert, player.toggle]),
+    update = wire(runner, player, controls, draw, lambda: BUSY)
+    rows = [w.HBox([lab, lvl]), w.HBox([keep, seed]), w.HBox([player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
     return w.VBox(rows), update

@@ -15,11 +15,17 @@ from mrlib.errors import MAX_SEED, MrlibError
 
 
 # -- argument types ------------------------------------------------------------------------
-def parse_seed(text: str) -> int:
+def read_number(text: str, kind, unreadable: str):
+    """``kind(text)`` (``int``, ``float``, a whole number), or argparse's error saying
+    ``unreadable`` where ``text`` is no such number; its range is the caller's check."""
     try:
-        v = int(text)
+        return kind(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
+        raise argparse.ArgumentTypeError(unreadable) from None
+
+
+def parse_seed(text: str) -> int:
+    v = read_number(text, int, f"wants an integer >= 0, got {text!r}")
     if not 0 <= v <= MAX_SEED:
         raise argparse.ArgumentTypeError(f"must be in [0, {MAX_SEED}], got {v}")
     return v
@@ -60,20 +66,14 @@ def _whole(text: str) -> int:
 def parse_steps(text: str) -> int:
     """A count of steps (its cap is the command's check, in one line:
     ``mrlib.sampling.constraints.optimise.check_fit_steps``)."""
-    try:
-        n = _whole(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"wants an integer >= 0, got {text!r}") from None
+    n = read_number(text, _whole, f"wants an integer >= 0, got {text!r}")
     if n < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
     return n
 
 
 def parse_non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    value = read_number(text, float, f"not a number: {text!r}")
     if not (math.isfinite(value) and value >= 0):
         raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
     return value
@@ -83,10 +83,10 @@ def _sampler_setting(limit_name: str):
     """``--fine-noise`` / ``--guidance``: a number in [0, the sampler's bound]."""
 
     def parse(text: str) -> float:
-        from mrlib.sampling import generation
+        from mrlib.sampling import sampler
 
         value = parse_non_negative(text)
-        limit = getattr(generation, limit_name)
+        limit = getattr(sampler, limit_name)
         if value > limit:
             raise argparse.ArgumentTypeError(f"must be at most {limit:g}, got {text!r}")
         return value
@@ -97,10 +97,7 @@ def _sampler_setting(limit_name: str):
 
 def parse_threads(text: str) -> int:
     """A positive count (its cap, 4 x the usable CPUs, is ``mrlib.threads``'s check)."""
-    try:
-        n = _whole(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"wants a positive integer, got {text!r}") from None
+    n = read_number(text, _whole, f"wants a positive integer, got {text!r}")
     if n < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
     return n
@@ -108,15 +105,16 @@ def parse_threads(text: str) -> int:
 
 # -- presets -------------------------------------------------------------------------------
 def preset_choices(kind: str) -> list[str]:
-    from mrlib.model.config import preset_names
+    from mrlib.model.presets import preset_names
 
     return preset_names(kind)
 
 
 def preset_help(kind: str) -> str:
-    from mrlib.model.config import describe_presets
+    """The "presets:" block of a command's epilog: the presets of ``kind``, described."""
+    from mrlib.model.presets import describe_presets
 
-    return describe_presets(kind)
+    return "presets (--preset, mrlib.model.presets.PRESETS):\n" + describe_presets(kind)
 
 
 # -- option blocks -------------------------------------------------------------------------
@@ -199,7 +197,7 @@ def run_options(p, *, out: Path, out_help: str, overwrite_help: str) -> None:
 
 
 def sampler_options(p) -> None:
-    """``--fine-noise`` and ``--guidance`` (applied by :func:`with_sampler`)."""
+    """``--fine-noise`` and ``--guidance`` (read by :func:`sampler_from_args`)."""
     p.add_argument(
         "--fine-noise",
         type=_sampler_setting("MAX_FINE_NOISE"),
@@ -236,17 +234,20 @@ def sample_output_options(
 
 
 # -- helpers of the commands ---------------------------------------------------------------
-def with_sampler(model, args, guidance: bool = True):
-    """``model`` with ``--fine-noise`` and (unless ``guidance=False``) ``--guidance``
-    applied where given (``GenerativeModel.fine_noise``, ``.guidance``; a speech model
-    takes the first only)."""
-    if args.fine_noise is not None:
-        model.fine_noise = args.fine_noise
-    if guidance and getattr(args, "guidance", None) is not None:
-        if model.generator.cond_dim != len(model.labels):
-            raise MrlibError("--guidance applies to label models only")
-        model.guidance = args.guidance
-    return model
+def sampler_from_args(args, *, label_model: bool = True):
+    """The ``mrlib.Sampler`` of ``--fine-noise``, ``--guidance`` and ``--raw`` (the
+    sampler's defaults where one is not given); ``--guidance`` is refused for a speech
+    model (``label_model=False``)."""
+    from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
+
+    guidance = getattr(args, "guidance", None)
+    if guidance is not None and not label_model:
+        raise MrlibError("--guidance applies to label models only")
+    return Sampler(
+        fine_noise=FINE_NOISE if args.fine_noise is None else args.fine_noise,
+        guidance=GUIDANCE if guidance is None else guidance,
+        fix_contacts=not getattr(args, "raw", False),
+    )
 
 
 def warn_unfinished(model, checkpoint, command: str = "train") -> None:
@@ -330,3 +331,30 @@ def describe(e: BaseException) -> str:
     if isinstance(e, MemoryError):
         return "out of memory (try a shorter clip, fewer samples or a lower --fps)"
     return one_line(str(e) or type(e).__name__)  # mrlib's errors name the file or flag
+
+
+# -- a command's parser ----------------------------------------------------------------------
+def add_command(
+    sub,
+    name: str,
+    help: str,
+    description: str,
+    examples: list[str] | tuple[str, ...] = (),
+    more: str | None = None,
+) -> argparse.ArgumentParser:
+    """The parser of command ``name``: its one-line ``help``, its ``description`` and an
+    epilog of an "examples:" block, one example command line each, then ``more`` (a
+    block such as the presets), a blank line between, all shown as written. A command
+    with neither has no epilog, and its description is wrapped to the terminal."""
+    blocks = ["examples:\n" + "\n".join(f"  {e}" for e in examples)] if examples else []
+    if more is not None:
+        blocks.append(more)
+    if not blocks:
+        return sub.add_parser(name, help=help, description=description)
+    return sub.add_parser(
+        name,
+        help=help,
+        description=description,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="\n\n".join(blocks),
+    )

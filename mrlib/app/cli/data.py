@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import argparse
 
-from mrlib.app.cli.common import progress_option
+from mrlib.app.cli.common import add_command, progress_option
 
 
 def add_data(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "data",
-        help="fetch or locate the public data the notebooks and speech training use",
-        description="bandai: the Bandai Namco Research Motion Dataset 1 (CC BY-NC 4.0), read "
+        "fetch or locate the public data the notebooks and speech training use",
+        "bandai: the Bandai Namco Research Motion Dataset 1 (CC BY-NC 4.0), read "
         "from $MRLIB_DATA_DIR or ../shared when such a folder exists.\nbeat2: five files of the "
         "BEAT2 co-speech dataset (CC BY-NC 4.0; speaker 2: one clip with motion and audio, "
         "three with audio), read from $MRLIB_BEAT2_DIR or ../shared/data/beat2-sample; only "
@@ -20,11 +21,13 @@ def add_data(sub) -> argparse.ArgumentParser:
         "fetched on first use into mrlib's cache ($MRLIB_CACHE_DIR, default ~/.cache/mrlib) "
         "and checked against SHA-256 hashes. 'fetch' downloads ahead of time; 'where' says "
         "which folder is used; 'list' names what can be fetched.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib data fetch bandai          # the clips the notebooks use\n"
-        "  mrlib data fetch bandai --all    # all 174 clips (40 MB)\n  mrlib data where bandai\n"
-        "  mrlib data fetch beat2           # the 5 BEAT2 files mrlib knows (13 MB)\n"
-        "  mrlib data list beat2",
+        [
+            "mrlib data fetch bandai          # the clips the notebooks use",
+            "mrlib data fetch bandai --all    # all 174 clips (40 MB)",
+            "mrlib data where bandai",
+            "mrlib data fetch beat2           # the 5 BEAT2 files mrlib knows (13 MB)",
+            "mrlib data list beat2",
+        ],
     )
     p.add_argument("action", choices=["fetch", "where", "list"])
     p.add_argument("dataset", choices=["bandai", "beat2"])

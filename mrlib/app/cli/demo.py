@@ -5,19 +5,25 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import parse_seed, preset_choices, preset_help, progress_option
+from mrlib.app.cli.common import (
+    add_command,
+    parse_seed,
+    preset_choices,
+    preset_help,
+    progress_option,
+)
 
 
 def add_demo(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "demo",
-        help="end-to-end demo on the bundled data (train, sample, crossover, evaluate)",
-        description="Load the synthetic clips in data_samples/, retarget a Bandai Namco BVH if "
+        "end-to-end demo on the bundled data (train, sample, crossover, evaluate)",
+        "Load the synthetic clips in data_samples/, retarget a Bandai Namco BVH if "
         "MRLIB_DATA_DIR points at the dataset, train (the 'demo' preset: a few minutes on two CPU "
         "cores), sample every label and a coarse/fine crossover, evaluate, and write renders, "
         "animated previews, exports and summary.md to --out.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="presets (--preset, mrlib.model.config.PRESETS):\n" + preset_help("labels"),
+        more=preset_help("labels"),
     )
     p.add_argument("--out", type=Path, default=Path("outputs"))
     p.add_argument(

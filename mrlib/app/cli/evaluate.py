@@ -6,29 +6,33 @@ import argparse
 from pathlib import Path
 
 from mrlib.app.cli.common import (
+    add_command,
     device_option,
     overwrite_option,
     parse_seed,
     progress_option,
+    sampler_from_args,
     sampler_options,
     warn_unfinished,
-    with_sampler,
 )
 from mrlib.errors import MrlibError
 
 
 def add_evaluate(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "evaluate",
-        help="score a trained model like the paper's Table 1",
-        description="Draw samples of 2x the training length with fixed seeds and score them against "
-        "each training clip: coverage, global (PNN) and local diversity, reconstruction error, "
+        "score a trained model like the paper's Table 1",
+        "Draw samples of 2x the training length with fixed seeds and score them against each "
+        "training clip: coverage, global (PNN) and local diversity, reconstruction error, "
         "condition fidelity, foot skating, jitter, penetration and speed distributions, next to "
         "calibration rows (the clip played twice, a frozen frame, other real takes when the clips "
         "are Bandai Namco ones). Writes CSV, Markdown and a plot to --out and prints the table.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib evaluate runs/samples/checkpoint.pt --samples 20\n"
-        "  mrlib evaluate runs/walks/checkpoint.pt --baseline runs/ganimator_mode --out outputs/table1",
+        [
+            "mrlib evaluate runs/samples/checkpoint.pt --samples 20",
+            "mrlib evaluate runs/walks/checkpoint.pt --baseline runs/ganimator_mode "
+            "--out outputs/table1",
+        ],
     )
     p.add_argument("checkpoint", type=Path)
     p.add_argument("--samples", type=int, default=200, help="samples per sequence [default: 200]")
@@ -67,7 +71,12 @@ EVALUATION_FILES = (
 
 
 def cmd_evaluate(args) -> int:
-    from mrlib.evaluation.evaluate import evaluate_model, model_references
+    from mrlib.evaluation.evaluate import (
+        CalibrationOptions,
+        EvaluationSettings,
+        evaluate_model,
+        model_references,
+    )
     from mrlib.io.outputs import check_writable
     from mrlib.io.transaction import output_transaction, when_written
     from mrlib.model.trained import load_model
@@ -82,15 +91,15 @@ def cmd_evaluate(args) -> int:
             "models; score how its gestures follow speech with mrlib.speech."
             "evaluate_speech_sync (bench/speech_sync.py runs it on held-out utterances)"
         )
-    model = with_sampler(model, args)
+    sampler = sampler_from_args(args)
     warn_unfinished(model, args.checkpoint)
     baselines = None
     if args.baseline is not None:
         per_key = {}
         refs = model_references(model)
         for path in sorted(args.baseline.glob("*/checkpoint.pt")):
-            # the baselines sample as the model does, but a one-label model has no guidance
-            m = with_sampler(load_model(path, device=args.device), args, guidance=False)
+            # the baselines sample as the model does (guidance moves no one-label model)
+            m = load_model(path, device=args.device)
             for key in refs:
                 if key in m.clip_names or key in m.labels:
                     per_key[key] = m
@@ -102,10 +111,14 @@ def cmd_evaluate(args) -> int:
     result = evaluate_model(
         model,
         baselines,
-        num_samples=args.samples,
-        eps=args.eps,
-        seed=args.seed,
-        calibration=not args.no_calibration,
+        settings=EvaluationSettings(
+            num_samples=args.samples,
+            eps=args.eps,
+            seed=args.seed,
+            fine_noise=sampler.fine_noise,
+            guidance=sampler.guidance,
+        ),  # fmt: skip
+        calibration=CalibrationOptions(enabled=not args.no_calibration),
         contacts="raw" if args.raw else "both",
         progress=not args.no_progress,
     )
@@ -113,6 +126,6 @@ def cmd_evaluate(args) -> int:
         result.save(args.out, overwrite=args.overwrite)
         plot_evaluation(result, Path(args.out) / "evaluation.png", overwrite=args.overwrite)
         when_written(lambda: print(f"\nwrote {args.out}/"))
-    print(f"sampler: fine_noise={model.fine_noise:g}, guidance={model.guidance:g}\n")
+    print(f"sampler: fine_noise={sampler.fine_noise:g}, guidance={sampler.guidance:g}\n")
     print(result.to_markdown())
     return 0

@@ -5,14 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import joint_map_option, overwrite_option
+from mrlib.app.cli.common import add_command, joint_map_option, overwrite_option
 
 
 def add_export(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "export",
-        help="convert a motion file (BVH, SMPL .npz, glTF .glb)",
-        description="Convert between formats: any readable motion file to AMASS-style .npz, "
+        "convert a motion file (BVH, SMPL .npz, glTF .glb)",
+        "Convert between formats: any readable motion file to AMASS-style .npz, "
         "to BVH on the SMPL skeleton, or to a .glb with the skinned body mesh and the "
         "animation (browser viewers, Blender, game engines).",
     )

@@ -5,20 +5,23 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import joint_map_option, overwrite_option
+from mrlib.app.cli.common import add_command, joint_map_option, overwrite_option
 from mrlib.errors import MrlibError
 
 
 def add_info(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "info",
-        help="print a summary of a motion file",
-        description="Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it. For "
+        "print a summary of a motion file",
+        "Load a motion file (.bvh, .npz, EasyMocap folder) and summarise it. For "
         "a BVH, also the joint map used (shipped, given or recognised, with its confidence) "
         "and the retargeting error of each SMPL joint.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib info clip.bvh\n  mrlib info clip.bvh --write-map map.json\n"
-        "  mrlib info clip.bvh --joint-map map.json   # after editing it",
+        [
+            "mrlib info clip.bvh",
+            "mrlib info clip.bvh --write-map map.json",
+            "mrlib info clip.bvh --joint-map map.json   # after editing it",
+        ],
     )
     p.add_argument("path", type=Path)
     p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first")

@@ -7,12 +7,12 @@ import argparse
 from pathlib import Path
 
 from mrlib.app.cli.common import (
+    add_command,
     joint_map_option,
     parse_seed,
-    parse_steps,
     sample_output_options,
+    sampler_from_args,
     warn_unfinished,
-    with_sampler,
     write_samples,
 )
 from mrlib.errors import MrlibError
@@ -20,22 +20,22 @@ from mrlib.sampling.generation import MAX_SAMPLE_SECONDS
 
 
 def add_restyle(sub) -> argparse.ArgumentParser:
-    from mrlib.sampling.constraints.optimise import MAX_FIT_STEPS
-    from mrlib.sampling.restyling import INVERT_STEPS, KEEP
+    from mrlib.sampling.restyling import KEEP
 
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "restyle",
-        help="restyle a clip: its coarse motion kept, a label's detail added (or the reverse)",
-        description="Restyle a motion file of your own with a trained label model: the clip is "
+        "restyle a clip: its coarse motion kept, a label's detail added (or the reverse)",
+        "Restyle a motion file of your own with a trained label model: the clip is "
         "resampled to the model's frame rate and taken down its pyramid to level K; levels "
         "K+1..L then add the detail of --label (--keep coarse), or levels 1..K come from --label "
         "and the clip's own detail goes on top (--keep detail). The root travels and faces as "
         "the clip does. Writes one .npz and one .bvh (and a .glb with --glb) like 'sample'.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib restyle ckpt.pt clip.bvh --label walk_sad --out outputs/restyled\n"
-        "  mrlib restyle ckpt.pt clip.bvh --label walk_happy --level 2 --glb\n"
-        "  mrlib restyle ckpt.pt clip.bvh --label walk_angry --keep detail\n"
-        "  mrlib restyle ckpt.pt far.bvh --label walk_sad --invert",
+        [
+            "mrlib restyle ckpt.pt clip.bvh --label walk_sad --out outputs/restyled",
+            "mrlib restyle ckpt.pt clip.bvh --label walk_happy --level 2 --glb",
+            "mrlib restyle ckpt.pt clip.bvh --label walk_angry --keep detail",
+        ],
     )
     p.add_argument("checkpoint", type=Path)
     p.add_argument("clip", type=Path, help="the motion to restyle (.bvh, .npz, EasyMocap folder)")
@@ -54,18 +54,6 @@ def add_restyle(sub) -> argparse.ArgumentParser:
         default="coarse",
         help="what of the clip survives: its coarse motion (the label adds the detail) or "
         "its detail (the label gives the coarse motion) [default: coarse]",
-    )
-    p.add_argument(
-        "--invert",
-        type=parse_steps,
-        nargs="?",
-        const=INVERT_STEPS,
-        default=0,
-        metavar="N",
-        help=f"fit the coarse levels' noise to the clip for N Adam steps (default when given "
-        f"without N: {INVERT_STEPS}; at most {MAX_FIT_STEPS}) and restyle the model's own "
-        "version of it; seconds instead of milliseconds, and on the Bandai clips measured it "
-        "kept less of the clip (docs/notes/2026-12-04-restyle.md)",
     )
     p.add_argument(
         "--no-align",
@@ -92,20 +80,16 @@ def add_restyle(sub) -> argparse.ArgumentParser:
 def cmd_restyle(args) -> int:
     from mrlib.io import load_motion
     from mrlib.model.trained import load_model
-    from mrlib.sampling.constraints.optimise import check_fit_steps
     from mrlib.sampling.restyling import restyle, restyle_level
 
-    if args.invert:  # bounded before anything is read
-        check_fit_steps(args.invert, "--invert", minimum=1)
-    model = with_sampler(load_model(args.checkpoint, device=args.device), args)
+    sampler = sampler_from_args(args)
+    model = load_model(args.checkpoint, device=args.device)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(
             f"{args.checkpoint} is a speech-conditioned model; restyle takes a label model"
         )
     warn_unfinished(model, args.checkpoint)
     level = restyle_level(model, args.level)
-    if args.invert and args.keep != "coarse":
-        raise MrlibError("--invert fits the coarse levels to the clip: it needs --keep coarse")
     clip = load_motion(args.clip, joint_map=args.joint_map, up_axis=args.up_axis)
     if clip.duration > MAX_SAMPLE_SECONDS:
         raise MrlibError(
@@ -113,9 +97,7 @@ def cmd_restyle(args) -> int:
             "mrlib restyles in one pass; cut it into pieces"
         )
     m = restyle(model, clip, args.label, level, keep=args.keep, seed=args.seed,
-                invert=bool(args.invert), invert_steps=args.invert or 1,
-                align=not args.no_align, fix_contacts=not args.raw,
-                progress=not args.no_progress)  # fmt: skip
+                align=not args.no_align, sampler=sampler)  # fmt: skip
     label = model.labels[model.label_index(args.label)]
-    tag = f"{args.clip.stem}_to_{label}_{args.keep}{level}" + ("_inverted" * bool(args.invert))
+    tag = f"{args.clip.stem}_to_{label}_{args.keep}{level}"
     return write_samples([m], tag, args)

@@ -8,12 +8,14 @@ import math
 from pathlib import Path
 
 from mrlib.app.cli.common import (
+    add_command,
     parse_seed,
     parse_steps,
+    read_number,
     sample_output_options,
+    sampler_from_args,
     up_axis_option,
     warn_unfinished,
-    with_sampler,
     write_samples,
 )
 from mrlib.errors import MAX_SEED, MrlibError
@@ -46,10 +48,7 @@ def _check_sample_frames(frames: int, fps: float, args, what: str | None = None)
 
 
 def _sample_count(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"wants an integer >= 1, got {text!r}") from None
+    v = read_number(text, int, f"wants an integer >= 1, got {text!r}")
     if v < 1:
         raise argparse.ArgumentTypeError(f"must be at least 1, got {v}")
     if v > MAX_SAMPLES:
@@ -79,22 +78,24 @@ def _parse_range(spec: str) -> tuple[str, tuple[int, int]]:
 
 
 def add_sample(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "sample",
-        help="generate motion from a trained model",
-        description="Generate new motion. Choose the condition with --label, assign conditions to "
+        "generate motion from a trained model",
+        "Generate new motion. Choose the condition with --label, assign conditions to "
         "level ranges with --crossover (coarse levels first), or blend two labels with --blend. "
         "Writes one .npz (SMPL parameters) and one .bvh per sample, and a mesh render with --render.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10\n"
-        "  mrlib sample ckpt.pt --crossover walk_sad:1-4 walk_happy:5-8 --num 4 --render\n"
-        "  mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5\n"
-        "  mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render\n"
-        "  mrlib sample ckpt.pt --label walk_happy --path circle:2 --seconds 20\n"
-        "  mrlib sample ckpt.pt --parts upper=walk_happy,lower=walk_sad --sharpen\n"
-        "  mrlib sample ckpt.pt --label walk_sad --loop --seconds 4\n"
-        "  mrlib sample ckpt.pt --label walk_sad --keyframes kf.npz --seconds 6\n"
-        "  mrlib sample ckpt.pt --label walk_sad --continue clip.bvh --seconds 5",
+        [
+            "mrlib sample runs/samples/checkpoint.pt --label walk_happy --seconds 10",
+            "mrlib sample ckpt.pt --crossover walk_sad:1-4 walk_happy:5-8 --num 4 --render",
+            "mrlib sample ckpt.pt --blend walk_sad walk_happy 0.5",
+            "mrlib sample runs/speech/checkpoint.pt --audio talk.wav --render",
+            "mrlib sample ckpt.pt --label walk_happy --path circle:2 --seconds 20",
+            "mrlib sample ckpt.pt --parts upper=walk_happy,lower=walk_sad --sharpen",
+            "mrlib sample ckpt.pt --label walk_sad --loop --seconds 4",
+            "mrlib sample ckpt.pt --label walk_sad --keyframes kf.npz --seconds 6",
+            "mrlib sample ckpt.pt --label walk_sad --continue clip.bvh --seconds 5",
+        ],
     )
     p.add_argument("checkpoint", type=Path)
     g = p.add_mutually_exclusive_group()
@@ -218,33 +219,35 @@ def _parse_parts(text: str) -> dict[str, str]:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def _constrained(model, kw: dict, length: int | None, args) -> list:
+def _constrained(model, condition, sampler, length: int | None, args) -> list:
     """Samples under --path / --keyframes / --loop / --continue (one per seed)."""
     from mrlib.sampling import constraints as C
 
     fit = {} if args.fit_steps is None else {"steps": args.fit_steps}
     fit["progress"] = not args.no_progress
+    kw = {"condition": condition, "sampler": sampler}
     seconds = args.seconds
     if args.path is not None and seconds is None:  # the path's length: bounded up front
-        seconds, _ = C.path_seconds(model, args.path, **kw)
+        seconds, _ = C.path_seconds(model, args.path, condition, sampler=sampler)
         what = f"--path {args.path} (without --seconds: its times, or its length at the pace)"
         _check_sample_frames(max(2, round(seconds * model.fps)), model.fps, args, what)
     out = []
     for b in range(args.num):
         seed = args.seed + b
         if args.path is not None:
-            m = C.generate_on_path(model, args.path, seconds=seconds, seed=seed,
-                                   clean=not args.raw, **kw)  # fmt: skip
+            m = C.generate_on_path(model, args.path, seconds=seconds, seed=seed, **kw)
         elif args.keyframes is not None:
             if length is None:
                 raise MrlibError("--keyframes needs --seconds (the length of the motion)")
             kfs = C.load_keyframes(args.keyframes)
             m = C.generate_with_keyframes(
-                model, kfs, length, seed=seed, clean=not args.raw, **fit, **kw
+                model, kfs, length, seed=seed, fit=C.KeyframeFit(**fit), **kw
             )
         elif args.loop:
-            m = C.generate_loop(model, length=length, seed=seed, fix_contacts=not args.raw, **kw)
+            m = C.generate_loop(model, length=length, seed=seed, **kw)
         else:
+            from dataclasses import replace
+
             from mrlib.io import load_motion
 
             if args.seconds is None:
@@ -253,14 +256,16 @@ def _constrained(model, kw: dict, length: int | None, args) -> list:
             frames = max(1, round(args.seconds * model.fps))
             # the prefix is resampled to the model's rate: its duration counts, not its frames
             _check_sample_frames(round(prefix.duration * model.fps) + frames, model.fps, args)
-            m = C.continue_motion(model, prefix, frames, seed=seed, clean=not args.raw, **fit, **kw)
+            cont = replace(C.keyframes.CONTINUE_FIT, **fit)
+            m = C.continue_motion(model, prefix, frames, seed=seed, fit=cont, **kw)
         out.append(m)
     return out
 
 
 def cmd_sample(args) -> int:
     from mrlib.model.trained import load_model
-    from mrlib.sampling.generation import generate_many
+    from mrlib.sampling.conditions import Condition
+    from mrlib.sampling.generation import generate
 
     constrained = args.path or args.keyframes or args.loop or args.prefix
     if args.seed + args.num - 1 > MAX_SEED:
@@ -286,7 +291,8 @@ def cmd_sample(args) -> int:
 
             motions = [follow_path(m, args.path, clean=not args.raw) for m in motions]
         return write_samples(motions, tag, args)
-    model = with_sampler(load_model(args.checkpoint, device=args.device), args)
+    sampler = sampler_from_args(args)
+    model = load_model(args.checkpoint, device=args.device)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
     warn_unfinished(model, args.checkpoint)
@@ -296,17 +302,16 @@ def cmd_sample(args) -> int:
     if args.parts:
         if constrained:
             raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
-        from mrlib.sampling.constraints import SHARPEN_STEPS, generate_many_parts
+        from mrlib.sampling.constraints import SHARPEN_STEPS, Sharpening, generate_parts
 
-        sharpen = SHARPEN_STEPS if args.sharpen is None else args.sharpen
-        motions = generate_many_parts(model, args.parts, length, seed=args.seed,
-                                      num_samples=args.num, fix_contacts=not args.raw,
-                                      align_gait=args.in_step, sharpen=sharpen,
-                                      progress=not args.no_progress)  # fmt: skip
+        steps = SHARPEN_STEPS if args.sharpen is None else args.sharpen
+        parts = Condition.parts(args.parts, in_step=args.in_step)
+        motions = generate_parts(model, parts, length=length, seed=args.seed, num=args.num,
+                                 sampler=sampler, sharpen=Sharpening(
+                                     steps=steps, progress=not args.no_progress))  # fmt: skip
         return write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
-    kw = {}
     if args.crossover:
-        kw["conditions"] = args.crossover
+        condition = Condition.levels(args.crossover)
         tag = "+".join(f"{lab}{a}-{b}" for lab, (a, b) in args.crossover)
     elif args.blend:
         a, b, w = args.blend
@@ -316,11 +321,11 @@ def cmd_sample(args) -> int:
             raise MrlibError(f"--blend weight must be a number in [0, 1], got {w!r}") from None
         if not 0 <= w <= 1:
             raise MrlibError(f"--blend weight must be in [0, 1], got {w:g}")
-        kw["blend"] = (a, b, w)
+        condition = Condition.blend(a, b, w)
         tag = f"{a}-{b}-{float(w):g}"
     else:
-        kw["condition"] = args.label if args.label is not None else model.labels[0]
-        tag = str(kw["condition"])
+        condition = args.label if args.label is not None else model.labels[0]
+        tag = str(condition)
     if constrained:
         what = (
             "path"
@@ -331,20 +336,16 @@ def cmd_sample(args) -> int:
             if args.loop
             else "continued"
         )
-        return write_samples(_constrained(model, kw, length, args), f"{tag}_{what}", args)
-    motions = generate_many(
-        model,
-        length=length,
-        seed=args.seed,
-        num_samples=args.num,
-        fix_contacts=not args.raw,
-        **kw,
+        motions = _constrained(model, condition, sampler, length, args)
+        return write_samples(motions, f"{tag}_{what}", args)
+    motions = generate(
+        model, condition, length=length, seed=args.seed, num=args.num, sampler=sampler
     )
     return write_samples(motions, tag, args)
 
 
 def _audio_samples(args):
-    from mrlib.speech import generate_many_from_audio, load_speech_model
+    from mrlib.speech import generate_from_audio, load_speech_model
 
     if args.seconds is not None:
         raise MrlibError(
@@ -363,8 +364,6 @@ def _audio_samples(args):
             f"{frames * args.num} frames, more than the {MAX_SAMPLE_FRAMES} one command "
             "generates; use fewer --num, and run again with another --seed"
         )
-    with_sampler(model.model, args)
-    motions = generate_many_from_audio(
-        model, args.audio, seed=args.seed, num_samples=args.num, fix_contacts=not args.raw
-    )
+    sampler = sampler_from_args(args, label_model=False)
+    motions = generate_from_audio(model, args.audio, seed=args.seed, num=args.num, sampler=sampler)
     return motions, args.audio.stem

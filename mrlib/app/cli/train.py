@@ -11,15 +11,18 @@ import warnings
 from pathlib import Path
 
 from mrlib.app.cli.common import (
+    add_command,
     iterations_option,
     joint_map_option,
     preset_choices,
     preset_help,
     progress_option,
+    read_number,
     run_options,
     up_axis_option,
 )
 from mrlib.errors import MrlibError
+from mrlib.threads import use as use_threads
 
 # frames of one training clip at the training rate: 10 minutes at 30 fps. Every level of
 # the pyramid, its features and the discriminator's windows scale with it, and a clip this
@@ -49,10 +52,7 @@ def check_training_clips(motions, paths, fps: float | None) -> None:
 def _level_count(text: str) -> int:
     from mrlib.model.config import MAX_LEVELS
 
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"wants an integer, got {text!r}") from None
+    v = read_number(text, int, f"wants an integer, got {text!r}")
     if not 1 <= v <= MAX_LEVELS:
         raise argparse.ArgumentTypeError(
             f"must be in [1, {MAX_LEVELS}], got {v} (the paper uses 8; a level needs about "
@@ -62,10 +62,7 @@ def _level_count(text: str) -> int:
 
 
 def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    v = read_number(text, float, f"not a number: {text!r}")
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}")
     return v
@@ -73,12 +70,6 @@ def _positive_float(text: str) -> float:
 
 def _short(name: str) -> str:
     return name.removeprefix("speech_")
-
-
-def _preset_fps(name: str) -> float | None:
-    from mrlib.model.config import PRESET_FPS
-
-    return PRESET_FPS.get(name)
 
 
 @contextlib.contextmanager
@@ -116,20 +107,36 @@ def _refuse_on_resume(args, options: dict[str, str]) -> None:
         )
 
 
+def _resume(args, trainer_class, options: dict[str, str]) -> int:
+    """``--resume``: continue the run of ``args.resume`` with ``trainer_class`` (``Trainer``
+    or ``SpeechTrainer``) at the thread count it began with, refusing ``options`` (as
+    :func:`_refuse_on_resume`)."""
+    from mrlib.training.run import resume_thread_count
+
+    _refuse_on_resume(args, options)
+    trainer = trainer_class.start(
+        None, None, args.out, resume=args.resume, device=args.device, overwrite=args.overwrite
+    )
+    use_threads(resume_thread_count(trainer.threads))  # the count the run began with
+    return _report_training(trainer.fit(progress=not args.no_progress, overwrite=args.overwrite))
+
+
 # -- train ---------------------------------------------------------------------------------
 def add_train(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "train",
-        help="train a model on a few labelled clips",
-        description="Train the multi-resolution GAN on one or more clips. Each clip is one condition "
+        "train a model on a few labelled clips",
+        "Train the multi-resolution GAN on one or more clips. Each clip is one condition "
         "(its label comes from the file: the npz 'label' key, the Bandai JSON next to a BVH, or else "
         "the file name). Writes checkpoint.pt, checkpoint.pt.json (the config) and losses.csv to --out.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib train data_samples/*.npz --out runs/samples\n"
-        "  mrlib train a.bvh b.bvh --labels calm angry --preset paper --device cuda --out runs/ab\n"
-        "  mrlib train --resume runs/ab/checkpoint.pt --out runs/ab\n"
-        "  mrlib train data_samples/*.npz --preset demo --out runs/demo\n\n"
-        "presets (--preset, mrlib.model.config.PRESETS):\n" + preset_help("labels"),
+        [
+            "mrlib train data_samples/*.npz --out runs/samples",
+            "mrlib train a.bvh b.bvh --labels calm angry --preset paper --device cuda --out runs/ab",
+            "mrlib train --resume runs/ab/checkpoint.pt --out runs/ab",
+            "mrlib train data_samples/*.npz --preset demo --out runs/demo",
+        ],
+        preset_help("labels"),
     )
     p.add_argument(
         "clips", nargs="*", type=Path, help="motion files (.bvh, .npz, EasyMocap folders)"
@@ -210,18 +217,19 @@ def _single_clip(data, k: int):
 
 
 def cmd_train(args) -> int:
-    from mrlib.model.config import ganimator_mode, training_config
+    from mrlib.model.presets import ganimator_mode, training_config
     from mrlib.training.data import TrainingSet
     from mrlib.training.run import check_run_folder
-    from mrlib.training.trainer import train
+    from mrlib.training.trainer import Trainer, train
 
     if args.resume is None and not args.clips:
         raise MrlibError("give clips to train on, or --resume a checkpoint")
     if not args.per_clip:  # before loading anything (checked again under the run's lock)
         check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
     if args.resume is not None:
-        _refuse_on_resume(
+        return _resume(
             args,
+            Trainer,
             {
                 "clips": "clips",
                 "labels": "--labels",
@@ -237,32 +245,6 @@ def cmd_train(args) -> int:
                 "accept_retarget_error": "--accept-retarget-error",
             },
         )
-        res = train(
-            None,
-            None,
-            args.out,
-            resume=args.resume,
-            device=args.device,
-            progress=not args.no_progress,
-            overwrite=args.overwrite,
-        )
-        return _report_training(res)
-    fps = args.fps if args.fps is not None else _preset_fps(args.preset or "tutorial")
-    from mrlib.io import joint_maps_for, load_motion
-
-    with _retarget_check(args.accept_retarget_error):
-        # TrainingSet.from_files, with the clips' lengths checked before they are resampled
-        maps = joint_maps_for(args.clips, args.joint_map)  # BVH files only
-        motions = [
-            load_motion(p, joint_map=m, up_axis=args.up_axis)
-            for p, m in zip(args.clips, maps, strict=True)
-        ]
-        check_training_clips(motions, args.clips, fps)
-        data = TrainingSet.from_motions(motions, args.labels, fps)
-    print(
-        f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
-        f"lengths {data.lengths}"
-    )
     cfg = training_config(
         args.preset or "tutorial",
         args.iterations,
@@ -275,6 +257,25 @@ def cmd_train(args) -> int:
         if args.checkpoint_every < 0:
             raise MrlibError(f"--checkpoint-every must be >= 0, got {args.checkpoint_every}")
         cfg = cfg.replace(checkpoint_every=args.checkpoint_every)
+    from mrlib.io import joint_maps_for, load_motion
+
+    with _retarget_check(args.accept_retarget_error):
+        # TrainingSet.from_files, with the clips' lengths checked before they are resampled
+        maps = joint_maps_for(args.clips, args.joint_map)  # BVH files only
+        motions = [
+            load_motion(p, joint_map=m, up_axis=args.up_axis)
+            for p, m in zip(args.clips, maps, strict=True)
+        ]
+        # the preset's frame rate (TrainConfig.fps), unless --fps; None: the first clip's
+        fps = cfg.fps if args.fps is None else args.fps
+        check_training_clips(motions, args.clips, fps)
+        data = TrainingSet.from_motions(motions, args.labels, fps)
+    if args.fps is not None:  # the run trains at --fps, which its config records
+        cfg = cfg.replace(fps=data.fps)
+    print(
+        f"training on {data.num_clips} clips, labels {data.labels}, {data.fps:g} fps, "
+        f"lengths {data.lengths}"
+    )
     if args.per_clip:
         from mrlib.io.paths import inside, unique_components
 
@@ -313,10 +314,7 @@ def _report_training(res) -> int:
 
 def parse_mismatch(text: str) -> float:
     """``--max-mismatch``: seconds, finite, 0 to 60."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    value = read_number(text, float, f"not a number of seconds: {text!r}")
     if not math.isfinite(value) or not 0.0 <= value <= 60.0:
         raise argparse.ArgumentTypeError(f"must be between 0 and 60 seconds, got {text}")
     return value
@@ -324,19 +322,22 @@ def parse_mismatch(text: str) -> float:
 
 # -- train-speech --------------------------------------------------------------------------
 def add_train_speech(sub) -> argparse.ArgumentParser:
-    p = sub.add_parser(
+    p = add_command(
+        sub,
         "train-speech",
-        help="train a speech-conditioned (co-speech gesture) model",
-        description="Train the multi-resolution GAN with speech as the control signal (paper "
+        "train a speech-conditioned (co-speech gesture) model",
+        "Train the multi-resolution GAN with speech as the control signal (paper "
         "Sec. 6): the reconstruction loss on paired clips (PAIRED holds <stem>.wav next to "
         "<stem>.npz or <stem>.bvh), random generations on unpaired audio (--unpaired, a folder "
         "of .wav/.flac). Speech FiLM modulates the upper body only. Writes checkpoint.pt, "
         "checkpoint.pt.json and losses.csv to --out; generate with 'mrlib sample --audio'.",
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-        epilog="examples:\n  mrlib train-speech talks/paired --unpaired talks/audio --out runs/speech\n"
-        "  mrlib train-speech talks/paired --unpaired talks/audio --features wavlm --wavlm ~/wavlm-base-plus\n"
-        "  mrlib train-speech --resume runs/speech/checkpoint.pt --out runs/speech\n\n"
-        "presets (--preset, mrlib.model.config.PRESETS):\n" + preset_help("speech"),
+        [
+            "mrlib train-speech talks/paired --unpaired talks/audio --out runs/speech",
+            "mrlib train-speech talks/paired --unpaired talks/audio --features wavlm "
+            "--wavlm ~/wavlm-base-plus",
+            "mrlib train-speech --resume runs/speech/checkpoint.pt --out runs/speech",
+        ],
+        preset_help("speech"),
     )
     p.add_argument("paired", nargs="?", type=Path, help="folder of paired .wav + motion files")
     p.add_argument("--unpaired", type=Path, default=None, help="folder of unpaired audio files")
@@ -394,12 +395,14 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
 
 
 def cmd_train_speech(args) -> int:
-    from mrlib.model.config import block_iterations_for, get_preset
-    from mrlib.speech import SpeechFeatureExtractor, SpeechTrainingSet, speech_train
+    from mrlib.model.presets import block_iterations_for, get_preset
+    from mrlib.speech import SpeechFeatureExtractor, SpeechTrainer, SpeechTrainingSet, speech_train
+    from mrlib.training.run import check_run_folder
 
     if args.resume is not None:
-        _refuse_on_resume(
+        return _resume(
             args,
+            SpeechTrainer,
             {
                 "paired": "PAIRED",
                 "unpaired": "--unpaired",
@@ -415,38 +418,30 @@ def cmd_train_speech(args) -> int:
                 "seed": "--seed",
             },
         )
-    from mrlib.training.run import check_run_folder
-
-    check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)  # before loading
-    data = cfg = None
-    if args.resume is None:
-        if args.paired is None:
-            raise MrlibError("give a folder of paired clips, or --resume a checkpoint")
-        name = args.preset or "speech_tutorial"
-        cfg = get_preset(name if name.startswith("speech_") else f"speech_{name}")
-        if args.iterations is not None:
-            cfg = cfg.replace(
-                block_iterations=block_iterations_for(args.iterations, cfg.num_blocks)
-            )
-        if args.seed is not None:
-            cfg = cfg.replace(seed=args.seed)
-        cfg = cfg.replace(device=args.device or "cpu")
-        wavlm = None if args.wavlm is None else str(args.wavlm)
-        extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
-        fps = 25.0 if args.fps is None else args.fps
-        mismatch = 1.0 if args.max_mismatch is None else args.max_mismatch
-        data = SpeechTrainingSet.from_folders(
-            args.paired, args.unpaired, extractor, fps=fps, max_mismatch_s=mismatch,
-            up_axis=args.up_axis, strict=not args.skip_unpaired_files,
-        )  # fmt: skip
-        print(data)
+    check_run_folder(args.out, overwrite=args.overwrite)  # before loading
+    if args.paired is None:
+        raise MrlibError("give a folder of paired clips, or --resume a checkpoint")
+    name = args.preset or "speech_tutorial"
+    cfg = get_preset(name if name.startswith("speech_") else f"speech_{name}")
+    if args.iterations is not None:
+        cfg = cfg.replace(block_iterations=block_iterations_for(args.iterations, cfg.num_blocks))
+    if args.seed is not None:
+        cfg = cfg.replace(seed=args.seed)
+    cfg = cfg.replace(device=args.device or "cpu")
+    wavlm = None if args.wavlm is None else str(args.wavlm)
+    extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
+    fps = args.fps if args.fps is not None else cfg.fps if cfg.fps is not None else 25.0
+    mismatch = 1.0 if args.max_mismatch is None else args.max_mismatch
+    data = SpeechTrainingSet.from_folders(
+        args.paired, args.unpaired, extractor, fps=fps, max_mismatch_s=mismatch,
+        up_axis=args.up_axis, strict=not args.skip_unpaired_files,
+    )  # fmt: skip
+    print(data)
     res = speech_train(
         data,
         cfg,
         args.out,
-        resume=args.resume,
         random_audio=args.random_audio,
-        device=args.device if args.resume is not None else None,
         progress=not args.no_progress,
         overwrite=args.overwrite,
     )

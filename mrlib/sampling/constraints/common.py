@@ -19,6 +19,7 @@ __all__ = [
     "parse_parts",
     "joint_ids",
     "label_setup",
+    "planted",
     "features_motion",
     "fitted_motion",
     "pelvis_rest",
@@ -89,16 +90,28 @@ def parse_parts(spec: str) -> dict[str, str]:
     return out
 
 
-def label_setup(model, condition, conditions, blend, length: int, seed: int | None):
+def label_setup(model, condition, length: int, seed: int | None, sampler):
     """Noise maps ``[(1, 1, T_i)]`` (the draw ``generate`` makes for ``seed``), checked
-    per-level conditions and the finest level's main label, for a label condition."""
-    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, label_weights
+    per-level conditions and the finest level's main label, for a label condition (a
+    label or a ``mrlib.Condition``; None: the first label) under ``sampler``."""
+    from mrlib.sampling.conditions import as_condition
+    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs
 
-    W = label_weights(model, condition, conditions, blend)
-    lengths, amp, conds = label_inputs(model, W, length)
+    W = as_condition(0 if condition is None else condition).weights(model)
+    lengths, amp, conds = label_inputs(model, W, length, sampler)
     noises = draw_noise(lengths, amp, seed, 1, model.device)
     label = model.labels[int(W[-1].argmax())]
     return noises, check_conditions(model, conds, lengths), label
+
+
+def planted(motion: Motion, sampler, body=None) -> Motion:
+    """``motion`` with its feet planted (``mrlib.sampling.cleanup``) when the sampler's
+    ``fix_contacts`` asks for it and the motion has contact labels."""
+    if not sampler.fix_contacts or motion.contacts is None:
+        return motion
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+
+    return cleanup_foot_contacts(motion, body)
 
 
 def features_motion(model, x: torch.Tensor, label: str | None, name: str) -> Motion:
@@ -118,22 +131,16 @@ def pelvis_rest(motion: Motion, body) -> np.ndarray:
     return rest_pelvis(body, motion.betas)
 
 
-def fitted_motion(
-    model, noises, conds, label: str | None, name: str, loss_fn=None, *, steps: int = 0,
-    clean: bool = True, body=None, progress: bool = False,
-) -> Motion:  # fmt: skip
-    """The model's motion for ``noises`` after ``steps`` of noise optimisation against
-    ``loss_fn`` (``mrlib.sampling.constraints.optimise``; none when ``steps`` is 0), with the feet
-    planted when ``clean``."""
-    if steps > 0 and loss_fn is not None:
+def fitted_motion(model, noises, conds, label: str | None, name: str, loss_fn, fit) -> Motion:
+    """The model's (raw) motion for ``noises`` after ``fit.steps`` of noise optimisation
+    against ``loss_fn`` (``mrlib.sampling.constraints.optimise``; none when the steps are
+    0 or ``loss_fn`` is None; ``fit``: a ``NoiseFit``)."""
+    if fit.steps > 0 and loss_fn is not None:
         from mrlib.sampling.constraints.optimise import optimise_noise
 
-        noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=steps, progress=progress)
+        noises, _ = optimise_noise(
+            model, noises, conds, loss_fn, steps=fit.steps, progress=fit.progress
+        )
     with torch.no_grad():
         x = model.generator.run_batch(noises, conds)
-    m = features_motion(model, x, label, name)
-    if clean and m.contacts is not None:
-        from mrlib.sampling.cleanup import cleanup_foot_contacts
-
-        m = cleanup_foot_contacts(m, body)
-    return m
+    return features_motion(model, x, label, name)

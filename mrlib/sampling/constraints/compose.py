@@ -1,38 +1,37 @@
 """Body-part composition: different conditions for different joint groups.
 
-``method="splice"`` (default): one motion per condition with the same noise, each
-group's joint rotations taken from its own (the root and the contact labels from the
-group holding the pelvis). It works across models too (:func:`splice_parts`: upper
-body from a speech model, legs from a label model).
+A splice: one motion per condition with the same noise, each group's joint rotations
+taken from its own (the root and the contact labels from the group holding the pelvis).
+It works across models too (:func:`splice_parts`: upper body from a speech model, legs
+from a label model).
 
 Each part of a splice keeps its own sample's timing, so arms and legs drawn at two
 cadences swing out of step; ``align_gait`` retimes the other parts to the gait of the
 part holding the pelvis (:func:`gait_phase`: the phase of the ankles' stride from the
 analytic signal, Hilbert transform; :func:`arm_leg_coordination` measures the result).
 
-``method="film"``: one generator pass, each group's channels modulated by its own
-condition's FiLM parameters at every level (``LevelGenerator.modulate``; the
-channel-to-joint map of the skeleton-aware convolutions says which channels are a
-group's: the root displacement belongs to the pelvis, each contact label to its foot).
-The networks see the whole body, so a part's label leaks into its neighbours through the
-convolutions: on the Bandai walks the parts kept their labels less often than spliced
-ones (``docs/results.md``, ``bench/constraints.py``), hence the default.
+The alternative measured against it, one generator pass with each group's channels
+modulated by its own condition (FiLM), kept the parts' labels less often on the Bandai
+walks: ``bench/experiments/film_parts.py``, ``docs/notes/2026-12-06-study-options.md``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError, check_text
+from mrlib.errors import ArgumentError, MotionValueError, check_text, shown
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS
 from mrlib.sampling.arguments import check_parts, checked
+from mrlib.sampling.conditions import Condition
 from mrlib.sampling.constraints.common import (
     part_joints,
 )
+from mrlib.sampling.sampler import Sampler
 
 __all__ = [
     "generate_parts",
@@ -74,129 +73,104 @@ def _groups(parts: Mapping) -> list[tuple[tuple[int, ...], object]]:
     return [(tuple(sorted(js)), c) for js, c in groups]
 
 
-def _channel_masks(groups) -> list[torch.Tensor]:
-    from mrlib.representation.features import channel_joint
+def _part_condition(name: str, value) -> Condition:
+    """``generate_parts``'s parts: a dict ``{part: label}`` or a ``Condition.parts``."""
+    if isinstance(value, Condition):
+        if value.parts_of is None:
+            raise ArgumentError(
+                f"{name} must be a dict {{part: label}} or a Condition.parts(...), got a "
+                f"condition of no body parts: {value!r}"
+            )
+        return value
+    return Condition.parts(check_parts(name, value))
 
-    owner = channel_joint()
-    return [torch.from_numpy(np.isin(owner, js).astype(np.float32)) for js, _ in groups]
 
-
-@checked(parts=check_parts)
-def generate_many_parts(
-    model,
-    parts: Mapping[str, str],
-    length: int | None = None,
-    *,
-    seed: int | None = None,
-    num_samples: int,
-    method: str = "splice",
-    fix_contacts: bool = True,
-    align_gait: bool = False,
-    sharpen: int = 0,
-    body=None,
-    progress: bool = False,
-):
-    """A label model's motion with each body part under its own label (method: module
-    docstring), e.g. ``parts={"upper": "walk_happy", "lower": "walk_sad"}``.
-    ``align_gait`` (splice): each other part is taken from a sample retimed to the gait
-    of the part holding the pelvis (:func:`phase_align`), so the arms swing in step with
-    the legs; it costs some of the part's own label where the labels' cadences differ
-    (``docs/results.md``, "Body parts"). ``sharpen``: Adam steps of the noise fit that
-    moves each part's windows nearer its own label's training clips than any other's
-    (``mrlib.sampling.constraints.sharpen``; ``SHARPEN_STEPS`` is the benchmarked length, 0 is
-    off); 50 steps take seconds per sample where a draw takes milliseconds
-    (``docs/results.md``, "Body parts").
-
-    Returns:
-        ``num_samples`` Motions (label ``"upper=walk_happy,lower=walk_sad"``), always a
-        list; one: :func:`generate_parts`.
-    """
-    from mrlib.representation.features import features_to_motions
-    from mrlib.sampling.cleanup import cleanup_foot_contacts
-    from mrlib.sampling.constraints.sharpen import generate_sharpened, sharpened_features
-    from mrlib.sampling.generation import (
-        guided_weights,
-        label_inputs,
-        label_weights,
-        noise_amplitude,
-        sample_features,
-    )
-
-    if method not in ("film", "splice"):
-        raise MotionValueError(f"method must be 'film' or 'splice', got {method!r}")
+def _sharpening(name: str, value):
+    """``generate_parts``'s ``sharpen``: Adam steps (0: off) or a ``Sharpening``."""
     from mrlib.sampling.constraints.optimise import check_fit_steps
+    from mrlib.sampling.constraints.sharpen import Sharpening
 
-    sharpen = check_fit_steps(sharpen, "sharpen (steps)")
-    groups = _groups(parts)
-    tag = ",".join(f"{p}={c}" for p, c in parts.items())
-    if method == "splice":
+    if isinstance(value, Sharpening):
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ArgumentError(
+            f"{name} must be Adam steps (an integer, 0: off) or a Sharpening(...), got "
+            f"{shown(value)}"
+        )
+    return Sharpening(steps=check_fit_steps(value, "sharpen (steps)"))
 
-        def draw(c, n):
-            own = [js for js, cc in groups if cc == c]  # the parts this sample gives
-            return generate_sharpened(model, c, own, n, seed=seed, num_samples=num_samples,
-                                      steps=sharpen, progress=progress)  # fmt: skip
 
-        base_c = next(c for js, c in groups if 0 in js)
-        motions = {base_c: draw(base_c, length)}
-        T = motions[base_c][0].num_frames
-        for _, c in groups:
-            if c in motions:
-                continue
-            # retimed to the pelvis part's gait (align_gait), a sample of a label that
-            # walks slower needs more frames to cover as many strides
-            n = _frames_to_cover(model, base_c, c, T, body) if align_gait else length
-            motions[c] = draw(c, n)
-        out = []
-        for b in range(num_samples):
-            pick = {js: motions[c][b] for js, c in groups}
-            out.append(splice_parts(pick, name=f"{tag}_seed{seed}_{b}", align=align_gait,
-                                    body=body))  # fmt: skip
-    else:
-        Ws = [label_weights(model, c) for _, c in groups]
-        lengths, _, _ = label_inputs(model, Ws[0], length)
-        amp = torch.stack([noise_amplitude(model, W) for W in Ws]).mean(0)
-        masks = _channel_masks(groups)
-        Gs = [guided_weights(model, W) for W in Ws]
-        conds = [
-            [(m, G[i].expand(1, lengths[i], -1)) for m, G in zip(masks, Gs, strict=True)]
-            for i in range(model.num_levels)
-        ]
-        if sharpen:
-            x = sharpened_features(model, conds, lengths, amp, {js: c for js, c in groups},
-                                   seed=seed, num_samples=num_samples, steps=sharpen,
-                                   progress=progress)  # fmt: skip
-        else:
-            x = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num_samples)
-        names = [f"{tag}_seed{seed}_{b}" for b in range(num_samples)]
-        out = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
-                                  normalizer=model.normalizer, label=tag, names=names)  # fmt: skip
-    if fix_contacts:
+@checked(parts=_part_condition, sharpen=_sharpening)
+def generate_parts(
+    model,
+    parts: Mapping | Condition,
+    *,
+    length: int | None = None,
+    seed: int | None = None,
+    num: int | None = None,
+    sampler=None,
+    sharpen=0,
+    body=None,
+):
+    """A label model's motion with each body part under its own label (a splice: module
+    docstring): ``parts={"upper": "walk_happy", "lower": "walk_sad"}``, or
+    ``Condition.parts({...}, in_step=True)``, whose ``in_step`` takes each other part
+    from a sample retimed to the gait of the part holding the pelvis (:func:`phase_align`),
+    so the arms swing in step with the legs; it costs some of the part's own label where
+    the labels' cadences differ (``docs/results.md``, "Body parts").
+
+    Args:
+        length, seed, num: as ``mrlib.generate`` (every part's samples are the draws of
+            ``seed``).
+        sampler: a ``mrlib.Sampler``: the draws' fine noise and guidance; its
+            ``fix_contacts`` plants the feet of the spliced motion.
+        sharpen: Adam steps of the noise fit that moves each part's windows nearer its
+            own label's training clips than any other's, or a ``Sharpening`` (its margin,
+            a progress bar; ``mrlib.sampling.constraints.sharpen``); ``SHARPEN_STEPS`` is
+            the benchmarked length, 0 is off; 50 steps take seconds per sample where a
+            draw takes milliseconds (``docs/results.md``, "Body parts").
+    Returns:
+        A ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``), or with ``num=k`` a
+        list of k, as ``mrlib.generate``.
+    """
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.constraints.sharpen import generate_sharpened
+    from mrlib.sampling.generation import shaped_samples
+
+    sampler = Sampler() if sampler is None else sampler
+    fit = _sharpening("generate_parts: sharpen", sharpen)  # the default too
+    raw = replace(sampler, fix_contacts=False)
+    count = 1 if num is None else num
+    labels = parts.part_labels()
+    align_gait = parts.in_step
+    groups = _groups(labels)
+    tag = parts.name(model)
+
+    def draw(c, n):
+        own = [js for js, cc in groups if cc == c]  # the parts this sample gives
+        return generate_sharpened(model, c, own, n, seed=seed, num=count, sampler=raw, fit=fit)
+
+    base_c = next(c for js, c in groups if 0 in js)
+    motions = {base_c: draw(base_c, length)}
+    T = motions[base_c][0].num_frames
+    for _, c in groups:
+        if c in motions:
+            continue
+        # retimed to the pelvis part's gait (align_gait), a sample of a label that
+        # walks slower needs more frames to cover as many strides
+        n = _frames_to_cover(model, base_c, c, T, body) if align_gait else length
+        motions[c] = draw(c, n)
+    out = []
+    for b in range(count):
+        pick = {js: motions[c][b] for js, c in groups}
+        out.append(splice_parts(pick, name=f"{tag}_seed{seed}_{b}", align=align_gait,
+                                body=body))  # fmt: skip
+    if sampler.fix_contacts:
         out = [cleanup_foot_contacts(m, body) for m in out]
     for m in out:
         m.label = tag
-        m.meta["parts"] = {p: c for p, c in parts.items()}
-    return out
-
-
-@checked(parts=check_parts)
-def generate_parts(
-    model,
-    parts: Mapping[str, str],
-    length: int | None = None,
-    *,
-    seed: int | None = None,
-    method: str = "splice",
-    fix_contacts: bool = True,
-    align_gait: bool = False,
-    sharpen: int = 0,
-    body=None,
-    progress: bool = False,
-) -> Motion:
-    """One motion with each body part under its own label: :func:`generate_many_parts`
-    with one sample (its arguments and methods)."""
-    return generate_many_parts(model, parts, length, seed=seed, num_samples=1, method=method,
-                               fix_contacts=fix_contacts, align_gait=align_gait,
-                               sharpen=sharpen, body=body, progress=progress)[0]  # fmt: skip
+        m.meta["parts"] = dict(labels)
+    return shaped_samples(out, None, num)
 
 
 # Gait phase (gait_phase): the legs' stride signal is the difference of the two ankles'
@@ -355,7 +329,8 @@ def part_fidelity(
     """Condition fidelity measured on each part alone: the share of a part's windows
     whose nearest training window (on that part's joint rotations; the lower body also
     on the contact labels) belongs to the part's own label."""
-    from mrlib.metrics.paper import condition_fidelity, metric_features, model_references
+    from mrlib.metrics.coverage import condition_fidelity
+    from mrlib.metrics.windows import metric_features, model_references
     from mrlib.sampling.constraints.sharpen import part_columns
 
     _, labels, feats = model_references(model)

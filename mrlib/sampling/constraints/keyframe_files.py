@@ -63,6 +63,19 @@ def _frame_index(frame) -> int:
     return f
 
 
+def _bounded_values(
+    name: str, value, shape: tuple[int, ...], limit: float, within: str, hint: str
+) -> np.ndarray:
+    """``value`` as a float64 array of ``shape``, finite and no component beyond
+    ``limit``, else a ``MotionValueError``: "keyframe {name} must {within}" ({hint})."""
+    a = np.asarray(value, np.float64).reshape((-1, *shape[1:]))
+    if a.shape != shape or not np.isfinite(a).all():
+        raise MotionValueError(f"keyframe {name} must be finite {shape}, got {a.shape}")
+    if np.abs(a).max() > limit:
+        raise MotionValueError(f"keyframe {name} must {within}, got {np.abs(a).max():.3g} ({hint})")
+    return a
+
+
 @dataclass(frozen=True)
 class Keyframe:
     """A pose constraint at one frame.
@@ -85,28 +98,20 @@ class Keyframe:
         if self.poses is None and self.trans is None:
             raise MotionValueError(f"keyframe at frame {self.frame} constrains nothing")
         if self.poses is not None:
-            p = np.asarray(self.poses, np.float64).reshape(-1, 3)
-            if p.shape != (NUM_JOINTS, 3) or not np.isfinite(p).all():
-                raise MotionValueError(f"keyframe poses must be finite (24, 3), got {p.shape}")
-            if np.abs(p).max() > MAX_AXIS_ANGLE:
-                raise MotionValueError(
-                    f"keyframe poses must be axis-angle radians within +-{MAX_AXIS_ANGLE:g}, "
-                    f"got {np.abs(p).max():.3g} (degrees or another unit?)"
-                )
+            p = _bounded_values(
+                "poses", self.poses, (NUM_JOINTS, 3), MAX_AXIS_ANGLE,
+                f"be axis-angle radians within +-{MAX_AXIS_ANGLE:g}", "degrees or another unit?",
+            )  # fmt: skip
             object.__setattr__(self, "poses", p)
             joints = range(NUM_JOINTS) if self.joints is None else self.joints
             object.__setattr__(self, "joints", joint_ids(joints))
         elif self.joints is not None:
             raise MotionValueError("keyframe joints given without poses")
         if self.trans is not None:
-            t = np.asarray(self.trans, np.float64).reshape(-1)
-            if t.shape != (3,) or not np.isfinite(t).all():
-                raise MotionValueError(f"keyframe trans must be finite (3,), got {t.shape}")
-            if np.abs(t).max() > MAX_TRANSLATION_M:
-                raise MotionValueError(
-                    f"keyframe trans must lie within {MAX_TRANSLATION_M:g} m of the origin, "
-                    f"got {np.abs(t).max():.3g} (centimetres?)"
-                )
+            t = _bounded_values(
+                "trans", self.trans, (3,), MAX_TRANSLATION_M,
+                f"lie within {MAX_TRANSLATION_M:g} m of the origin", "centimetres?",
+            )  # fmt: skip
             object.__setattr__(self, "trans", t)
 
     @classmethod

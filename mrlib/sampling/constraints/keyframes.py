@@ -23,7 +23,7 @@ position) at one frame. :func:`generate_with_keyframes` meets keyframes in three
 
 :func:`continue_motion` extends a given prefix: the noise is fitted to the prefix, the
 prefix is kept as it is, and the generated rest takes the prefix's last pose and
-velocity with a cubic Hermite ease over ``blend_s`` seconds.
+velocity with a cubic Hermite ease over ``BLEND_S`` seconds.
 
 The module is long because it also reads and writes keyframe files
 (:func:`save_keyframes`, :func:`load_keyframes`): every array's header is checked
@@ -35,24 +35,27 @@ damaged file is one ``MotionFileError`` naming it.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError, check_count
+from mrlib.errors import MotionValueError, check_count, check_number
 from mrlib.representation.features import ROOT_SLICE
 from mrlib.representation.motion import Motion
 from mrlib.representation.skeleton import NUM_JOINTS
 from mrlib.sampling.arguments import checked
-from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis_rest
+from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis_rest, planted
 from mrlib.sampling.constraints.keyframe_files import Keyframe, check_keyframes
-from mrlib.sampling.constraints.optimise import check_fit_steps
+from mrlib.sampling.constraints.optimise import NoiseFit, check_noise_fit
+from mrlib.sampling.sampler import Sampler
 
 __all__ = [
     "align_to_keyframes",
     "apply_keyframes",
     "keyframe_errors",
     "keyframe_objective",
+    "KeyframeFit",
     "generate_with_keyframes",
     "continue_motion",
 ]
@@ -67,6 +70,22 @@ JOINT_JERK = 2e-3
 # models met the jerk target at 150, but models trained with a larger learning rate
 # (sharper labels) needed 300 at the partial keyframe (docs/results.md, "Keyframes").
 FIT_STEPS = 300
+CONTINUE_FIT = NoiseFit(steps=100)  # continue_motion's noise fit: 100 Adam steps
+
+
+@dataclass(frozen=True)
+class KeyframeFit(NoiseFit):
+    """The noise fit of :func:`generate_with_keyframes`: a ``NoiseFit`` (``FIT_STEPS``
+    Adam steps by default, 0 skips it; a progress bar) whose loss also weighs the jerk
+    within ``STILL_S`` seconds of a keyframe by ``still`` (``STILL``; 0: the keyframes
+    alone)."""
+
+    steps: int = FIT_STEPS
+    still: float = STILL
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "still", check_number("KeyframeFit.still", self.still, low=0))
 
 
 def _mat(aa: np.ndarray) -> np.ndarray:
@@ -291,70 +310,65 @@ def keyframe_objective(
     return loss_fn
 
 
-@checked(keyframes=check_keyframes, length=check_count)
+@checked(keyframes=check_keyframes, length=check_count, fit=check_noise_fit)
 def generate_with_keyframes(
     model,
     keyframes: Sequence[Keyframe],
     length: int,
     condition=None,
     *,
-    conditions=None,
-    blend=None,
     seed: int | None = None,
-    steps: int = FIT_STEPS,
-    blend_s: float = BLEND_S,
-    still: float = STILL,
-    clean: bool = True,
+    sampler=None,
+    fit: NoiseFit = KeyframeFit(),
     body=None,
-    progress: bool = False,
 ) -> Motion:
-    """A motion of ``length`` frames under a label condition that holds ``keyframes``
-    (method: module docstring). ``steps``: Adam steps of the noise optimisation
-    (``FIT_STEPS``; 0 skips it); ``still`` weighs the jerk within ``STILL_S`` seconds of
-    a keyframe in it (0: the keyframes alone); ``clean`` plants the feet before the
-    exact fit."""
+    """A motion of ``length`` frames under a condition (a label or a ``mrlib.Condition``;
+    None: the first label) that holds ``keyframes`` (method: module docstring; residuals
+    ease out over ``BLEND_S`` seconds). ``fit``: the noise fit (:class:`KeyframeFit`:
+    ``FIT_STEPS`` Adam steps, the jerk weight ``still``; a plain ``NoiseFit`` weighs the
+    jerk by ``STILL``). ``sampler``: a ``mrlib.Sampler`` (fine noise, guidance; its
+    ``fix_contacts`` plants the feet before the exact fit)."""
     from mrlib.representation.body import resolve_body
 
-    steps = check_fit_steps(steps)
+    sampler = Sampler() if sampler is None else sampler
+    still = fit.still if isinstance(fit, KeyframeFit) else STILL
     body = resolve_body(body, shared=True)
     if length < 2:
         raise MotionValueError(f"length must be >= 2 frames, got {length}")
     probe = Motion(np.zeros((length, NUM_JOINTS, 3)), np.zeros((length, 3)), model.fps)
     _check_frames(probe, keyframes)
-    noises, conds, label = label_setup(model, condition, conditions, blend, length, seed)
+    noises, conds, label = label_setup(model, condition, length, seed, sampler)
     loss_fn = keyframe_objective(model, keyframes, length, still, body)
     name = f"{label}_keyframes_seed{seed}"
-    m = fitted_motion(model, noises, conds, label, name, loss_fn, steps=steps, clean=clean,
-                      body=body, progress=progress)  # fmt: skip
+    m = planted(fitted_motion(model, noises, conds, label, name, loss_fn, fit), sampler, body)
     m = align_to_keyframes(m, keyframes, body)
-    return apply_keyframes(m, keyframes, blend_s=blend_s)
+    return apply_keyframes(m, keyframes, blend_s=BLEND_S)
 
 
-@checked()
+@checked(fit=check_noise_fit)
 def continue_motion(
     model,
     prefix: Motion,
     frames: int,
     condition=None,
     *,
-    conditions=None,
-    blend=None,
     seed: int | None = None,
-    steps: int = 100,
-    blend_s: float = BLEND_S,
-    clean: bool = True,
+    sampler=None,
+    fit: NoiseFit = CONTINUE_FIT,
     body=None,
-    progress: bool = False,
 ) -> Motion:
-    """``prefix`` followed by ``frames`` new frames in the model's style (method: module
-    docstring). The prefix is resampled to the model's frame rate first; a prefix and
+    """``prefix`` followed by ``frames`` new frames in the model's style under a condition
+    (a label or a ``mrlib.Condition``; None: the first label) (method: module docstring;
+    the new frames ease in over ``BLEND_S`` seconds). ``fit``: the noise fit to the prefix
+    (``NoiseFit``: Adam steps, 100 by default; a progress bar). ``sampler``: a
+    ``mrlib.Sampler`` (fine noise, guidance; its ``fix_contacts`` plants the feet of the
+    new frames after the fit). The prefix is resampled to the model's frame rate first; a prefix and
     ``frames`` longer together than ``MAX_SAMPLE_SECONDS`` there are refused before."""
     from mrlib.representation.body import resolve_body
     from mrlib.representation.rotations import axis_angle_to_matrix
     from mrlib.sampling.constraints.optimise import decode
     from mrlib.sampling.generation import MAX_SAMPLE_SECONDS
 
-    steps = check_fit_steps(steps)
     if not isinstance(prefix, Motion):
         raise MotionValueError(f"prefix must be a Motion, got {type(prefix).__name__}")
     K = prefix.resampled_frames(model.fps)
@@ -374,7 +388,8 @@ def continue_motion(
     if K < 2 or frames < 1:
         raise MotionValueError(f"need a prefix of >= 2 frames and frames >= 1, got {K}, {frames}")
     T = K + int(frames)
-    noises, conds, label = label_setup(model, condition, conditions, blend, T, seed)
+    sampler = Sampler() if sampler is None else sampler
+    noises, conds, label = label_setup(model, condition, T, seed, sampler)
     six = _sixd(axis_angle_to_matrix(torch.from_numpy(prefix.poses[:, 1:].astype(np.float64))))
     six = six.float().to(model.device)  # (K, 23, 6)
     height = torch.from_numpy(prefix.trans[:, 1].astype(np.float32)).to(model.device)
@@ -391,8 +406,7 @@ def continue_motion(
         return rot + root
 
     name = f"{prefix.name or 'prefix'}_continued"
-    m = fitted_motion(model, noises, conds, label, name, loss_fn, steps=steps, clean=clean,
-                      body=body, progress=progress)  # fmt: skip
+    m = planted(fitted_motion(model, noises, conds, label, name, loss_fn, fit), sampler, body)
     anchors = [Keyframe(f, prefix.poses[f], (0,), prefix.trans[f]) for f in range(K)]
     m = align_to_keyframes(m, anchors, body)
     # keep the prefix; ease the rest from the prefix's last pose and velocity
@@ -402,7 +416,7 @@ def continue_motion(
     r0 = _aa(Rp[K - 2] @ np.swapaxes(R[K - 2], -1, -2))
     d1 = prefix.trans[K - 1] - m.trans[K - 1]
     d0 = prefix.trans[K - 2] - m.trans[K - 2]
-    w = max(blend_s * model.fps, 1.0)
+    w = max(BLEND_S * model.fps, 1.0)
     u = np.clip((np.arange(T - K + 1)) / w, 0, 1)[:, None]  # frames K-1 .. T-1
     h00, h10 = 2 * u**3 - 3 * u**2 + 1, (u**3 - 2 * u**2 + u) * w
     poses = m.poses.astype(np.float64).copy()

@@ -13,7 +13,7 @@ smallest joint step, the place where a cut into or out of the loop shows least (
 seam cannot stand out from the loop's other steps). ``start="sample"`` keeps the
 generator's frame 0 as the first.
 
-``method="crossfade"``: the usual fix, a sample ``blend_s`` seconds longer whose extra
+``method="crossfade"``: the usual fix, a sample ``CROSSFADE_S`` seconds longer whose extra
 tail is faded into its head (the features, so the root velocity too). Measured against
 the circular loop in ``docs/results.md``.
 """
@@ -27,7 +27,9 @@ from mrlib.errors import MotionValueError, check_number
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 
-__all__ = ["generate_loop", "loop_seam", "tile_loop", "roll_loop"]
+__all__ = ["generate_loop", "loop_seam", "tile_loop", "roll_loop", "CROSSFADE_S"]
+
+CROSSFADE_S = 0.5  # method="crossfade": seconds of the tail faded into the head
 
 
 def _loop_motion(model, x: torch.Tensor, label: str, name: str) -> Motion:
@@ -108,27 +110,29 @@ def generate_loop(
     condition=None,
     length: int | None = None,
     *,
-    conditions=None,
-    blend=None,
     seed: int | None = None,
     method: str = "circular",
     start: str = "calm",
-    blend_s: float = 0.5,
-    fix_contacts: bool = True,
+    sampler=None,
     body=None,
 ) -> Motion:
     """A loop of ``length`` frames (default: the condition's training clip) under a
-    label condition (method and ``start``: module docstring)."""
-    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, label_weights
+    condition (a label or a ``mrlib.Condition``; None: the first label; method and
+    ``start``: module docstring). ``sampler``: a ``mrlib.Sampler`` (fine noise, guidance;
+    its ``fix_contacts`` plants the feet, across the seam)."""
+    from mrlib.sampling.conditions import as_condition
+    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs
+    from mrlib.sampling.sampler import Sampler
 
     if method not in ("circular", "crossfade"):
         raise MotionValueError(f"method must be 'circular' or 'crossfade', got {method!r}")
     if start not in ("calm", "sample"):
         raise MotionValueError(f"start must be 'calm' or 'sample', got {start!r}")
-    W = label_weights(model, condition, conditions, blend)
+    sampler = Sampler() if sampler is None else sampler
+    W = as_condition(0 if condition is None else condition).weights(model)
     label = model.labels[int(W[-1].argmax())]
     if method == "circular":
-        lengths, amp, conds = label_inputs(model, W, length)
+        lengths, amp, conds = label_inputs(model, W, length, sampler)
         noises = draw_noise(lengths, amp, seed, 1, model.device)
         with torch.inference_mode():
             x = model.generator.run_batch(
@@ -136,9 +140,9 @@ def generate_loop(
             )
         x = x[0]
     else:
-        T = label_inputs(model, W, length)[0][-1]
-        n = max(1, round(blend_s * model.fps))
-        lengths, amp, conds = label_inputs(model, W, T + n)
+        T = label_inputs(model, W, length, sampler)[0][-1]
+        n = max(1, round(CROSSFADE_S * model.fps))
+        lengths, amp, conds = label_inputs(model, W, T + n, sampler)
         noises = draw_noise(lengths, amp, seed, 1, model.device)
         with torch.inference_mode():
             y = model.generator.run_batch(noises, check_conditions(model, conds, lengths))[0]
@@ -148,7 +152,7 @@ def generate_loop(
         x[:, :n] = (1 - w) * y[:, T:] + w * y[:, :n]
     m = _loop_motion(model, x.cpu(), label, f"{label}_loop_seed{seed}")
     m.meta["loop_method"] = method
-    if fix_contacts and m.contacts is not None:
+    if sampler.fix_contacts and m.contacts is not None:
         m = _clean_loop(m, body)
     if start == "calm":
         k = _calm_start(m, body)

@@ -14,22 +14,34 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from contextlib import contextmanager
+from dataclasses import dataclass
 from numbers import Integral, Real
 
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import ArgumentError, MotionValueError, check_flag, shown
 from mrlib.progress import bar as progress_bar
 from mrlib.representation.features import ROOT_SLICE, ROT_SLICE, root_velocity_to_trans
 from mrlib.representation.rotations import sixd_to_matrix
-from mrlib.threads import with_policy
 
-__all__ = ["optimise_noise", "decode", "frozen", "check_fit_steps", "MAX_FIT_STEPS"]
+__all__ = [
+    "optimise_noise",
+    "decode",
+    "frozen",
+    "check_fit_steps",
+    "MAX_FIT_STEPS",
+    "NoiseFit",
+    "check_noise_fit",
+    "FIT_LR",
+    "FIT_PRIOR",
+]
 
-# Adam steps of one noise fit: 10 x the largest default (the keyframes' 300; restyle's
-# inversion 200, paths 150, continuation 100, sharpening 50). Each step runs the generator
-# forwards and back, ~10-50 ms on the CPU for a clip of seconds: 1e8 would run for weeks.
+# Adam steps of one noise fit: 10 x the largest default (the keyframes' 300; continuation
+# 100, sharpening 50). Each step runs the generator forwards and back, ~10-50 ms on the
+# CPU for a clip of seconds: 1e8 would run for weeks.
 MAX_FIT_STEPS = 3000
+FIT_LR = 0.05  # Adam's step size on the whitened noise
+FIT_PRIOR = 1e-2  # weight of mean(e_i^2) (a draw of N(0, 1) has 1)
 
 
 def check_fit_steps(steps, name: str = "steps", minimum: int = 0) -> int:
@@ -46,6 +58,29 @@ def check_fit_steps(steps, name: str = "steps", minimum: int = 0) -> int:
             f"fit (the defaults are 50-300 and take seconds); pass at most {MAX_FIT_STEPS}"
         )
     return int(steps)
+
+
+@dataclass(frozen=True)
+class NoiseFit:
+    """How a constraint fits the noise: ``steps`` Adam steps (0: none), with a progress
+    bar when ``progress``. (Whether the feet of the result are planted is the sampler's
+    ``fix_contacts``, ``mrlib.Sampler``.)"""
+
+    steps: int = 100
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "steps", check_fit_steps(self.steps))
+        object.__setattr__(self, "progress", check_flag("NoiseFit.progress", self.progress))
+
+
+def check_noise_fit(name: str, value) -> NoiseFit:
+    """A :class:`NoiseFit` (for ``mrlib.sampling.arguments.checked``)."""
+    if not isinstance(value, NoiseFit):
+        raise ArgumentError(
+            f"{name} must be a NoiseFit(steps=..., progress=...), got {shown(value)}"
+        )
+    return value
 
 
 @contextmanager
@@ -73,7 +108,6 @@ def decode(model, x: torch.Tensor) -> dict[str, torch.Tensor]:
     return {"rotations": R, "trans": trans, "contacts": f[..., ROOT_SLICE.stop :]}
 
 
-@with_policy
 def optimise_noise(
     model,
     noises: list[torch.Tensor],
@@ -81,10 +115,7 @@ def optimise_noise(
     loss_fn: Callable[[torch.Tensor], torch.Tensor],
     *,
     steps: int = 100,
-    lr: float = 0.05,
-    prior: float = 1e-2,
     prior_centre: str = "zero",
-    circular: bool = False,
     progress: bool = False,
 ) -> tuple[list[torch.Tensor], list[float]]:
     """Move the noise maps to lower ``loss_fn(x)`` of the output ``x (B, C, T_L)``.
@@ -94,11 +125,11 @@ def optimise_noise(
         noises: per level ``(B, 1, T_i)``, the starting draw (``mrlib.sampling.generation.draw_noise``).
         conds: per level conditions as ``MultiResGenerator.run_batch`` takes them.
         loss_fn: scalar loss of the generator's normalised output.
-        steps, lr: Adam iterations and step size on the whitened noise ``e_i``.
-        prior: weight of ``mean(e_i^2)`` (a draw of N(0, 1) has 1).
-        prior_centre: ``"zero"``: the prior as above; ``"draw"``: ``mean((e_i - e_i0)^2)``,
-            the distance from the starting draw instead. Adam scales each step to about
-            ``lr`` whatever the gradient's size, so under ``"zero"`` noise that the loss
+        steps: Adam iterations (step size ``FIT_LR``) on the whitened noise ``e_i``.
+        prior_centre: ``"zero"``: a prior ``FIT_PRIOR * mean(e_i^2)`` (a draw of N(0, 1)
+            has 1); ``"draw"``: ``mean((e_i - e_i0)^2)``, the distance from the starting
+            draw instead. Adam scales each step to about ``FIT_LR`` whatever the
+            gradient's size, so under ``"zero"`` noise that the loss
             does not need still shrinks towards 0 (a calmer, less diverse motion);
             ``"draw"`` leaves it where it was drawn.
     Returns:
@@ -114,16 +145,14 @@ def optimise_noise(
     if prior_centre not in ("zero", "draw"):
         raise ValueError(f"prior_centre must be 'zero' or 'draw', got {prior_centre!r}")
     centre = [e.detach().clone() if prior_centre == "draw" else 0.0 for e in eps]
-    opt = torch.optim.Adam(eps, lr=lr)
+    opt = torch.optim.Adam(eps, lr=FIT_LR)
     history = []
     with frozen(gen), torch.enable_grad():
         for _ in progress_bar(range(steps), desc="optimising noise", enabled=progress, leave=False):
             opt.zero_grad()
-            x = gen.run_batch(
-                [e * s for e, s in zip(eps, scale, strict=True)], conds, circular=circular
-            )
+            x = gen.run_batch([e * s for e, s in zip(eps, scale, strict=True)], conds)
             reg = sum((e - c).pow(2).mean() for e, c in zip(eps, centre, strict=True)) / len(eps)
-            loss = loss_fn(x) + prior * reg
+            loss = loss_fn(x) + FIT_PRIOR * reg
             loss.backward()
             opt.step()
             history.append(float(loss.detach()))

@@ -1,8 +1,9 @@
 """Root paths: make a generated motion walk a given ground-plane path.
 
 A model trained on a few straight walks never turns by itself, so a path cannot come
-from its noise alone (``method="optimise"`` measures that alternative). The default
-``method="bend"`` separates what the model is good at from what the path prescribes:
+from its noise alone (the noise fit measured against bending,
+``bench/experiments/path_optimise.py``, stayed off its path). Bending separates what the
+model is good at from what the path prescribes:
 
 1. The generated pelvis ground track ``g(t)`` is split into its travel ``g_s(t)`` (a
    Gaussian low-pass of ``smooth_s`` seconds) and the sway ``g - g_s`` around it.
@@ -15,18 +16,14 @@ from its noise alone (``method="optimise"`` measures that alternative). The defa
    down would otherwise slide it.
 
 Headings are angles about +Y with 0 along +Z and +90 degrees along +X (SMPL: facing +Z,
-left at +X), so a path that turns left curves towards +X.
-
-The module is long because it also reads path files (:meth:`GroundPath.from_csv`) with
-every check a hand-written or damaged CSV needs (size, encoding, header, row widths,
-bounded values: one ``MotionFileError`` naming the file) and bounds the length of a walk
-before generating it (:func:`path_seconds`, ``MAX_PATH_SECONDS``).
+left at +X), so a path that turns left curves towards +X. Path files are read by
+``mrlib.sampling.constraints.path_files``.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +31,11 @@ import numpy as np
 import torch
 from scipy.ndimage import gaussian_filter1d
 
-from mrlib.errors import ArgumentError, MotionFileError, MotionValueError, check_number, shown
+from mrlib.errors import ArgumentError, MotionValueError, check_number, shown
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
-from mrlib.sampling.constraints.common import fitted_motion, label_setup, pelvis_rest
-from mrlib.sampling.constraints.optimise import check_fit_steps
+from mrlib.sampling.constraints.common import pelvis_rest
+from mrlib.sampling.sampler import Sampler
 
 __all__ = [
     "GroundPath",
@@ -56,9 +53,7 @@ MIN_TRAVEL_SPEED = 0.1  # m/s: slower than this, the direction of travel is not 
 # the longest motion generate_on_path makes in one piece: a 10-minute walk stays within
 # the 1000 m a motion may span (mrlib.representation.motion.MAX_TRANSLATION_M)
 MAX_PATH_SECONDS = 600.0
-# what a path file may hold: its size, points, coordinates (metres) and times (seconds)
-MAX_PATH_FILE_BYTES = 8 * 2**20
-MAX_PATH_POINTS = 100_000
+# what a path may hold: its coordinates (metres) and times (seconds)
 MAX_PATH_COORD = 1e6
 MAX_PATH_TIME = 1e7
 PACE_WARNING = 1.3  # warn when a timed path asks for this times the motion's pace (or 1/x)
@@ -220,7 +215,7 @@ class GroundPath:
     @classmethod
     def from_csv(cls, path: str | Path, closed: bool = False) -> GroundPath:
         """Columns ``x, z`` (metres) and optionally ``t`` (seconds), with or without a
-        header row; ``#`` starts a comment.
+        header row; ``#`` starts a comment (``mrlib.sampling.constraints.path_files``).
 
         Raises:
             MotionFileError: naming ``path``: not a regular file, larger than
@@ -228,86 +223,9 @@ class GroundPath:
                 does not match the rows, more than ``MAX_PATH_POINTS`` points, or values
                 that no path has (non-finite, beyond ``MAX_PATH_COORD`` / ``MAX_PATH_TIME``).
         """
-        path = Path(path)
-        try:
-            if not path.is_file():
-                raise MotionFileError(
-                    path, "no such file" if not path.exists() else "not a regular file"
-                )
-            size = path.stat().st_size
-            if size > MAX_PATH_FILE_BYTES:
-                raise MotionFileError(
-                    path,
-                    f"{size / 2**20:.0f} MB is more than the {MAX_PATH_FILE_BYTES // 2**20} MB a "
-                    f"path file may have (at most {MAX_PATH_POINTS} points); thin the path out",
-                )
-            raw = path.read_bytes()
-        except OSError as e:
-            raise MotionFileError(path, f"cannot read: {e.strerror or e}") from None
-        try:
-            text = raw.decode("utf-8-sig")
-        except UnicodeDecodeError as e:
-            raise MotionFileError(path, f"not UTF-8 text (byte {e.start})") from None
-        try:
-            return cls._from_rows(path, text, closed)
-        except MotionFileError:
-            raise
-        except MotionValueError as e:
-            raise MotionFileError(path, str(e)) from None
-        except (ValueError, ArithmeticError, LookupError) as e:  # anything the checks missed
-            raise MotionFileError(path, f"cannot read ({type(e).__name__}: {e})") from None
+        from mrlib.sampling.constraints.path_files import read_path_csv
 
-    @classmethod
-    def _from_rows(cls, path: Path, text: str, closed: bool) -> GroundPath:
-        rows = []
-        for no, line in enumerate(text.splitlines(), 1):
-            line = line.split("#")[0].strip()
-            if line:
-                rows.append((no, [v for v in line.replace(",", " ").split()]))
-        header = None
-        if rows and not all(_is_number(v) for v in rows[0][1]):
-            header_line, header = rows[0][0], [h.strip().lower() for h in rows[0][1]]
-            rows = rows[1:]
-            bad = [h for h in header if h not in ("x", "z", "t")]
-            if bad or len(set(header)) != len(header) or not {"x", "z"} <= set(header):
-                raise MotionFileError(
-                    path,
-                    f"line {header_line}: the header needs columns x and z (and t), got {header}",
-                )
-        if len(rows) > MAX_PATH_POINTS:
-            raise MotionFileError(
-                path, f"{len(rows)} points, more than the {MAX_PATH_POINTS} a path may have"
-            )
-        width = len(header) if header else (len(rows[0][1]) if rows else 2)
-        if width not in (2, 3):
-            raise MotionFileError(path, f"expected 2 or 3 columns (x, z[, t]), got {width}")
-        values = []
-        for no, vals in rows:
-            if len(vals) != width:
-                raise MotionFileError(
-                    path, f"line {no}: {len(vals)} values, expected {width} (x, z[, t])"
-                )
-            try:
-                values.append([float(v) for v in vals])
-            except ValueError:
-                raise MotionFileError(
-                    path, f"line {no}: expected numbers in columns x, z[, t], got {vals}"
-                ) from None
-        if len(values) < 2:
-            raise MotionFileError(path, "expected at least 2 rows of x, z[, t] (metres, seconds)")
-        data = np.array(values, np.float64)
-        cols = header or ["x", "z", "t"][:width]
-        x, z = data[:, cols.index("x")], data[:, cols.index("z")]
-        t = data[:, cols.index("t")] if "t" in cols else None
-        return cls(np.stack([x, z], -1), t, closed, name=path.stem)
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+        return read_path_csv(path, lambda p, t: cls(p, t, closed, name=Path(path).stem))
 
 
 def _check_size(name: str, value: float) -> None:
@@ -474,20 +392,21 @@ def path_error(motion: Motion, path: GroundPath | str, body=None) -> dict[str, f
 
 
 @checked()
-def natural_pace(model, condition=None, *, conditions=None, blend=None, seed: int = 0) -> float:
-    """Ground speed (m/s) of the model's own motion under a condition: the travel
-    speed of a 10 s raw sample."""
+def natural_pace(model, condition=None, *, seed: int = 0, sampler=None) -> float:
+    """Ground speed (m/s) of the model's own motion under a condition (a label or a
+    ``mrlib.Condition``): the travel speed of a 10 s raw sample drawn with the
+    ``sampler``'s fine noise and guidance."""
     from mrlib.sampling.generation import generate
 
     n = max(2, round(10 * model.fps))
-    m = generate(model, condition, length=n, seed=seed, conditions=conditions, blend=blend,
-                 fix_contacts=False)  # fmt: skip
+    raw = replace(sampler or Sampler(), fix_contacts=False)
+    m = generate(model, condition, length=n, seed=seed, sampler=raw)
     return float(ground_track(m)["arc"][-1] / m.duration)
 
 
 @checked(path=check_path_spec)
 def path_seconds(
-    model, path: GroundPath | str, condition=None, *, conditions=None, blend=None
+    model, path: GroundPath | str, condition=None, *, sampler=None
 ) -> tuple[float, float | None]:
     """How long a walk of ``path`` lasts without an explicit length: the path's times,
     else its length at the condition's own pace (:func:`natural_pace`, returned too;
@@ -495,7 +414,7 @@ def path_seconds(
     path = parse_path(path)
     if path.times is not None:
         return float(path.duration), None
-    pace = natural_pace(model, condition, conditions=conditions, blend=blend)
+    pace = natural_pace(model, condition, sampler=sampler)
     return float(path.length / max(pace, MIN_TRAVEL_SPEED)), pace
 
 
@@ -509,40 +428,30 @@ def generate_on_path(
     condition=None,
     *,
     seconds: float | None = None,
-    conditions=None,
-    blend=None,
     seed: int | None = None,
-    method: str = "bend",
-    steps: int = 150,
-    clean: bool = True,
+    sampler=None,
     body=None,
-    progress: bool = False,
     max_seconds: float | None = MAX_PATH_SECONDS,
 ) -> Motion:
-    """A motion of a label model that walks ``path``.
+    """A motion of a label model that walks ``path``: generated, then bent onto it
+    (:func:`follow_path`).
 
     Args:
         path: a :class:`GroundPath` or a spec (``"circle:2"``, ``"eight:2"``, a CSV).
+        condition: a label or a ``mrlib.Condition`` (None: the first label).
         seconds: length; default: the path's times, else one lap / the whole path at
             the condition's own pace (:func:`natural_pace`).
-        method: ``"bend"`` (default: generate, then :func:`follow_path`) or
-            ``"optimise"`` (move the noise with the networks frozen until the pelvis
-            follows the path at the condition's pace, no bending; ``steps`` Adam steps),
-            the alternative measured in ``docs/results.md``.
-        clean: plant the feet (``mrlib.sampling.cleanup``).
+        sampler: a ``mrlib.Sampler``: the draw's fine noise and guidance, and whether the
+            feet are planted after the bend (``fix_contacts``, ``mrlib.sampling.cleanup``).
         max_seconds: refuse (before generating) a walk longer than this, given or
             implied by the path (None: no limit).
     """
     from mrlib.sampling.generation import generate
 
-    if method not in ("bend", "optimise"):
-        raise MotionValueError(f"method must be 'bend' or 'optimise', got {method!r}")
-    steps = check_fit_steps(steps)
     path = parse_path(path)
-    pace = None
     implied = seconds is None
     if implied:
-        seconds, pace = path_seconds(model, path, condition, conditions=conditions, blend=blend)
+        seconds, _ = path_seconds(model, path, condition, sampler=sampler)
     if not (np.isfinite(seconds) and seconds > 0):
         raise MotionValueError(f"seconds must be a positive number, got {seconds}")
     if max_seconds is not None and seconds > max_seconds:
@@ -558,38 +467,7 @@ def generate_on_path(
             "--seconds) or a shorter path, and join pieces with continue_motion (--continue)"
         )
     length = max(2, round(seconds * model.fps))
-    if method == "bend":
-        m = generate(model, condition, length=length, seed=seed, conditions=conditions,
-                     blend=blend, fix_contacts=False)  # fmt: skip
-        return follow_path(m, path, clean=clean, body=body)
-    return _optimise_onto_path(model, path, condition, conditions, blend, length, seed, pace,
-                               steps, clean, body, progress)  # fmt: skip
-
-
-def _optimise_onto_path(model, path, condition, conditions, blend, length, seed, pace,
-                        steps, clean, body, progress) -> Motion:  # fmt: skip
-    """``method="optimise"`` of :func:`generate_on_path`."""
-    from mrlib.representation.body import resolve_body
-    from mrlib.sampling.constraints.optimise import decode
-
-    body = resolve_body(body, shared=True)
-    noises, conds, label = label_setup(model, condition, conditions, blend, length, seed)
-    t = np.arange(length) / model.fps
-    if path.times is not None:
-        s = path.arc_at_time(t)
-    else:
-        pace = pace or natural_pace(model, condition, conditions=conditions, blend=blend)
-        s = pace * t
-    xz = path.at(s)[0]
-    # decoded translations start at the origin: ask for the path's steps from its start
-    target = torch.from_numpy(xz - xz[0]).float().to(model.device)  # (T, 2)
-
-    def loss_fn(x: torch.Tensor) -> torch.Tensor:
-        return (decode(model, x)["trans"][0, :, [0, 2]] - target).pow(2).sum(-1).mean()
-
-    m = fitted_motion(model, noises, conds, label, f"{label}_path_seed{seed}", loss_fn,
-                      steps=steps, clean=clean, body=body, progress=progress)  # fmt: skip
-    # the path starts where the pelvis starts: move the motion there
-    trans = m.trans.astype(np.float64).copy()
-    trans[:, [0, 2]] += xz[0] - trans[0, [0, 2]] - pelvis_rest(m, body)[[0, 2]]
-    return m.replace(trans=trans, meta=dict(m.meta, path={"name": path.name, "method": "optimise"}))
+    sampler = sampler or Sampler()
+    m = generate(model, condition, length=length, seed=seed,
+                 sampler=replace(sampler, fix_contacts=False))  # fmt: skip
+    return follow_path(m, path, clean=sampler.fix_contacts, body=body)

@@ -13,7 +13,7 @@ nearest-neighbour decision,
 
 ``d_own`` / ``d_other`` the mean per-frame squared distance of a generated window to
 the nearest window of the part's own label's / of any other label's training clips, on
-the features of ``mrlib.metrics.paper.metric_features`` (6D local rotations of the part's
+the features of ``mrlib.metrics.windows.metric_features`` (6D local rotations of the part's
 joints, with the contact labels for a part with leg joints). A window nearer its own
 label by ``margin`` costs nothing, and the fit's prior is centred on the sample's own
 draw (``optimise_noise(..., prior_centre="draw")``: centred on 0, Adam shrinks the noise
@@ -31,16 +31,25 @@ which the fit never sees, and measures what the fit costs in diversity and cover
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import (
+    ArgumentError,
+    MotionValueError,
+    check_choice,
+    check_flag,
+    check_number,
+    shown,
+)
 from mrlib.sampling.arguments import check_parts, checked
 
 __all__ = [
     "MARGIN",
     "SHARPEN_STEPS",
+    "Sharpening",
     "part_columns",
     "label_margin_objective",
     "sharpened_features",
@@ -52,8 +61,39 @@ SHARPEN_STEPS = 50  # Adam steps of the noise fit (docs/results.md, "Body parts"
 _CHUNK = 4096  # reference windows compared at once
 
 
+@dataclass(frozen=True)
+class Sharpening:
+    """The noise fit of :func:`generate_sharpened`: ``steps`` Adam steps (0: the plain
+    draw), the hinge's ``margin`` and ``push`` (:func:`label_margin_objective`), and
+    ``prior_centre`` (``mrlib.sampling.constraints.optimise.optimise_noise``: ``"draw"``
+    leaves the noise the hinge does not need as drawn, ``"zero"`` shrinks it, which calms
+    a motion and can still it altogether where few windows are in doubt,
+    ``docs/results.md``); a progress bar when ``progress``."""
+
+    steps: int = SHARPEN_STEPS
+    margin: float = MARGIN
+    push: bool = False
+    prior_centre: str = "draw"
+    progress: bool = False
+
+    def __post_init__(self) -> None:
+        from mrlib.sampling.constraints.optimise import check_fit_steps
+
+        object.__setattr__(self, "steps", check_fit_steps(self.steps))
+        object.__setattr__(self, "margin", check_number("Sharpening.margin", self.margin, low=0))
+        object.__setattr__(self, "push", check_flag("Sharpening.push", self.push))
+        object.__setattr__(self, "progress", check_flag("Sharpening.progress", self.progress))
+        check_choice("Sharpening.prior_centre", self.prior_centre, ("draw", "zero"))
+
+
+def _sharpening(name: str, value) -> Sharpening:
+    if not isinstance(value, Sharpening):
+        raise ArgumentError(f"{name} must be a Sharpening(steps=...), got {shown(value)}")
+    return value
+
+
 def part_columns(part) -> np.ndarray:
-    """Columns of ``mrlib.metrics.paper.metric_features`` (23 joints x 6D, then 6 contact
+    """Columns of ``mrlib.metrics.windows.metric_features`` (23 joints x 6D, then 6 contact
     labels) that belong to a part (:func:`mrlib.sampling.constraints.part_joints`): its joints
     but the root, and the contact labels when the part holds the pelvis or a leg joint."""
     from mrlib.sampling.constraints.common import LOWER_BODY_JOINTS, part_joints
@@ -98,7 +138,7 @@ def label_margin_objective(
     the other labels as well as pulling it to its own; off by default: on the Bandai
     walks it kept more diversity but made the samples jerkier and slide more than
     pulling alone (``docs/results.md``, "Body parts")."""
-    from mrlib.metrics.paper import model_references
+    from mrlib.metrics.windows import model_references
     from mrlib.representation.rotations import matrix_to_6d
     from mrlib.sampling.constraints.optimise import decode
 
@@ -143,24 +183,18 @@ def label_margin_objective(
 
 
 def sharpened_features(
-    model, conds, lengths, amp, parts: Mapping, *, seed: int | None = None,
-    num_samples: int = 1, steps: int = SHARPEN_STEPS, margin: float = MARGIN,
-    push: bool = False, prior_centre: str = "draw", progress: bool = False,
-) -> torch.Tensor:  # fmt: skip
-    """Generator output ``(B, C, T)`` (normalised) for per-level conditions ``conds``
-    (as ``mrlib.sampling.generation.sample_features`` takes them) from the noise of ``seed``, after
-    ``steps`` Adam steps of the fit towards ``parts`` (``{part: label}``; the other
-    arguments as :func:`generate_sharpened`)."""
+    model, noises, conds, parts: Mapping, fit: Sharpening = Sharpening()
+) -> torch.Tensor:
+    """Generator output ``(B, C, T)`` (normalised) for the noise maps ``noises`` and the
+    checked per-level conditions ``conds`` (``mrlib.sampling.generation.draw_noise``,
+    ``check_conditions``) after the fit ``fit`` towards ``parts`` (``{part: label}``)."""
     from mrlib.sampling.constraints.optimise import optimise_noise
-    from mrlib.sampling.generation import check_conditions, draw_noise
 
-    loss_fn = label_margin_objective(model, parts, margin=margin, push=push)
-    noises = draw_noise(lengths, amp, seed, num_samples, model.device)
-    cs = check_conditions(model, conds, lengths, num_samples)
-    noises, _ = optimise_noise(model, noises, cs, loss_fn, steps=int(steps),
-                               prior_centre=prior_centre, progress=progress)  # fmt: skip
+    loss_fn = label_margin_objective(model, parts, margin=fit.margin, push=fit.push)
+    noises, _ = optimise_noise(model, noises, conds, loss_fn, steps=fit.steps,
+                               prior_centre=fit.prior_centre, progress=fit.progress)  # fmt: skip
     with torch.no_grad():
-        return model.generator.run_batch(noises, cs)
+        return model.generator.run_batch(noises, conds)
 
 
 def _part_names(name: str, value):
@@ -172,52 +206,59 @@ def _part_names(name: str, value):
     )
 
 
-@checked(parts=_part_names)
+@checked(parts=_part_names, fit=_sharpening)
 def generate_sharpened(
     model,
-    condition: str,
+    condition: str | int,
     parts: Sequence[str] = ("upper", "lower"),
     length: int | None = None,
     *,
     seed: int | None = None,
-    num_samples: int = 1,
-    steps: int = SHARPEN_STEPS,
-    margin: float = MARGIN,
-    push: bool = False,
-    prior_centre: str = "draw",
-    progress: bool = False,
-) -> list:
-    """Raw samples of label ``condition`` (the draw of ``mrlib.sampling.generation.generate`` for
-    ``seed``; the same samples when ``steps`` is 0) after ``steps`` Adam steps of the
-    noise fit towards ``condition`` on each of ``parts`` (module docstring; ``margin``
-    and ``push`` as :func:`label_margin_objective`; ``prior_centre`` as
-    ``mrlib.sampling.constraints.optimise.optimise_noise``: ``"draw"`` leaves the noise the
-    hinge does not need as drawn, ``"zero"`` shrinks it, which calms a motion and can
-    still it altogether where few windows are in doubt, ``docs/results.md``). Returns a
-    list of ``num_samples`` Motions with the generator's contact labels (feet not
-    planted)."""
+    num: int | None = None,
+    sampler=None,
+    fit: Sharpening = Sharpening(),
+):
+    """Samples of label ``condition`` (the draw of ``mrlib.generate`` for ``seed`` and
+    ``sampler``; the same samples when ``fit.steps`` is 0) after the noise fit ``fit``
+    (:class:`Sharpening`: ``SHARPEN_STEPS`` Adam steps by default) towards ``condition``
+    on each of ``parts`` (module docstring). ``sampler``: a ``mrlib.Sampler``; default
+    the raw output with the generator's contact labels (``Sampler(fix_contacts=False)``).
+    Returns a ``Motion``, or with ``num=k`` a list of k, as ``mrlib.generate``."""
     from mrlib.representation.features import features_to_motions
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.conditions import Condition
     from mrlib.sampling.constraints.common import part_joints
-    from mrlib.sampling.constraints.optimise import check_fit_steps
-    from mrlib.sampling.generation import generate_many, label_inputs, label_weights, sampler_record
+    from mrlib.sampling.generation import (
+        check_conditions,
+        draw_noise,
+        generate,
+        label_inputs,
+        sampler_record,
+        shaped_samples,
+        training_floor,
+    )
+    from mrlib.sampling.sampler import raw_sampler
 
-    steps = check_fit_steps(steps)
-    if steps == 0:
-        return generate_many(model, condition, length=length, seed=seed,
-                             num_samples=num_samples, fix_contacts=False)  # fmt: skip
-    W = label_weights(model, condition)
-    lengths, amp, conds = label_inputs(model, W, length)
-    x = sharpened_features(model, conds, lengths, amp, {p: condition for p in parts},
-                           seed=seed, num_samples=num_samples, steps=steps, margin=margin,
-                           push=push, prior_centre=prior_centre, progress=progress)  # fmt: skip
+    sampler = raw_sampler(sampler)
+    if fit.steps == 0:
+        return generate(model, condition, length=length, seed=seed, num=num, sampler=sampler)
+    num_samples = 1 if num is None else num
+    W = Condition.label(condition).weights(model)
+    lengths, amp, conds = label_inputs(model, W, length, sampler)
+    noises = draw_noise(lengths, amp, seed, num_samples, model.device)
+    conds = check_conditions(model, conds, lengths, num_samples)
+    x = sharpened_features(model, noises, conds, {p: condition for p in parts}, fit)
     label = model.labels[model.label_index(condition)]
     names = [f"{label}_sharp_seed{seed}_{b}" for b in range(num_samples)]
     motions = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
                                   normalizer=model.normalizer, label=label, names=names)  # fmt: skip
     for b, m in enumerate(motions):  # as generate records it, and the fit
-        m.meta["sampler"] = sampler_record(model, seed, b, W)
+        m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
         m.meta["sampler"]["sharpen"] = {
-            "joints": [list(part_joints(p)) for p in parts], "steps": int(steps),
-            "margin": float(margin), "push": bool(push), "prior_centre": prior_centre,
+            "joints": [list(part_joints(p)) for p in parts], "steps": fit.steps,
+            "margin": fit.margin, "push": fit.push, "prior_centre": fit.prior_centre,
         }  # fmt: skip
-    return motions
+    if sampler.fix_contacts:  # as generate plants them
+        floor = training_floor(model, [model.label_index(condition)])
+        motions = [cleanup_foot_contacts(m, floor=floor) for m in motions]
+    return shaped_samples(motions, None, num)

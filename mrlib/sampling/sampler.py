@@ -1,0 +1,77 @@
+"""Sampler settings: how a trained generator is sampled, passed to every generation call
+(``mrlib.generate(model, "walk", sampler=Sampler(fine_noise=0.5))``) rather than kept on
+the model. Training and reconstructions use none of them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from mrlib.errors import MotionValueError
+
+__all__ = ["Sampler", "raw_sampler", "FINE_NOISE", "GUIDANCE", "MAX_FINE_NOISE", "MAX_GUIDANCE"]
+
+# Amplitude of the finest level's noise at sampling, as a share of its training sigma_L
+# (the paper's sampler: 1). That noise, modulated by the fine label's FiLM parameters,
+# carries the fine label's detail into a crossover; it also reaches the output as
+# frame-to-frame jitter. On the Bandai walks, 0 made samples as smooth as the capture
+# (jerk 1.51x -> 1.04x the clip's) at the same coverage and fidelity, but crossovers
+# took the fine label's detail in 20 of 24 cases instead of 24 (docs/results.md,
+# "Jitter and the finest level's noise").
+FINE_NOISE = 1.0
+
+# Label guidance at sampling: each level's condition vector pushed away from the mean of
+# all labels, W + g (W - 1/K), which moves the FiLM embedding (linear in W) by g times its
+# distance from the average label's. 0 is the paper's sampler. On the Bandai walks
+# (two training seeds) 0.25 raised condition fidelity by 3.4-3.8 points at the same
+# coverage and +0.01-0.02 global diversity; 1 by 6-7 points, but coverage at eps 1 fell
+# to 58-72 % and raw foot skating rose by 23-26 points: the samples exaggerate their
+# label and leave the training poses (docs/results.md, "Label guidance").
+GUIDANCE = 0.0
+
+MAX_GUIDANCE = MAX_FINE_NOISE = 10.0  # 1 already leaves the training poses
+
+
+@dataclass(frozen=True)
+class Sampler:
+    """Settings of a draw.
+
+    Attributes:
+        fine_noise: scale of the finest level's noise (1: the paper's sampler; 0: the
+            smoothest motion), in [0, ``MAX_FINE_NOISE``].
+        guidance: how far each level's label mix is pushed away from the mean of all labels
+            (0: off), in [0, ``MAX_GUIDANCE``]; ``W + g (W - 1/K)``.
+        fix_contacts: plant the feet with the foot-contact clean-up
+            (``mrlib.sampling.cleanup.cleanup_foot_contacts``, on the floor of the
+            training clips); False for the generator's raw output (clean it yourself
+            with other options: ``cleanup_foot_contacts(m, body, ...)``).
+    """
+
+    fine_noise: float = FINE_NOISE
+    guidance: float = GUIDANCE
+    fix_contacts: bool = True
+
+    def __post_init__(self):
+        for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise MotionValueError(f"{name} must be a number, got {v!r}")
+            if not (math.isfinite(v) and 0 <= v <= bound):
+                raise MotionValueError(f"{name} must be in [0, {bound:g}], got {v!r}")
+            object.__setattr__(self, name, float(v))
+        if not isinstance(self.fix_contacts, bool):
+            raise MotionValueError(f"fix_contacts must be True or False, got {self.fix_contacts!r}")
+
+
+def raw_sampler(sampler: Sampler | None = None) -> Sampler:
+    """``sampler``, or for None the paper's sampler without the foot-contact clean-up
+    (``Sampler(fix_contacts=False)``): what measurements of the generator draw by default.
+    Anything else is an ``ArgumentError``."""
+    if sampler is None:
+        return Sampler(fix_contacts=False)
+    if not isinstance(sampler, Sampler):
+        from mrlib.errors import ArgumentError, shown
+
+        raise ArgumentError(f"sampler must be a mrlib.Sampler or None, got {shown(sampler)}")
+    return sampler
