@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import base64
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -224,6 +226,9 @@ def test_motion_player_poses_each_frame_and_swaps_motions(walk, body, stub_show)
     assert player.frame.max == 19 and player.frame.value == 0
     assert stub_show.viewer.cameras == 1
     assert np.allclose(player.mesh.points, player.vertices(0))
+    data = player._repr_mimebundle_()  # the live view, and a still for GitHub
+    assert "application/vnd.jupyter.widget-view+json" in data
+    assert base64.b64decode(data["image/png"])[:8] == b"\x89PNG\r\n\x1a\n"
     player.close()
 
 

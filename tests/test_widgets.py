@@ -103,6 +103,19 @@ def test_crossover_shows_drawing_with_controls_disabled_then_the_current_title(
     assert "'wave' at every level" in text_of(box)
 
 
+def test_a_drawn_view_carries_its_picture_for_front_ends_without_widgets(model, body):
+    """Before the first draw a view's display data is the widget alone; after it, the
+    latest picture as a PNG too (what GitHub shows of a committed notebook)."""
+    import base64
+
+    box, update = W.interactive_crossover(model, body, frames=2, window=10)
+    assert "image/png" not in box._repr_mimebundle_()
+    update()
+    data = box._repr_mimebundle_()
+    assert "application/vnd.jupyter.widget-view+json" in data
+    assert base64.b64decode(data["image/png"])[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_invalid_values_are_reported_and_the_last_picture_stays(model, body):
     box, update = W.interactive_crossover(model, body, frames=2, window=10)
     controls = controls_of(box)

@@ -26,6 +26,7 @@ from mrlib.viz.widget_kit import (
     show_figure,
     strict,
     view_arguments,
+    view_box,
     view_parts,
     wire,
 )
@@ -93,7 +94,7 @@ def interactive_path(
     update = wire(runner, player, controls, draw, lambda: BUSY)
     rows = [w.HBox([kind, size]), w.HBox([lab, seed]), w.HBox([player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
+    return view_box(w, rows, out), update
 
 
 @view_arguments()
@@ -169,7 +170,7 @@ def interactive_parts(
     update = wire(runner, player, controls, draw, busy)
     rows = [w.HBox([upper, lower]), w.HBox([in_step]), w.HBox([seed, guidance]),
             w.HBox([sharpen, player.toggle]), w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
+    return view_box(w, rows, out), update
 
 
 @view_arguments(
@@ -250,4 +251,4 @@ def interactive_inbetween(
                   lambda: BUSY + " (fitting the noise to the keyframes)")  # fmt: skip
     rows = [w.HBox([a, fa]), w.HBox([b, fb]), w.HBox([lab, seed, player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
+    return view_box(w, rows, out), update

@@ -10,6 +10,7 @@ Every name is also reachable as ``mrlib.viz.render.<name>``.
 from __future__ import annotations
 
 import asyncio
+import base64
 import contextlib
 import io
 import os
@@ -312,7 +313,24 @@ class MotionPlayer:
         self.plotter.close()
 
     def _repr_mimebundle_(self, **kwargs: Any) -> Any:
-        return self.widget._repr_mimebundle_(**kwargs)
+        """The live view, and a still picture of the motion (:func:`still_picture`) for
+        a front end without widgets (GitHub shows the still)."""
+        data = self.widget._repr_mimebundle_(**kwargs)
+        if isinstance(data, dict):
+            png = still_picture(self.motion, self.body)
+            data = {**data, "image/png": base64.b64encode(png).decode("ascii")}
+        return data
+
+
+def still_picture(motion: Any, body: Any = None, frames: int = 5) -> bytes:
+    """A PNG of ``frames`` evenly spaced frames of ``motion`` (``render_meshes``),
+    cropped to the bodies."""
+    import imageio.v3 as iio
+
+    picture = crop_to_bodies(
+        render_meshes(motion, body, frames=evenly_spaced_frames(motion.num_frames, frames))
+    )
+    return iio.imwrite("<bytes>", picture, extension=".png")
 
 
 def play_motion(
@@ -363,9 +381,4 @@ def play_motion(
                                          fps=min(15.0, float(motion.fps)),
                                          window_size=window_size)  # fmt: skip
             return Image(data=path.read_bytes(), format="gif")
-    import imageio.v3 as iio
-
-    picture = crop_to_bodies(
-        render_meshes(motion, body, frames=evenly_spaced_frames(motion.num_frames, frames))
-    )
-    return Image(data=iio.imwrite("<bytes>", picture, extension=".png"), format="png")
+    return Image(data=still_picture(motion, body, frames), format="png")

@@ -2,16 +2,23 @@
 ``mrlib.viz.constraint_views`` shares: the status line and the busy state of a redraw
 (:class:`Runner`), checked control values, the "3D player" toggle (:class:`Player3D`,
 ``mrlib.viz.player.play_motion``), and the parts each view is built from
-(:func:`view_parts`, :func:`show_figure`, :func:`mesh_figure`).
+(:func:`view_parts`, :func:`show_figure`, :func:`mesh_figure`, :func:`view_box`).
 
 While a redraw runs the status line reads "drawing..." (:data:`BUSY`) and the controls
 are disabled; then it reads what the picture shows. An invalid value (NaN, out of range)
 is reported there and the last good picture stays.
+
+A view's box (:func:`view_box`) also carries its latest picture as a PNG: where no
+widget can be shown (GitHub, nbviewer, an exported notebook) the picture is, so a
+notebook that draws a view before displaying it (``update()`` then ``display(box)``)
+leaves that picture in its committed output.
 """
 
 from __future__ import annotations
 
+import base64
 import html
+import io
 from collections.abc import Callable
 from typing import Any
 
@@ -35,6 +42,7 @@ __all__ = [
     "view_parts",
     "show_figure",
     "mesh_figure",
+    "view_box",
 ]
 
 BUSY = "drawing..."
@@ -262,6 +270,9 @@ def show_figure(out: Any, fig: Any) -> None:
     with out:
         out.clear_output(wait=True)
         display(fig)
+    png = io.BytesIO()
+    fig.savefig(png, format="png", bbox_inches="tight")
+    out.mrlib_png = png.getvalue()  # the view box's static picture (view_box)
     plt.close(fig)
 
 
@@ -274,3 +285,19 @@ def mesh_figure(image: np.ndarray, title: str) -> Any:
     ax.axis("off")
     ax.set_title(title, fontsize=10)
     return fig
+
+
+def view_box(w: Any, rows: list[Any], out: Any) -> Any:
+    """The ``VBox`` of a view's ``rows`` whose display data also holds the latest
+    picture drawn into ``out`` (:func:`show_figure`) as ``image/png``: a front end with
+    widgets shows the live view, one without (GitHub) the picture."""
+
+    class ViewBox(w.VBox):
+        def _repr_mimebundle_(self, **kwargs: Any) -> Any:
+            data = super()._repr_mimebundle_(**kwargs)
+            png = getattr(out, "mrlib_png", None)
+            if png is not None and isinstance(data, dict):
+                data = {**data, "image/png": base64.b64encode(png).decode("ascii")}
+            return data
+
+    return ViewBox(rows)

@@ -45,6 +45,7 @@ from mrlib.viz.widget_kit import (
     show_figure,
     strict,
     view_arguments,
+    view_box,
     view_parts,
     wire,
 )
@@ -199,18 +200,9 @@ def interactive_crossover(
         return view, f"{title}; nearest-window labels: {shares}"
 
     update = wire(runner, player, controls, draw, lambda: BUSY)
-    box = w.VBox(
-        [
-            w.HBox([coarse, fine]),
-            w.HBox([level, weight]),
-            w.HBox([seed, noise, guidance]),
-            status,
-            out,
-            player.toggle,
-            player.out,
-        ]
-    )
-    return box, update
+    rows = [w.HBox([coarse, fine]), w.HBox([level, weight]), w.HBox([seed, noise, guidance]),
+            status, out, player.toggle, player.out]  # fmt: skip
+    return view_box(w, rows, out), update
 
 
 @dataclass
@@ -328,4 +320,4 @@ def interactive_restyle(
     update = wire(runner, player, controls, draw, lambda: BUSY)
     rows = [w.HBox([lab, lvl]), w.HBox([keep, seed]), w.HBox([player.toggle]),
             w.VBox([status, out, player.out])]  # fmt: skip
-    return w.VBox(rows), update
+    return view_box(w, rows, out), update
