@@ -212,7 +212,8 @@ class Trainer:
         uses the torch thread count the process has (it changes no count: the command
         line and ``mrlib.threads.use`` do), records it in its checkpoints, and warns when
         a resumed run continues on another count than it was started with."""
-        self.threads = thread_count_of_fit(self.threads)
+        # (a finished run has nothing left to train: no warning about its count)
+        self.threads = thread_count_of_fit(None if self.done else self.threads)
         ckpt = self.out_dir / "checkpoint.pt"
         with self.folder.fitting(overwrite, progress_text(self)):
             result = run_blocks(self, progress, callback)
