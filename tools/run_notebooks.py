@@ -38,13 +38,17 @@ def code_hash(nb: dict) -> str:
     return h.hexdigest()
 
 
-def shrink_images(nb: dict, colors: int = 128) -> int:
-    """Re-encode every PNG output as a ``colors``-colour palette PNG where that is
-    smaller (plots and renders of a few flat colours lose nothing visible), so a notebook
-    with its figures stays small in git. Returns how many were replaced."""
+def shrink_images(nb: dict, colors: int = 256, tolerance: int = 12, flat: int = 50) -> int:
+    """Re-encode every PNG output as a palette PNG of at most ``colors`` colours where
+    that is smaller and every flat colour (one that fills at least ``flat`` pixels: a
+    legend patch, a line, a background) stays within ``tolerance`` (of 255) in every
+    channel: shading may round, but two colours of a legend are never merged into one (a
+    128-colour palette had made orange and red one colour). Returns how many were
+    replaced."""
     import base64
     import io
 
+    import numpy as np
     from PIL import Image
 
     n = 0
@@ -55,10 +59,16 @@ def shrink_images(nb: dict, colors: int = 128) -> int:
                 continue
             raw = base64.b64decode(data["image/png"])
             img = Image.open(io.BytesIO(raw)).convert("RGB")
+            small = img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT,
+                                 dither=Image.Dither.NONE)  # fmt: skip
+            before = np.asarray(img, np.int16).reshape(-1, 3)
+            after = np.asarray(small.convert("RGB"), np.int16).reshape(-1, 3)
+            _, which, counts = np.unique(before, axis=0, return_inverse=True, return_counts=True)
+            on_flat = counts[which.ravel()] >= flat
+            if np.abs(after - before)[on_flat].max(initial=0) > tolerance:
+                continue
             buf = io.BytesIO()
-            img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT).save(
-                buf, "PNG", optimize=True
-            )
+            small.save(buf, "PNG", optimize=True)
             if buf.tell() < len(raw):
                 data["image/png"] = base64.b64encode(buf.getvalue()).decode()
                 n += 1
