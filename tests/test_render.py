@@ -272,3 +272,19 @@ def test_vertex_normals_point_out_of_a_closed_mesh():
     assert n.shape == v.shape and n.dtype == np.float32
     assert (np.sum(n * v, axis=1) > 0.95).all()  # a sphere's normals are its radii
     assert np.allclose(vertex_normals(np.zeros((3, 3)), np.array([[0, 1, 2]])), 0.0)
+
+
+def test_render_meshes_frames_the_bodies(motion, body):
+    """The bodies fill the picture (the camera's own framing left them in a third of it)."""
+
+    def skin_extent(img):
+        rgb = img.astype(int)
+        skin = (rgb.max(-1) - rgb.min(-1) > 40) & (rgb[..., 0] > 120)  # skin, not the grey floor
+        rows, cols = np.flatnonzero(skin.any(1)), np.flatnonzero(skin.any(0))
+        return (rows[-1] - rows[0]) / img.shape[0], (cols[-1] - cols[0]) / img.shape[1]
+
+    kw = dict(frames=[0, 3, 6, 9, 11], window_size=(480, 200))
+    framed = skin_extent(render_meshes(motion, body, **kw))
+    loose = skin_extent(render_meshes(motion, body, frame_bodies=False, **kw))
+    assert min(framed) > 0.8, framed  # both ways: tall and wide
+    assert min(loose) < 0.7, loose  # the negative: what the reader saw before

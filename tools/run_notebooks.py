@@ -38,6 +38,20 @@ def code_hash(nb: dict) -> str:
     return h.hexdigest()
 
 
+def _palettes() -> list[dict]:
+    from PIL import Image
+
+    q = Image.Quantize
+    return [
+        {"method": q.MEDIANCUT},
+        {"method": q.MEDIANCUT, "kmeans": 3},
+        {"method": q.MAXCOVERAGE},
+    ]
+
+
+MEAN_TOLERANCE = 2.0  # mean error per channel (of 255) a palette image may add
+
+
 def shrink_images(nb: dict, colors: int = 256, tolerance: int = 12, flat: int = 50) -> int:
     """Re-encode every PNG output as a palette PNG of at most ``colors`` colours where
     that is smaller and every flat colour (one that fills at least ``flat`` pixels: a
@@ -51,6 +65,7 @@ def shrink_images(nb: dict, colors: int = 256, tolerance: int = 12, flat: int = 
     import numpy as np
     from PIL import Image
 
+    palettes = _palettes()
     n = 0
     for cell in nb["cells"]:
         for out in cell.get("outputs", []):
@@ -59,18 +74,21 @@ def shrink_images(nb: dict, colors: int = 256, tolerance: int = 12, flat: int = 
                 continue
             raw = base64.b64decode(data["image/png"])
             img = Image.open(io.BytesIO(raw)).convert("RGB")
-            small = img.quantize(colors=colors, method=Image.Quantize.MEDIANCUT,
-                                 dither=Image.Dither.NONE)  # fmt: skip
             before = np.asarray(img, np.int16).reshape(-1, 3)
-            after = np.asarray(small.convert("RGB"), np.int16).reshape(-1, 3)
             _, which, counts = np.unique(before, axis=0, return_inverse=True, return_counts=True)
             on_flat = counts[which.ravel()] >= flat
-            if np.abs(after - before)[on_flat].max(initial=0) > tolerance:
-                continue
-            buf = io.BytesIO()
-            small.save(buf, "PNG", optimize=True)
-            if buf.tell() < len(raw):
-                data["image/png"] = base64.b64encode(buf.getvalue()).decode()
+            best = raw
+            for how in palettes:  # the smallest palette image that keeps every flat colour
+                small = img.quantize(colors=colors, dither=Image.Dither.NONE, **how)
+                err = np.abs(np.asarray(small.convert("RGB"), np.int16).reshape(-1, 3) - before)
+                if err[on_flat].max(initial=0) > tolerance or err.mean() > MEAN_TOLERANCE:
+                    continue
+                buf = io.BytesIO()
+                small.save(buf, "PNG", optimize=True)
+                if buf.tell() < len(best):
+                    best = buf.getvalue()
+            if best is not raw:
+                data["image/png"] = base64.b64encode(best).decode()
                 n += 1
     return n
 

@@ -27,7 +27,7 @@ __all__ = ["LAYERS", "OPTIONAL", "DRAWING", "Import", "imports", "check", "main"
 
 # Bottom up: a package may import from its own layer's package and any package below.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "threads", "progress"),  # typed errors, torch's thread policy, progress bars
+    ("errors", "threads", "progress", "claims"),  # errors, threads, progress bars, claims
     ("representation",),  # skeleton, rotations, Motion, SMPL body, features, contacts
     ("io",),  # files in and out
     ("datasets",),  # the Bandai Namco clips, synthetic clips

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from PIL import Image  # pillow: a dependency of matplotlib
 
 from mrlib.errors import MotionValueError
 from mrlib.progress import bar as progress_bar
@@ -40,6 +41,7 @@ __all__ = [
 SKIN = (0.83, 0.70, 0.58)
 CONTACT_COLOUR = (0.85, 0.1, 0.1)
 STRIP_SPACING = 0.9  # metres between the frames of a render_meshes strip
+RENDER_SCALE = 2  # render_meshes draws at this multiple of its size when it frames the bodies
 
 
 def evenly_spaced_frames(num_frames: int, count: int = 5) -> list[int]:
@@ -87,6 +89,7 @@ def render_meshes(
     contacts: np.ndarray | None = None,
     window_size: tuple[int, int] = (1200, 520),
     path: str | Path | None = None,
+    frame_bodies: bool = True,
 ) -> np.ndarray:
     """Render the body mesh of ``motion`` at several frames, off-screen.
 
@@ -102,6 +105,9 @@ def render_meshes(
             with ``mrlib.representation.contacts.foot_contacts``.
         window_size: ``(width, height)`` in pixels.
         path: also save the image there (PNG).
+        frame_bodies: zoom so the bodies and the floor under their soles fill the
+            picture (rendered at twice the size, cropped to the bodies, scaled back to
+            ``window_size``); False keeps the camera's own, looser framing.
     Returns:
         ``(H, W, 3)`` uint8 RGB image.
     """
@@ -142,7 +148,8 @@ def render_meshes(
     ground = float(verts[..., 1].min())
 
     faces = np.hstack([np.full((len(body.faces), 1), 3), body.faces]).ravel()
-    pl = pv.Plotter(off_screen=True, window_size=list(window_size))
+    scale = RENDER_SCALE if frame_bodies else 1
+    pl = pv.Plotter(off_screen=True, window_size=[scale * int(v) for v in window_size])
     pl.set_background("white")
     for i, f in enumerate(frames):
         pl.add_mesh(pv.PolyData(verts[i], faces), color=SKIN, smooth_shading=True)
@@ -166,10 +173,52 @@ def render_meshes(
         center=(centre[0], ground, centre[2]), direction=(0, 1, 0), i_size=size, j_size=size
     )
     pl.add_mesh(plane, color=(0.9, 0.9, 0.9))
+    for v in verts:  # a soft shadow under each body: where it stands on the floor
+        x, z = (float(np.median(v[:, k])) for k in (0, 2))
+        for r, a in ((0.32, 0.12), (0.22, 0.18)):
+            disc = pv.Disc(
+                center=(x, ground + 0.01, z), inner=0.0, outer=r, normal=(0, 1, 0), c_res=48
+            )
+            pl.add_mesh(disc, color=(0.35, 0.35, 0.35), opacity=a, lighting=False)
     pl.reset_camera_clipping_range()
-    img = pl.screenshot(str(path) if path is not None else None, return_img=True)
+    img = np.asarray(pl.screenshot(None, return_img=True))[..., :3].copy()
     pl.close()
-    return np.asarray(img)[..., :3].copy()
+    if frame_bodies:
+        img = fit_to_bodies(img, window_size)
+    if path is not None:
+        Image.fromarray(img).save(str(path))
+    return img
+
+
+def fit_to_bodies(image: np.ndarray, size: tuple[int, int], pad: float = 0.05) -> np.ndarray:
+    """The part of a render that holds the bodies (coloured pixels: skin, contact markers)
+    with a margin of ``pad`` of its height, widened or heightened to the aspect of
+    ``size = (width, height)`` (around the bodies, white where it runs past the render)
+    and scaled to that size. Unchanged but scaled when nothing is coloured."""
+    img = np.asarray(image)
+    w_out, h_out = int(size[0]), int(size[1])
+    rgb = img[..., :3].astype(np.int16)
+    coloured = (rgb.max(-1) - rgb.min(-1)) > 25
+    rows, cols = np.flatnonzero(coloured.any(1)), np.flatnonzero(coloured.any(0))
+    if len(rows) == 0:
+        r0, r1, c0, c1 = 0, img.shape[0], 0, img.shape[1]
+    else:
+        m = pad * (rows[-1] - rows[0] + 1)
+        r0, r1 = rows[0] - m, rows[-1] + 1 + m
+        c0, c1 = cols[0] - m, cols[-1] + 1 + m
+        h, w = r1 - r0, c1 - c0
+        if w / h < w_out / h_out:  # too narrow: widen around the centre
+            c0, c1 = (c0 + c1) / 2 - h * w_out / h_out / 2, (c0 + c1) / 2 + h * w_out / h_out / 2
+        else:  # too flat: heighten, keeping the floor under the soles in view
+            extra = w * h_out / w_out - h
+            r0, r1 = r0 - 0.6 * extra, r1 + 0.4 * extra
+    r0, r1, c0, c1 = (int(round(v)) for v in (r0, r1, c0, c1))
+    top, left = max(0, -r0), max(0, -c0)
+    bottom, right = max(0, r1 - img.shape[0]), max(0, c1 - img.shape[1])
+    padded = np.pad(img, ((top, bottom), (left, right), (0, 0)), constant_values=255)
+    crop = padded[r0 + top : r1 + top, c0 + left : c1 + left]
+    out = Image.fromarray(np.ascontiguousarray(crop)).resize((w_out, h_out), Image.Resampling.LANCZOS)
+    return np.asarray(out)[..., :3].copy()
 
 
 def render_mesh_animation(
