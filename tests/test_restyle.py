@@ -129,6 +129,72 @@ def test_the_root_travels_and_faces_as_the_clip(model, clip, body):
     assert np.abs(straight.poses[:, 1:] - turned.poses[:, 1:]).max() > 1e-3
 
 
+# -- the root keeps the clip's path (issue "Quality that holds on motion nobody tuned for", 3) --
+PATH_BOUNDS_CM = {"mean": 5.0, "worst": 15.0, "first": 5.0, "last": 5.0}
+
+
+def _path_cm(restyled, source) -> dict:
+    """Ground distance (cm) of ``restyled``'s root from ``source``'s at the same times
+    (``source`` at any frame rate): mean, worst, first and last frame."""
+    t = np.arange(restyled.num_frames) * (source.fps / restyled.fps)
+    d = 100 * np.linalg.norm(
+        restyled.trans[:, [0, 2]] - source.at_frames(t).trans[:, [0, 2]], axis=1
+    )
+    return {"mean": d.mean(), "worst": d.max(), "first": d[0], "last": d[-1]}
+
+
+def _on_path(cm: dict) -> bool:
+    return all(cm[k] <= b for k, b in PATH_BOUNDS_CM.items())
+
+
+def test_the_restyled_root_stays_on_the_clips_path_raw_and_cleaned(model, clip, body):
+    """A walk of another label at 30 fps and at the model's 10 fps, every label and level,
+    raw and cleaned (the clean-up keeps the ground path: ``keep_path``); the paired
+    negative: the clean-up that may move the root takes the same raw clip off the path."""
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+
+    for source in (clip, clip.resample(model.fps)):
+        for k in range(1, model.num_levels):
+            for lab in model.labels:
+                raw = restyle(model, source, lab, k, seed=0, sampler=RAW, body=body)
+                cleaned = restyle(model, source, lab, k, seed=0, body=body)
+                assert cleaned.meta["contact_cleanup"]["keep_path"] is True
+                for m in (raw, cleaned):
+                    assert _on_path(_path_cm(m, source)), (source.fps, k, lab, _path_cm(m, source))
+                moved = cleanup_foot_contacts(raw, body)  # keep_path=False: the root may move
+                assert not _on_path(_path_cm(moved, source)), (source.fps, k, lab)
+    # the clean-up still lifts the body onto the floor: the root moves, vertically only
+    assert np.abs(cleaned.trans[:, 1] - raw.trans[:, 1]).max() > 1e-4
+    np.testing.assert_array_equal(cleaned.trans[:, [0, 2]], raw.trans[:, [0, 2]])
+
+
+def test_relay_root_path_keeps_the_sway_within_its_bound_and_drops_the_drift():
+    """What ``restyle`` does to the generated root: a path that drifts 40 cm off the
+    clip's and starts 10 cm beside it (the un-re-laid output of a trained model, in
+    outline) violates the bounds; re-laid, it starts and ends on the clip's path, keeps
+    the sway about it (bounded) and its own height."""
+    from mrlib.sampling.restyling import PATH_SWAY_M, relay_root_path
+
+    fps, T = 15.0, 150
+    t = np.arange(T) / fps
+    path = np.stack([0.2 * np.sin(0.3 * t), np.full(T, 0.9), 1.3 * t], 1)  # a curved walk
+    sway = 0.02 * np.sin(2 * np.pi * 2.0 * t)  # side to side at 2 Hz
+    drift = 0.1 + 0.3 * t / t[-1]
+    gen = path + np.stack([sway + drift, 0.02 * np.cos(4 * np.pi * t), 0 * t], 1)
+    gen[:, 1] += 0.05
+    dist = lambda x: 100 * np.linalg.norm(x[:, [0, 2]] - path[:, [0, 2]], axis=1)  # noqa: E731
+    before = dist(gen)
+    assert before[0] > 5 and before.max() > 15  # the old behaviour fails the bounds
+    out = relay_root_path(gen, path, fps, cutoff_hz=1.0)
+    d = dist(out)
+    assert d[0] < 1e-9 and d[-1] < 1e-9 and d.max() <= 100 * PATH_SWAY_M + 1e-9
+    np.testing.assert_array_equal(out[:, 1], gen[:, 1])  # the height is the generated one
+    mid = slice(20, T - 20)  # the sway is kept away from the ends (where it eases in)
+    assert np.corrcoef(out[mid, 0] - path[mid, 0], sway[mid])[0, 1] > 0.9
+    np.testing.assert_allclose(relay_root_path(gen, path, fps, 1.0, sway=0.0)[:, [0, 2]],
+                               path[:, [0, 2]])  # fmt: skip
+
+
 def test_keep_detail_takes_the_coarse_levels_from_the_label(model, clip, body):
     a = restyle(model, clip, "wave", 2, keep="detail", seed=0, sampler=RAW, body=body)
     b = restyle(model, clip, "wave", 2, keep="coarse", seed=0, sampler=RAW, body=body)

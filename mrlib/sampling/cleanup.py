@@ -139,6 +139,7 @@ def cleanup_foot_contacts(
     floor_clamp: bool = True,
     jitter: float = JITTER_SIGMA,
     move_root: bool = True,
+    keep_path: bool = False,
     options: PlantOptions = PLANT_DEFAULTS,
 ) -> Motion:
     """Plant feet during predicted contacts (the paper's IK post-processing, Sec. 3.4).
@@ -153,12 +154,21 @@ def cleanup_foot_contacts(
     ``mrlib.sampling.generation.training_floor``); None estimates it from the motion
     (``contact_floor`` at ``FLOOR_PERCENTILE``); ``floor_clamp=False`` leaves heights
     alone. ``move_root=False`` keeps the root path (the legs take everything).
+    ``keep_path=True`` keeps the root's ground path (x, z) exactly, jitter filter
+    included, and lets the root move vertically only (onto the floor; not with
+    ``move_root=False``): the legs take the feet's ground corrections. For a motion
+    whose path is given, as ``mrlib.sampling.restyling.restyle``'s (the clip's).
     ``options``: the solve's knobs (:class:`mrlib.sampling.planting.PlantOptions`:
     ``smooth_s``, ``pin_weight``, ``leg_hold_s``, ...). Milliseconds per clip.
     """
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
+    ground = motion.trans[:, [0, 2]].copy()
     motion = remove_jitter(motion, jitter)
+    if keep_path:  # the jitter filter leaves the ground path as it is
+        trans = motion.trans.copy()
+        trans[:, [0, 2]] = ground
+        motion = motion.replace(trans=trans)
     body = resolve_body(body)
     R, trans, betas = body.motion_inputs(motion)
     ids = list(body.foot_vertex_ids)
@@ -174,8 +184,9 @@ def cleanup_foot_contacts(
     if floor is None and floor_clamp:
         floor = contact_floor(F, c, FLOOR_PERCENTILE)
     offset, legs = smooth_foot_offsets(
-        F, c, motion.fps, floor=floor, move_root=move_root, options=options
-    )
+        F, c, motion.fps, floor=floor, move_root=move_root, ground_root=not keep_path,
+        options=options,
+    )  # fmt: skip
     Rn, tn = move_ankles(Rn, J, legs), tn + offset
     runs = sum(len(contact_runs(c[:, v])) for v in range(6))
     poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
@@ -187,6 +198,7 @@ def cleanup_foot_contacts(
     meta = dict(
         motion.meta,
         contact_cleanup={"method": "ik", "style": "smooth", "move_root": move_root,
+                         "keep_path": bool(keep_path),
                          "jitter_sigma": float(jitter),
                          "floor": None if floor is None else round(floor, 4),
                          **changed, "runs": int(runs)},

@@ -180,6 +180,7 @@ def smooth_foot_offsets(
     *,
     floor: float | None = None,
     move_root: bool = True,
+    ground_root: bool = True,
     options: PlantOptions = PLANT_DEFAULTS,
 ) -> tuple[np.ndarray, np.ndarray]:
     """A root offset ``(T, 3)`` and one offset per foot ``(2, T, 3)`` that stop the feet
@@ -219,6 +220,9 @@ def smooth_foot_offsets(
         contacts: ``(T, 6)`` labels, > 0.5 is contact.
         fps: frames per second.
         move_root: False keeps the root where it is (the legs take everything).
+        ground_root: False keeps the root's ground position (x, z) where it is, the
+            legs taking the ground corrections, while the root may still move
+            vertically (with ``move_root``): the root's ground path is kept exactly.
         options: the energy's weights and the solves (:class:`PlantOptions`; ``reweight``:
             how many times to re-solve with the contact vertices still faster than
             ``slide`` weighted up, 0 solves once).
@@ -243,6 +247,7 @@ def smooth_foot_offsets(
         root[:, 1], legs[:, :, 1] = _vertical(F[..., 1], c, floor, J3, fps, o, move_root)
     if not c.any():
         return root, legs
+    move_root = move_root and ground_root  # from here on: the ground plane
     D1 = _central_diff(T) * fps  # m/s
     I = sparse.identity(T, format="csr")
     P = F[..., [0, 2]]  # (T, 6, 2) ground positions
