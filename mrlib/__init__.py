@@ -11,7 +11,7 @@ The public API, in the order data flows through it::
     mixed = mrlib.generate(model, mrlib.Condition.crossover("walk_sad", "walk_happy", 4),
                            num=8, seed=0, sampler=mrlib.Sampler(fine_noise=0.5))
     sad = mrlib.restyle(model, "my_walk.bvh", "walk_sad", level=4, seed=0)
-    table = mrlib.evaluate_model(model, "runs/x/eval")
+    mrlib.evaluate_model(model).save("runs/x/eval")  # cleaned and raw samples, calibration rows
     mrlib.save_motion(new, "new.bvh")
 
 The packages, bottom up (each imports only from those before it; ``python -m

@@ -210,3 +210,54 @@ def test_evaluate_dummy_model_on_two_real_labels_writes_table_and_files(bandai, 
     plot_evaluation(res, png)
     assert png.stat().st_size > 20_000
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# -- evaluate_model: which output of a trained model is scored ---------------------------------
+def test_evaluate_model_scores_cleaned_samples_by_default_with_the_raw_ones_beside(
+    sad_wave_model, body
+):
+    from mrlib.sampling.generation import generate
+    from mrlib.sampling.sampler import Sampler
+
+    model = sad_wave_model  # clips of 40 and 36 frames: short windows
+    settings = ev.EvaluationSettings(num_samples=1, coverage_window=10, tmin=10, local_window=5)
+    off = ev.CalibrationOptions(enabled=False)
+    res = ev.evaluate_model(
+        model, {"base": model}, settings=settings, calibration=off, body=body, progress=False
+    )
+    # the default is "both", for the model and every baseline alike, each raw row after its own
+    assert res.methods == ["ours", "ours (raw)", "base", "base (raw)"]
+    refs = ev.model_references(model)
+    for label, ref in refs.items():
+        n = 2 * ref.num_frames
+        cleaned = generate(model, label, length=n, seed=0)  # what mrlib.generate returns
+        raw = generate(model, label, length=n, seed=0, sampler=Sampler(fix_contacts=False))
+        assert not np.allclose(cleaned.trans, raw.trans)  # the clean-up moved something
+        want = {
+            kind: ev.score_motions([m], ref, settings=settings, body=body)
+            for kind, m in (("clean", cleaned), ("raw", raw))
+        }
+        keys = ("skate_pct", "penetration_cm", "jerk_ratio", "local_div")
+        assert any(want["clean"][k] != pytest.approx(want["raw"][k]) for k in keys)
+        rows = {r["method"]: r for r in res.rows if r["sequence"] == label}
+        for method, kind in (("ours", "clean"), ("ours (raw)", "raw"), ("base", "clean")):
+            for key in keys:
+                assert rows[method][key] == pytest.approx(want[kind][key]), (method, key)
+        assert rows["ours"]["recon_error"] == rows["ours (raw)"]["recon_error"]
+    # "raw" and "clean" score one output per method
+    only_raw = ev.evaluate_model(
+        model, {"base": model}, contacts="raw", settings=settings, calibration=off,
+        body=body, progress=False,
+    )  # fmt: skip
+    assert only_raw.methods == ["ours", "base"]
+    raw_rows = {(r["method"], r["sequence"]): r for r in only_raw.rows}
+    both_rows = {(r["method"], r["sequence"]): r for r in res.rows}
+    for label in refs:
+        assert raw_rows[("base", label)]["skate_pct"] == pytest.approx(
+            both_rows[("base (raw)", label)]["skate_pct"]
+        )
+    with pytest.raises(MotionValueError, match="clash"):
+        ev.evaluate_model(
+            model, {"ours (raw)": model}, settings=settings, calibration=off, body=body,
+            progress=False,
+        )  # fmt: skip

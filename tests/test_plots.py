@@ -119,3 +119,68 @@ def test_plot_quality_curve():
     assert ax.lines[2].get_xdata()[0] == 20  # reached
     with pytest.raises(MotionValueError):
         plot_quality_curve([0, 1], [1.0])
+
+
+def _fake_result(jerk_top: float = 1.4):
+    """An EvaluationResult with one model, its raw output and one calibration row over
+    two sequences; the jerk ratio of the raw rows reaches ``jerk_top``."""
+    from mrlib.evaluation.results import PLOT_COLUMNS, EvaluationResult, EvaluationSettings
+
+    def row(method, kind, seq, base):
+        vals = {k: base + i for i, k in enumerate(PLOT_COLUMNS)}
+        return {"method": method, "kind": kind, "sequence": seq, "source": "", **vals}
+
+    rows = [
+        row("ours", "model", "a", 1.0),
+        row("ours", "model", "b", 3.0),
+        {**row("ours (raw)", "model", "a", 2.0), "jerk_ratio": jerk_top},
+        {**row("ours (raw)", "model", "b", 2.0), "jerk_ratio": 0.8},
+        row("calib: played twice", "calibration", "a", 0.5),
+        row("calib: played twice", "calibration", "b", 0.5),
+    ]
+    return EvaluationResult(rows=rows, settings=EvaluationSettings(num_samples=1, eps=1.5))
+
+
+def test_plot_evaluation_draws_the_table_statistics_with_labelled_axes_and_an_outside_legend():
+    from mrlib.evaluation.results import PLOT_COLUMNS
+    from mrlib.viz.plots import plot_evaluation
+
+    res = _fake_result()
+    fig = plot_evaluation(res)
+    axes = fig.axes
+    assert len(axes) == len(PLOT_COLUMNS)
+    cov = axes[PLOT_COLUMNS.index("coverage_pct")]
+    assert "eps = 1.5" in cov.get_title()
+    summary = {d["method"]: d for d in res.summary()}
+    for ax, key in zip(axes, PLOT_COLUMNS, strict=True):
+        assert ax.get_ylabel(), key  # every panel says what its axis measures
+        assert ax.get_legend() is None  # no legend over the data
+        heights = [p.get_height() for p in ax.patches]
+        want = [summary[m][f"{key}_mean"] for m in res.methods]
+        np.testing.assert_allclose(heights, want)  # bars: the table's means
+        whiskers = [c for c in ax.containers if type(c).__name__ == "ErrorbarContainer"]
+        spans = [c.lines[2][0].get_segments()[0][:, 1] for c in whiskers]
+        stds = [summary[m][f"{key}_std"] for m in res.methods]
+        np.testing.assert_allclose([s[1] - s[0] for s in spans], 2 * np.array(stds))
+    assert len(fig.legends) == 1
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert labels[:2] == ["ours", "ours (raw)"] and "mean ± std over sequences" in labels
+    # the raw rows: the colour of their method, hatched; calibration grey
+    ours, raw, calib = cov.patches
+    assert raw.get_facecolor() == ours.get_facecolor() and raw.get_hatch() and not ours.get_hatch()
+    assert calib.get_facecolor()[:3] == pytest.approx((0.6, 0.6, 0.6))
+
+
+def test_plot_evaluation_jerk_axis_is_linear_unless_it_spans_decades():
+    from mrlib.evaluation.results import PLOT_COLUMNS
+    from mrlib.viz.plots import plot_evaluation
+
+    k = PLOT_COLUMNS.index("jerk_ratio")
+    assert plot_evaluation(_fake_result(1.4)).axes[k].get_yscale() == "linear"
+    ax = plot_evaluation(_fake_result(150.0)).axes[k]
+    assert ax.get_yscale() == "symlog"
+    ticks = list(ax.get_yticks())
+    assert ticks[:3] == [0.0, 0.5, 1.0] and 10 in ticks and 100 in ticks and ticks[-1] >= 150
+    ax.figure.canvas.draw()
+    texts = [t.get_text() for t in ax.get_yticklabels()]
+    assert "100" in texts and not any("^" in t for t in texts)  # plain numbers, readable

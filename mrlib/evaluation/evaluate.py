@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -71,6 +71,7 @@ from mrlib.model.trained import check_label_model
 from mrlib.progress import bar as progress_bar
 from mrlib.representation.body import check_body, resolve_body
 from mrlib.representation.motion import Motion
+from mrlib.sampling.sampler import Sampler
 from mrlib.training.data import instance_or_none
 
 __all__ = [
@@ -407,7 +408,7 @@ def evaluate_model(
     baselines: Mapping[str, Any] | None = None,
     *,
     name: str = "ours",
-    contacts: str = "raw",
+    contacts: str = "both",
     settings: EvaluationSettings | None = None,
     calibration: CalibrationOptions | None = None,
     body: Any = None,
@@ -418,46 +419,67 @@ def evaluate_model(
 
     ``baselines`` maps a method name to either one model or a dict key -> model trained on
     that sequence alone (GANimator-mode: one model per sequence); keys are those of
-    :func:`model_references`. ``contacts``: ``"raw"`` scores the generator's output,
+    :func:`model_references`. ``contacts`` says which output of every model (``model``
+    and each baseline alike) is scored: ``"raw"`` the generator's own output,
     ``"clean"`` the output after the foot-contact clean-up
-    (``mrlib.sampling.cleanup.cleanup_foot_contacts``), ``"both"`` both, the raw one as
-    ``"<name> (raw)"``. ``settings``, ``calibration``, ``body`` and ``progress`` are
-    those of :func:`evaluate`; the model and the baselines sample with the fine noise
-    and guidance of ``settings`` (``EvaluationSettings.fine_noise``, ``.guidance``).
+    (``mrlib.sampling.cleanup.cleanup_foot_contacts``, what ``mrlib.generate`` and
+    ``mrlib sample`` return by default), ``"both"`` (the default, as ``mrlib evaluate``)
+    the cleaned output under the method's name and the raw one beside it as
+    ``"<method> (raw)"``, right after it. ``settings``, ``calibration``, ``body`` and
+    ``progress`` are those of :func:`evaluate`; the model and the baselines sample with
+    the fine noise and guidance of ``settings`` (``EvaluationSettings.fine_noise``,
+    ``.guidance``).
     """
     if contacts not in ("raw", "clean", "both"):
         raise MotionValueError(f"contacts must be 'raw', 'clean' or 'both', got {contacts!r}")
-    from mrlib.sampling.generation import generate, reconstruct
-    from mrlib.sampling.sampler import Sampler
+    from mrlib.sampling.generation import reconstruct
 
     s = settings or EvaluationSettings()
-    raw = Sampler(s.fine_noise, s.guidance, fix_contacts=False)
     refs = model_references(model)
-    recon = {key: reconstruct(model, _clip_index(model, key)) for key in refs}
-    extra, extra_recon = {}, {}
+    methods: dict[str, tuple[dict[str, Any], dict[str, Motion]]] = {
+        name: (
+            {key: model for key in refs},
+            {key: reconstruct(model, _clip_index(model, key)) for key in refs},
+        )
+    }
     for bname, b in (baselines or {}).items():
+        if bname in methods:
+            raise MotionValueError(f"baselines has a second method named {bname!r}")
         per_key = dict(b) if isinstance(b, Mapping) else {key: b for key in refs}
-
-        def fn(key: str, length: int, seed: int, _models=per_key) -> Motion:
-            m = _models[key]
-            label = m.labels[m.clip_labels[_clip_index(m, key)]]
-            return generate(m, label, length=length, seed=seed, sampler=raw)
-
-        extra[bname] = fn
-        extra_recon[bname] = {
-            key: reconstruct(m, _clip_index(m, key)) for key, m in per_key.items()
-        }
-    if contacts == "both":
-        extra = {f"{name} (raw)": model_sample_fn(model, raw), **extra}
-        extra_recon = {f"{name} (raw)": recon, **extra_recon}
-    if name in extra:
-        raise MotionValueError(f"baselines has a second method named {name!r}")
+        recon = {key: reconstruct(m, _clip_index(m, key)) for key, m in per_key.items()}
+        methods[bname] = (per_key, recon)
+    variants = {
+        "raw": ((False, ""),),
+        "clean": ((True, ""),),
+        "both": ((True, ""), (False, " (raw)")),
+    }
+    samplers, recons = {}, {}
+    for mname, (per_key, recon) in methods.items():
+        for clean, suffix in variants[contacts]:
+            sampler = Sampler(s.fine_noise, s.guidance, fix_contacts=clean)
+            samplers[mname + suffix] = _per_key_sample_fn(per_key, sampler)
+            recons[mname + suffix] = recon
+    if len(samplers) != len(methods) * len(variants[contacts]):
+        raise MotionValueError(f"method names clash with the ' (raw)' rows: {sorted(methods)}")
     return evaluate(
-        {name: model_sample_fn(model, replace(raw, fix_contacts=contacts != "raw")), **extra},
+        samplers,
         refs,
         settings,
-        reconstructions={name: recon, **extra_recon},
+        reconstructions=recons,
         calibration=calibration,
         body=body,
         progress=progress,
     )
+
+
+def _per_key_sample_fn(per_key: Mapping[str, Any], sampler: Any) -> SampleFn:
+    """``sample_fn(key, length, seed)`` drawing from ``per_key[key]`` (a model trained on
+    that sequence, or the one model for all) with its label for that sequence."""
+    from mrlib.sampling.generation import generate
+
+    def fn(key: str, length: int, seed: int) -> Motion:
+        m = per_key[key]
+        label = m.labels[m.clip_labels[_clip_index(m, key)]]
+        return generate(m, label, length=length, seed=seed, sampler=sampler)
+
+    return fn

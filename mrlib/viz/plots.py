@@ -238,7 +238,7 @@ def plot_coverage_strip(
         extend = "max" if p.max() > 2.0 * eps else "neither"
         cb = ax.figure.colorbar(im, ax=ax, pad=0.01, fraction=0.04, extend=extend)
         cb.ax.axhline(eps, color="k", lw=1.5)
-        cb.set_label("distance", fontsize=8)
+        cb.set_label("mean per-frame feature distance (no unit)", fontsize=8)
     return ax
 
 
@@ -356,42 +356,96 @@ def plot_contacts(contacts: np.ndarray, fps: float, ax: Any = None, *, title: st
     return ax
 
 
+# y-axis label (with units) of each panel of plot_evaluation.
+_EVALUATION_AXES = {
+    "coverage_pct": "% of training windows within eps",
+    "global_div": "PNN cost (feature distance / frame)",
+    "local_div": "nearest-window distance (feature dist.)",
+    "skate_pct": "% of contact vertex-frames sliding",
+    "jerk_ratio": "mean jerk / training clip's (x)",
+    "penetration_cm": "mean depth below floor (cm)",
+    "w_root_speed": "W1 to training root speed (m/s)",
+    "w_angspeed_legs": "W1 to training leg speed (rad/s)",
+}
+RAW_SUFFIX = " (raw)"  # evaluate_model(contacts="both"): the raw output beside the cleaned
+
+
+def _method_styles(methods: list[str], kinds: dict[str, str]) -> dict[str, dict[str, Any]]:
+    """Bar style per method: a tab10 colour per model, the colour of its cleaned method
+    and a hatch for ``"<method> (raw)"``, grey for calibration rows."""
+    from matplotlib import colormaps
+
+    out: dict[str, dict[str, Any]] = {}
+    n = 0
+    for m in methods:
+        base = m.removesuffix(RAW_SUFFIX)
+        if kinds[m] == "calibration":
+            out[m] = {"facecolor": "0.6", "edgecolor": "0.6", "hatch": ""}
+        elif m != base and base in out:
+            out[m] = {**out[base], "edgecolor": "0.25", "hatch": "///"}
+        else:
+            c = colormaps["tab10"](n % 10)
+            out[m], n = {"facecolor": c, "edgecolor": c, "hatch": ""}, n + 1
+    return {m: {**st, "alpha": 0.55} for m, st in out.items()}
+
+
+def _readable_log_axis(ax: Any, top: float) -> None:
+    """A symlog y axis (0 stays visible) with ticks at 0, 0.5, 1, 2, 5, 10, ... up to
+    ``top``, written as plain numbers."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullLocator
+
+    ax.set_yscale("symlog", linthresh=1.0, linscale=0.6)
+    ticks = [0.0, 0.5, 1.0]
+    k = 0
+    while ticks[-1] < top:
+        ticks.append([2, 5, 10][k % 3] * 10 ** (k // 3))
+        k += 1
+    ax.yaxis.set_major_locator(FixedLocator(ticks))
+    ax.yaxis.set_minor_locator(NullLocator())
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+
+
 def plot_evaluation(result: Any, path: str | Path | None = None, *, overwrite: bool = True):
-    """Bars (mean over sequences) and dots (sequences) per method for the main metrics of
-    a ``mrlib.evaluation.results.EvaluationResult``; calibration rows in grey. Returns the
+    """The main metrics of a ``mrlib.evaluation.results.EvaluationResult`` per method, in
+    the statistics of its Markdown table: bars the mean over sequences, whiskers ± the
+    (population) standard deviation over sequences, dots the sequences. Models in
+    colour (``"<method> (raw)"`` hatched in its method's colour), calibration rows in
+    grey; the legend sits below the panels. The jerk ratio gets a symmetric-log axis
+    (with ticks at 0, 0.5, 1, 2, 5, ...) only when it spans more than 20x. Returns the
     matplotlib Figure; saved to ``path`` when given (an existing file is replaced only
     with ``overwrite``)."""
-    from matplotlib import colormaps
     from matplotlib.figure import Figure  # no pyplot: works headless, no global state
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     from mrlib.evaluation.results import CALIB_PREFIX, METRIC_COLUMNS, PLOT_COLUMNS
 
     methods = result.methods
     kinds = {r["method"]: r["kind"] for r in result.rows}
     headers = {k: h for k, h, _ in METRIC_COLUMNS}
-    cmap = colormaps["tab10"]
-    colors, model_i = [], 0
-    for m in methods:
-        if kinds[m] == "calibration":
-            colors.append("0.6")
-        else:
-            colors.append(cmap(model_i % 10))
-            model_i += 1
-    fig = Figure(figsize=(16, 7.5), layout="constrained")
+    styles = _method_styles(methods, kinds)
+    fig = Figure(figsize=(16, 8.2), layout="constrained")
     axes = fig.subplots(2, 4)
     rng = np.random.default_rng(0)  # x jitter of the dots only
     x = np.arange(len(methods))
     for ax, key in zip(axes.ravel(), PLOT_COLUMNS, strict=True):
+        top = 0.0
         for i, m in enumerate(methods):
             v = np.array([r.get(key, np.nan) for r in result.rows if r["method"] == m], float)
             v = v[np.isfinite(v)]
             if not len(v):
                 continue
-            ax.bar(i, v.mean(), color=colors[i], alpha=0.55, width=0.7)
+            ax.bar(i, v.mean(), width=0.7, **styles[m])
+            ax.errorbar(i, v.mean(), yerr=v.std(), color="0.2", capsize=3, lw=1, zorder=2)
             ax.scatter(i + rng.uniform(-0.18, 0.18, len(v)), v, s=14, color="k", zorder=3)
-        ax.set_title(headers[key], fontsize=10)
-        if key == "jerk_ratio":  # spans decades (a noisy bow: x100); 0 must stay visible
-            ax.set_yscale("symlog", linthresh=1.0)
+            top = max(top, float(v.max()), float(v.mean() + v.std()))
+        title = headers[key]
+        if key == "coverage_pct":
+            title += f" (eps = {result.settings.eps:g})"
+        ax.set_title(title, fontsize=10)
+        ax.set_ylabel(_EVALUATION_AXES.get(key, headers[key]), fontsize=8)
+        if key == "jerk_ratio" and top > 20.0:  # a noisy clip can be x100: 0 must stay visible
+            _readable_log_axis(ax, top)
         ax.set_xticks(
             x,
             [m.replace(CALIB_PREFIX, "") for m in methods],
@@ -400,8 +454,21 @@ def plot_evaluation(result: Any, path: str | Path | None = None, *, overwrite: b
             fontsize=8,
         )
         ax.grid(axis="y", alpha=0.3)
+    handles = [Patch(label=m, **styles[m]) for m in methods if kinds[m] != "calibration"]
     if any(kinds[m] == "calibration" for m in methods):
-        fig.suptitle("Methods (colour) and calibration rows (grey); dots: sequences", fontsize=11)
+        grey = styles[next(m for m in methods if kinds[m] == "calibration")]
+        handles.append(Patch(label="calibration rows (real or built motion)", **grey))
+    handles += [
+        Line2D([], [], color="0.2", marker="_", ms=10, label="mean ± std over sequences"),
+        Line2D([], [], color="k", marker="o", ms=4, lw=0, label="one sequence"),
+    ]
+    fig.legend(
+        handles=handles,
+        loc="outside lower center",
+        ncols=min(len(handles), 5),
+        fontsize=9,
+        frameon=False,
+    )
     if path is not None:
         save_figure(fig, path, dpi=110, overwrite=overwrite)
     return fig

@@ -52,7 +52,7 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
         "--raw",
         action="store_true",
         help="score only the raw samples (default: the foot-contact cleaned ones, and the "
-        "raw ones beside them as 'ours (raw)')",
+        "raw ones beside them as 'ours (raw)', and '<baseline name> (raw)' with --baseline)",
     )
     device_option(p)
     p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
