@@ -7,7 +7,7 @@ after (``mrlib.training.trainer.train_or_reuse``, same folder). Prints, per cons
 * **path**: a 20 s circle (r = 2 m) and a 20 s figure-eight (r = 2 m) for every walk
   label and ``--samples`` seeds, by ``bend`` (``generate_on_path``) and ``optimise``
   (noise optimisation, networks frozen: ``experiments/path_optimise.py``, reference
-  code): pelvis-to-path distance (mean / max), coverage of the
+  code): pelvis-to-path distance off the line (mean / max), coverage of the
   label's training clip (30-frame windows, eps = 2) and foot skating (share of contact
   vertex-frames above the speed threshold) beside the training clip's;
 * **keyframes**: in-betweening from the first frame of one walk to the last frame of
@@ -191,8 +191,8 @@ def run_paths(model, body, a, ref_feats, train_skate, seeds, results) -> None:
                                                        body=body)  # fmt: skip
                     secs.append(time.perf_counter() - t0)
                     e = C.path_error(m, spec, body)
-                    err.append(e["mean_m"])
-                    emax.append(e["max_m"])
+                    err.append(e["lateral_mean_m"])  # off the line; "mean_m": off its schedule
+                    emax.append(e["lateral_max_m"])
                     cov.append(coverage(metric_features(m), ref_feats[lab]))
                     sk.append(skate_share(m, body))
                     tsk.append(train_skate[lab])

@@ -100,7 +100,11 @@ def test_a_walk_bent_onto_a_path_follows_it_with_feet_planted(walk, body, spec):
     assert raw["mean_m"] > 3.0  # ignoring the path misses it by metres
     m = C.follow_path(walk, spec, body=body)
     err = C.path_error(m, spec, body)
-    assert err["mean_m"] < 0.10 and err["max_m"] < 0.30, err
+    assert err["lateral_mean_m"] < 0.10 and err["lateral_max_m"] < 0.30, err
+    # on schedule: the walk's own pace varies a little, a stall would be metres off
+    assert err["mean_m"] < 0.25 and err["max_m"] < 0.60, err
+    walked = C.ground_track(walk, body)["arc"][-1] / C.parse_path(spec).length
+    assert err["progress"] == pytest.approx(walked, rel=0.05)  # the eight's crossing: no lobe jump
     assert contact_skating(m, body) <= contact_skating(walk, body) + 0.05
     # it travels along the path: its heading is the tangent at the nearest path point
     path = C.parse_path(spec)
@@ -124,10 +128,46 @@ def test_a_timed_path_sets_the_pace_and_warns_when_it_is_far_from_the_motions(wa
         C.follow_path(walk, slow, body=body, clean=False)
 
 
+def _stalled(m, seconds: float):
+    """``m`` walking for ``seconds``, then standing still in its pose of that moment."""
+    k = int(seconds * m.fps)
+    held = lambda a: np.concatenate([a[:k], np.repeat(a[k - 1 : k], m.num_frames - k, 0)])  # noqa: E731
+    return m.replace(poses=held(m.poses), trans=held(m.trans), contacts=None)
+
+
+@pytest.mark.parametrize("spec", ["circle:2", "eight:2"])
+def test_path_error_scores_a_walker_that_stalls(walk, body, spec):
+    """A walker that stops after 3 s of 20 stays near the path (the nearest-point
+    distance, ``lateral_*``, cannot tell), but it is metres behind its schedule for the
+    rest of the walk and has walked a fraction of the path."""
+    good = C.follow_path(walk, spec, body=body)
+    stall = _stalled(good, 3.0)
+    e_good, e_stall = C.path_error(good, spec, body), C.path_error(stall, spec, body)
+    assert e_stall["lateral_mean_m"] < 0.10  # on the line all the time ...
+    assert e_stall["mean_m"] > 1.0 and e_stall["mean_m"] > 5 * e_good["mean_m"], (e_stall, e_good)
+    assert e_stall["progress"] < 0.2 * e_good["progress"]  # ... but it walked a sixth of it
+    walked = C.ground_track(walk.slice(0, int(3.0 * walk.fps)), body)["arc"][-1]
+    assert e_stall["progress"] == pytest.approx(walked / C.parse_path(spec).length, rel=0.1)
+
+
+def test_path_error_follows_a_timed_paths_schedule(walk, body):
+    """With times, the schedule is the path's: on time scores centimetres, the same walk
+    against a path timed at twice its pace scores metres though it walks the same line."""
+    own = C.ground_track(walk, body)["arc"][-1] / walk.duration
+    end = np.array([0.0, own * walk.duration])
+    timed = C.GroundPath(np.stack([np.zeros(2), end]), times=np.array([0.0, walk.duration]))
+    m = C.follow_path(walk, timed, body=body)
+    assert C.path_error(m, timed, body)["mean_m"] < 0.25
+    hurried = C.GroundPath(timed.points * 2, times=timed.times)
+    e = C.path_error(m, hurried, body)
+    assert e["lateral_mean_m"] < 0.10 and e["mean_m"] > 3.0, e
+    assert e["progress"] == pytest.approx(0.5, abs=0.05)
+
+
 def test_generate_on_path_with_a_model(model, body):
     m = C.generate_on_path(model, "circle:2", "walk_sad", seconds=6.0, seed=0, body=body)
     assert m.num_frames == 60 and m.meta["path"]["name"].startswith("circle")
-    assert C.path_error(m, "circle:2", body)["mean_m"] < 0.10
+    assert C.path_error(m, "circle:2", body)["lateral_mean_m"] < 0.10
 
 
 # -- keyframes ----------------------------------------------------------------------------
@@ -290,6 +330,7 @@ def test_generate_loop_tiles_seamlessly(model, body):
     assert two.num_frames == 80 and np.allclose(two.poses[40:], two.poses[:40])
     seam = C.loop_seam(m, body)
     assert seam["seam"] < 2 * seam["median"]
+    assert 0.0 <= seam["rank"] <= 1.0
     with pytest.raises(MotionValueError, match="not a loop"):
         C.tile_loop(generate(model, "walk_sad", length=20, seed=0), 2)
 
@@ -309,8 +350,45 @@ def test_loop_starts_at_its_calmest_frame(model, body):
     steps = np.linalg.norm(np.diff(J, axis=0), axis=-1).mean(-1)
     assert seams[1]["seam"] == pytest.approx(steps.min(), rel=1e-5)
     assert seams[1]["seam"] < seams[0]["seam"]
+    assert seams[1]["rank"] == 0.0  # the smallest step of the cycle
     with pytest.raises(MotionValueError, match="start must be"):
         C.generate_loop(model, "walk_sad", 40, start="first")
+
+
+def test_loop_seam_ranks_the_wrap_among_the_loops_own_steps(walk, body):
+    """A cut of a steady walk closed on itself jumps back to its first pose: the seam is
+    larger than every step of its own (rank 1); a piece of a walk ending just before it
+    starts again (one gait cycle) wraps with an ordinary step."""
+    from mrlib.sampling.constraints.compose import gait_phase
+
+    phase = gait_phase(walk, body)
+    start = int(np.searchsorted(phase, phase[0] + 2 * np.pi))
+    end = int(np.searchsorted(phase, phase[start] + 2 * np.pi))  # one cycle from start
+
+    def closed(m):  # the next cycle goes on from the last step's ground velocity
+        off = m.trans[-1] - m.trans[0] + m.trans[-1] - m.trans[-2]
+        return m.replace(meta=dict(m.meta, loop_offset=off.tolist()))
+
+    cycle = closed(walk.slice(start, end))
+    half = closed(walk.slice(start, (start + end) // 2 + 2))  # half a cycle: legs swapped
+    whole, cut = C.loop_seam(cycle, body), C.loop_seam(half, body)
+    assert cut["rank"] == 1.0 and cut["seam"] > 2 * cut["p95"], cut
+    assert whole["rank"] < 1.0 and whole["seam"] < whole["p95"], whole
+
+
+def test_a_cleaned_loop_wraps_where_its_clean_up_went_on(model, body):
+    """Planting the feet moves the root: the cleaned cycle's ``loop_offset`` is its own
+    travel (middle of three cleaned cycles to the third's start), so the tiled loop
+    steps from its last frame to where the clean-up of three cycles went on."""
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+
+    raw = C.generate_loop(model, "walk_sad", 40, seed=1, start="sample", sampler=RAW)
+    loop = C.generate_loop(model, "walk_sad", 40, seed=1, start="sample")
+    three = cleanup_foot_contacts(C.tile_loop(raw, 3), body)
+    two = C.tile_loop(loop, 2)
+    want = three.trans[80] - three.trans[79]  # the clean-up's own step across the seam
+    assert np.allclose(two.trans[40] - two.trans[39], want, atol=1e-6)
+    assert np.allclose(loop.poses, three.poses[40:80])
 
 
 # -- body parts ---------------------------------------------------------------------------

@@ -55,7 +55,8 @@ def interactive_path(
     """An ipywidgets UI for path following: path preset and size, label and seed; every
     change regenerates and redraws the top-down plot of target and generated paths
     (``mrlib.viz.control_plots.plot_ground_paths``), the status line the pelvis's
-    distance to the path.
+    distance to the path, the share of it walked and the distance from an even pace
+    along it (``mrlib.sampling.constraints.path_error``).
 
     Returns:
         ``(widget, update)``; ``update()`` regenerates and returns the Motion.
@@ -87,9 +88,11 @@ def interactive_path(
         show_figure(out, fig)
         player.show(m)
         e = path_error(m, spec, body)
+        walked = f"{e['progress']:.2f} {'laps' if kind.value != 'line' else 'of the path'}"
         return m, (f"'{lab.value}' on {spec} (seed {s}): the pelvis "
-                   f"{100 * e['mean_m']:.1f} cm from the path on average, "
-                   f"{100 * e['max_m']:.0f} cm at most")  # fmt: skip
+                   f"{100 * e['lateral_mean_m']:.1f} cm from the path on average, "
+                   f"{100 * e['lateral_max_m']:.0f} cm at most; {walked} walked, "
+                   f"{100 * e['mean_m']:.0f} cm from an even pace on average")  # fmt: skip
 
     update = wire(runner, player, controls, draw, lambda: BUSY)
     rows = [w.HBox([kind, size]), w.HBox([lab, seed]), w.HBox([player.toggle]),

@@ -158,7 +158,9 @@ def plot_ground_paths(
     path: Any, motions: Any, body: Any = None, ax: Any = None, *, title: str | None = None
 ):
     """Top-down view of a target path (dashed) and the pelvis tracks of ``motions``
-    (a ``{name: Motion}`` dict or a list), with each motion's planted heels as dots.
+    (a ``{name: Motion}`` dict or a list), with each motion's planted heels as dots; each
+    legend entry gives ``mrlib.sampling.constraints.path_error``'s mean distance off the
+    path, mean distance from the schedule and the share of the path walked.
 
     Args:
         path: a ``mrlib.sampling.constraints.GroundPath`` or a spec (``"circle:2"``).
@@ -183,7 +185,9 @@ def plot_ground_paths(
         colour = f"C{k}"
         err = path_error(m, path, body)
         ax.plot(joints[:, 0, 0], joints[:, 0, 2], color=colour, lw=1.5,
-                label=f"{name}: {100 * err['mean_m']:.1f} cm mean, {100 * err['max_m']:.0f} cm max")  # fmt: skip
+                label=f"{name}: {100 * err['lateral_mean_m']:.1f} cm off the path (mean), "
+                      f"{100 * err['mean_m']:.0f} cm from its schedule, {err['progress']:.2f} "
+                      f"{'laps' if path.closed else 'of the path'}")  # fmt: skip
         if m.contacts is not None:
             for v in (2, 5):  # heels
                 down = m.contacts[:, v] > 0.5
@@ -191,8 +195,13 @@ def plot_ground_paths(
     ax.set_aspect("equal")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("z (m)")
-    # below the axes: inside, a legend covers part of a path that fills the plot
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.1), frameon=False)
+    # below the axes and their x label (an offset in points, whatever the axes' height):
+    # inside, a legend covers part of a path that fills the plot
+    from matplotlib.transforms import offset_copy
+
+    below = offset_copy(ax.transAxes, fig=ax.figure, y=-34, units="points")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=below,
+              frameon=False)  # fmt: skip
     if title:
         ax.set_title(title, fontsize=10)
     return ax

@@ -36,9 +36,9 @@ from mrlib.sampling.constraints.path import (
     ground_track,
     natural_pace,
     parse_path,
-    path_error,
     path_seconds,
 )
+from mrlib.sampling.constraints.path_measure import path_error
 from mrlib.sampling.constraints.sharpen import (
     MARGIN,
     SHARPEN_STEPS,

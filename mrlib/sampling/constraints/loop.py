@@ -94,14 +94,20 @@ def _calm_start(motion: Motion, body) -> int:
 
 def _clean_loop(m: Motion, body) -> Motion:
     """Foot clean-up of a loop: on three cycles, keeping the middle one, so the
-    clean-up sees across the seam."""
+    clean-up sees across the seam. Planting the feet moves the root, so a cleaned cycle
+    travels its own distance: ``loop_offset`` becomes the middle cycle's (from its first
+    frame to the third cycle's), else the wrap would step by the difference."""
     from mrlib.sampling.cleanup import cleanup_foot_contacts
 
     T = m.num_frames
     c = cleanup_foot_contacts(tile_loop(m, 3), body)
     mid = c.slice(T, 2 * T)
-    off = np.asarray(m.meta["loop_offset"])
-    return mid.replace(trans=mid.trans - off, meta=dict(c.meta, loop_offset=m.meta["loop_offset"]))
+    off = c.trans[2 * T] - c.trans[T]
+    off[1] = 0.0
+    return mid.replace(
+        trans=mid.trans - np.asarray(m.meta["loop_offset"]),
+        meta=dict(c.meta, loop_offset=off.round(6).tolist()),
+    )
 
 
 @checked()
@@ -163,11 +169,23 @@ def generate_loop(
 
 @checked()
 def loop_seam(motion: Motion, body=None) -> dict[str, float]:
-    """How well a loop closes, on joint positions (metres): ``seam`` is the mean joint
-    displacement from the last frame to the next cycle's first; ``p95`` and ``median``
-    those of the loop's own frame-to-frame steps."""
+    """How well a loop closes, on joint positions: the loop is played twice and each
+    frame-to-frame step measured as the mean joint displacement (metres).
+
+    Returns:
+        ``seam``: the step from the last frame into the next cycle's first (metres);
+        ``median``, ``p95``: the median and 95th percentile of the loop's own steps;
+        ``rank``: the share of the loop's own steps smaller than the seam (0: the seam is
+        the smallest step, as ``start="calm"`` makes it; about uniform on [0, 1] for a
+        seam that is an ordinary step; 1: larger than every step of the loop, a jump).
+    """
     T = motion.num_frames
     steps = _joint_steps(motion, body, 2 * T)  # (2T - 1,)
     seam = float(steps[T - 1])
     own = np.concatenate([steps[: T - 1], steps[T:]])
-    return {"seam": seam, "p95": float(np.percentile(own, 95)), "median": float(np.median(own))}
+    return {
+        "seam": seam,
+        "median": float(np.median(own)),
+        "p95": float(np.percentile(own, 95)),
+        "rank": float(np.mean(own < seam)),
+    }

@@ -17,7 +17,8 @@ model is good at from what the path prescribes:
 
 Headings are angles about +Y with 0 along +Z and +90 degrees along +X (SMPL: facing +Z,
 left at +X), so a path that turns left curves towards +X. Path files are read by
-``mrlib.sampling.constraints.path_files``.
+``mrlib.sampling.constraints.path_files``; how well a motion walks a path is measured by
+``mrlib.sampling.constraints.path_measure``.
 """
 
 from __future__ import annotations
@@ -43,7 +44,6 @@ __all__ = [
     "path_seconds",
     "MAX_PATH_SECONDS",
     "follow_path",
-    "path_error",
     "ground_track",
     "yaw_matrix",
     "heading_of",
@@ -278,17 +278,31 @@ def parse_path(spec: str | Path | GroundPath) -> GroundPath:
 
 
 # -- following ----------------------------------------------------------------------------
+def _low_pass(x: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian low-pass of ``x (T, D)`` over time, ``sigma`` frames, with the ends
+    extended by point reflection (``2 x[0] - x[k]``), so a walk at a steady pace keeps
+    that pace up to its first and last frames (holding the ends, the travel would
+    start and end at half speed and lag the pelvis there)."""
+    n = min(len(x) - 1, int(4 * sigma) + 1)
+    if n < 1:
+        return gaussian_filter1d(x, sigma, axis=0, mode="nearest")
+    head = 2 * x[0] - x[n:0:-1]
+    tail = 2 * x[-1] - x[-2 : -n - 2 : -1]
+    y = gaussian_filter1d(np.concatenate([head, x, tail]), sigma, axis=0, mode="nearest")
+    return y[n : n + len(x)]
+
+
 @checked()
 def ground_track(motion: Motion, body=None, smooth_s: float = 0.5) -> dict[str, np.ndarray]:
     """The pelvis on the ground and its travel: ``pelvis (T, 2)``, ``travel (T, 2)``
-    (low-passed, ``smooth_s`` seconds), ``heading (T,)`` of travel (unwrapped; held
+    (low-passed, ``smooth_s`` seconds, the ends extended by point reflection), ``heading (T,)`` of travel (unwrapped; held
     where slower than ``MIN_TRAVEL_SPEED``), ``arc (T,)`` travelled distance and
     ``speed (T,)`` m/s."""
     from mrlib.representation.body import resolve_body
 
     body = resolve_body(body, shared=True)
     pel = motion.trans[:, [0, 2]].astype(np.float64) + pelvis_rest(motion, body)[[0, 2]]
-    travel = gaussian_filter1d(pel, smooth_s * motion.fps, axis=0, mode="nearest")
+    travel = _low_pass(pel, smooth_s * motion.fps)
     v = np.gradient(travel, axis=0) * motion.fps
     speed = np.linalg.norm(v, axis=1)
     moving = speed > MIN_TRAVEL_SPEED
@@ -377,18 +391,6 @@ def follow_path(
 
         out = cleanup_foot_contacts(out, body)
     return out
-
-
-@checked(path=check_path_spec)
-def path_error(motion: Motion, path: GroundPath | str, body=None) -> dict[str, float]:
-    """Distance of the pelvis ground projection to ``path``: ``mean_m``, ``max_m``."""
-    from mrlib.representation.body import resolve_body
-
-    path = parse_path(path)
-    body = resolve_body(body, shared=True)
-    pel = motion.trans[:, [0, 2]].astype(np.float64) + pelvis_rest(motion, body)[[0, 2]]
-    d = path.distance(pel)
-    return {"mean_m": float(d.mean()), "max_m": float(d.max())}
 
 
 @checked()
