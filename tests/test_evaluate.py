@@ -82,7 +82,11 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
     assert by["noisier"]["jerk_ratio"] > by["dummy"]["jerk_ratio"] > 1.0
     assert by["noisier"]["local_div"] > by["dummy"]["local_div"]
     assert by["calib: played twice"]["coverage_pct"] == 100.0
+    assert by["calib: played twice"]["coverage_tight_pct"] == 100.0
     assert by["calib: frozen first frame"]["jerk"] == 0.0
+    # the tight threshold never covers more than the loose one, and is a column of its own
+    assert all(r["coverage_tight_pct"] <= r["coverage_pct"] for r in res.rows)
+    assert "Coverage (tight eps) %" in res.to_markdown()
     # the same seeds give the same numbers
     again = ev.evaluate(
         {"dummy": noisy_crops(refs, 0.01)}, refs, reconstructions={"dummy": {"arc": ref}}, **kw

@@ -374,8 +374,10 @@ def check_demo_folder(out: Path, *, overwrite: bool) -> None:
 def headline_table(result) -> str:
     """Coverage, condition fidelity and foot skating per method (mean over labels),
     the model first and then the calibration rows, as a Markdown table."""
+    eps = (result.settings.eps, result.settings.tight_eps)
     keys = (
-        ("coverage_pct", "Coverage %", "{:.1f}"),
+        ("coverage_pct", f"Coverage eps {eps[0]:g} %", "{:.1f}"),
+        ("coverage_tight_pct", f"Coverage eps {eps[1]:g} %", "{:.1f}"),
         ("cond_fidelity_pct", "Cond. fidelity %", "{:.1f}"),
         ("skate_pct", "Foot skating %", "{:.1f}"),
         ("skate_speed", "Skate speed m/s", "{:.3f}"),

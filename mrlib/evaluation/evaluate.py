@@ -140,7 +140,7 @@ def score_motions(
             the reconstruction error.
 
     Returns:
-        ``coverage_pct``, ``global_div``, ``local_div``, ``recon_error`` (NaN without a
+        ``coverage_pct``, ``coverage_tight_pct`` (at ``tight_eps``), ``global_div``, ``local_div``, ``recon_error`` (NaN without a
         reconstruction), ``cond_fidelity_pct`` (NaN unless multi-label), the entries of
         ``mrlib.metrics.plausibility.plausibility_report`` with shares as ``*_pct``, ``samples``
         and ``frames`` (mean length).
@@ -172,6 +172,9 @@ def score_motions(
         "frames": float(np.mean([len(m) for m in gens])),
     }
     row["coverage_pct"] = 100.0 * mt.coverage(g_feats, r_feats, window=s.coverage_window, eps=s.eps)
+    row["coverage_tight_pct"] = 100.0 * mt.coverage(
+        g_feats, r_feats, window=s.coverage_window, eps=s.tight_eps
+    )
     row["global_div"] = float(mt.global_diversity(g_feats, r_feats, tmin=s.tmin))
     row["local_div"] = mt.local_diversity(g_feats, r_feats, window=s.local_window)
     row["recon_error"] = math.nan

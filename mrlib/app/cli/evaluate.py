@@ -37,6 +37,13 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
     p.add_argument("checkpoint", type=Path)
     p.add_argument("--samples", type=int, default=200, help="samples per sequence [default: 200]")
     p.add_argument("--eps", type=float, default=2.0, help="coverage threshold [default: 2.0]")
+    p.add_argument(
+        "--tight-eps",
+        type=float,
+        default=1.0,
+        help="a tighter coverage threshold reported beside it [default: 1.0; at 2.0 a frozen "
+        "frame of a slow clip can cover it]",
+    )
     p.add_argument("--seed", type=parse_seed, default=0)
     p.add_argument(
         "--baseline",
@@ -114,6 +121,7 @@ def cmd_evaluate(args) -> int:
         settings=EvaluationSettings(
             num_samples=args.samples,
             eps=args.eps,
+            tight_eps=args.tight_eps,
             seed=args.seed,
             fine_noise=sampler.fine_noise,
             guidance=sampler.guidance,
