@@ -2,7 +2,8 @@
 
 Run as a script by :mod:`mrlib.speech.espeak`, one process per text: the library keeps
 state between utterances (the same text spoken twice in one process gives slightly
-different samples), so a fresh process is what makes synthesis reproducible. Standard
+different samples), so a fresh process, with the library's random numbers seeded, is what
+makes synthesis reproducible. Standard
 library only, so the process starts in milliseconds.
 
 Usage: ``python _espeak_worker.py LIB DATA VOICE SPEED PITCH SSML < text``; writes the
@@ -18,6 +19,7 @@ INITIALIZE_DONT_EXIT = 0x8000  # report errors instead of calling exit()
 RATE, PITCH = 1, 3
 CHARS_UTF8, SSML, ENDPAUSE = 1, 0x10, 0x1000
 POS_CHARACTER = 1
+SEED = 1  # of eSpeak NG's random numbers (the breath noise of some voice variants)
 
 
 class Voice(ctypes.Structure):
@@ -90,6 +92,10 @@ def main(argv: list[str]) -> int:
     lib.espeak_SetParameter(PITCH, int(pitch), 0)
     buf = text + b"\0"
     flags = CHARS_UTF8 | ENDPAUSE | (SSML if ssml == "1" else 0)
+    # The voice variants with breath (en-us+f3, en-gb-x-rp+f2) add noise from eSpeak NG's
+    # own random numbers, seeded from the clock: a fixed seed makes every run the same.
+    if hasattr(lib, "espeak_ng_SetRandSeed"):
+        lib.espeak_ng_SetRandSeed(ctypes.c_long(SEED))
     if lib.espeak_Synth(buf, len(buf), 0, POS_CHARACTER, 0, flags, None, None) != 0:
         return 5
     lib.espeak_Synchronize()

@@ -14,8 +14,10 @@ a formant synthesiser. Two back ends give the same voices:
 ``backend="auto"`` takes the library when the wheel is installed, else the program.
 The library speaks in a short-lived child process (``_espeak_worker.py``, standard
 library only, ~20 ms a text): it keeps state between utterances, so the same text
-spoken twice in one process comes out slightly different, while a fresh process gives
-the same samples every time, as the program does.
+spoken twice in one process comes out slightly different, while a fresh process with
+eSpeak NG's random numbers seeded (they add the breath noise of the female variants,
+``en-us+f3``, and are seeded from the clock otherwise) gives the same samples every time.
+The program cannot be seeded: its breath variants differ from run to run.
 """
 
 from __future__ import annotations
