@@ -34,9 +34,11 @@ def plot_crossover_evidence(evidence: Any, axes: Any = None):
     Args:
         axes: two matplotlib Axes (low-pass, residual); a new figure when None.
     Returns:
-        the two Axes.
+        the two Axes; the legend (bar = mean, dot = one sample) is the figure's, under
+        the panels.
     """
     import matplotlib.pyplot as plt
+    from matplotlib.patches import Patch
 
     e = evidence
     if axes is None:
@@ -55,14 +57,21 @@ def plot_crossover_evidence(evidence: Any, axes: Any = None):
         ps = e.per_sample[:, 2 * k : 2 * k + 2]
         jitter = np.linspace(-0.15, 0.15, len(ps)) if len(ps) > 1 else np.zeros(1)
         for j in range(2):
-            ax.scatter(j + jitter, ps[:, j], s=7, color="k", zorder=3)
+            ax.scatter(j + jitter, ps[:, j], s=7, color="k", zorder=3,
+                       label="dot: one crossover sample" if j == 0 else None)  # fmt: skip
         ax.set_xticks([0, 1], [f"A = {a}\n(coarse, 1-{e.level})", f"B = {b}\n(fine)"])
         ax.set_title(f"{title}\n({note})", fontsize=9)
-        ax.set_ylabel(f"distance to {e.reference}")
-    axes[0].figure.suptitle(
-        f"crossover at level {e.level}: bands split at {e.cutoff_hz:.1f} Hz",
-        fontsize=10,
-    )
+        # 6D rotation features (mrlib.metrics.windows.metric_features) have no physical unit
+        ax.set_ylabel(f"distance to {e.reference}\n(6D-rotation feature units)")
+    fig = axes[0].figure
+    fig.suptitle(f"crossover at level {e.level}: bands split at {e.cutoff_hz:.1f} Hz", fontsize=10)
+    # under the panels: a legend inside one of them would cover its bars or dots
+    handles, labels = axes[0].get_legend_handles_labels()
+    handles = [Patch(color="0.6"), *handles]
+    labels = [f"bar: mean over {len(e.per_sample)} samples", *labels]
+    constrained = type(fig.get_layout_engine()).__name__ == "ConstrainedLayoutEngine"
+    loc = "outside lower center" if constrained else "lower center"
+    fig.legend(handles, labels, loc=loc, ncol=2, fontsize=8, frameon=False)
     return axes
 
 

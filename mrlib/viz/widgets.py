@@ -298,7 +298,10 @@ def interactive_restyle(
                 ax.plot(c.trans[:, 0], c.trans[:, 2], label=name)
         ax.set(xlabel="x (m)", ylabel="z (m)", title="root on the ground")
         ax.set_aspect("equal", adjustable="datalim")
-        ax.legend(fontsize=8)
+        below = dict(
+            fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, frameon=False
+        )  # under the axes: inside, a legend hides a path or a bar
+        ax.legend(**below)
         ax = fig.add_subplot(grid[rows, 1])
         ks = np.asarray(shares.levels)
         ax.bar(ks, 100 * shares.source_share, color="tab:blue", label="input")
@@ -307,7 +310,7 @@ def interactive_restyle(
         ax.axvline(k, color="k", lw=1, ls="--")
         ax.set(xlabel="level k", ylabel="share (%)", ylim=(0, 100), xticks=ks,
                title=f"how much input, how much label (keep {keep.value})")  # fmt: skip
-        ax.legend(fontsize=8, loc="lower right")
+        ax.legend(**below)
         fig.suptitle(title, fontsize=10)
         fig.tight_layout()
         show_figure(out, fig)
