@@ -63,7 +63,6 @@ def test_shrunk_images_keep_every_flat_colour():
 
     import numpy as np
     from PIL import Image
-
     from run_notebooks import shrink_images
 
     y, x = np.mgrid[0:200, 0:300]
