@@ -14,7 +14,7 @@ export PYVISTA_OFF_SCREEN ?= true
 export PYVISTA_JUPYTER_BACKEND ?= static
 export VTK_DEFAULT_OPENGL_WINDOW ?= vtkEGLRenderWindow
 
-.PHONY: env demo test lint format lab notebooks bench clean
+.PHONY: env demo test lint format lab notebooks bench clean blender-addon
 
 $(READY): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -33,16 +33,16 @@ demo: $(READY)
 ## core: one pytest-xdist worker per CPU, whole test files (or the notebooks) per worker.
 TEST_JOBS ?= auto
 test: $(READY)
-	$(BIN)/ruff check mrlib tests bench tools conftest.py notebooks/conftest.py
+	$(BIN)/ruff check mrlib tests bench tools blender conftest.py notebooks/conftest.py
 	MRLIB_QUICK=1 MRLIB_CACHE_DIR=$${MRLIB_TEST_CACHE:-$$(mktemp -d)} $(BIN)/python -m pytest -n $(TEST_JOBS) --nbmake --nbmake-timeout=900 --durations=10 -p no:cacheprovider tests notebooks
 
 lint: $(READY)
-	$(BIN)/ruff check mrlib tests bench tools conftest.py notebooks/conftest.py
-	$(BIN)/ruff format --check mrlib tests bench tools conftest.py notebooks/conftest.py
+	$(BIN)/ruff check mrlib tests bench tools blender conftest.py notebooks/conftest.py
+	$(BIN)/ruff format --check mrlib tests bench tools blender conftest.py notebooks/conftest.py
 
 format: $(READY)
-	$(BIN)/ruff format mrlib tests bench tools conftest.py notebooks/conftest.py
-	$(BIN)/ruff check --fix mrlib tests bench tools conftest.py notebooks/conftest.py
+	$(BIN)/ruff format mrlib tests bench tools blender conftest.py notebooks/conftest.py
+	$(BIN)/ruff check --fix mrlib tests bench tools blender conftest.py notebooks/conftest.py
 
 ## Execute every notebook in place at its default budget, so the committed files carry
 ## their figures (minutes each on 2 CPU cores; models are shared through mrlib's cache).
@@ -58,6 +58,11 @@ bench: $(READY)
 	$(BIN)/python bench/load_speed.py
 	$(BIN)/python bench/metrics_speed.py
 	$(BIN)/python bench/train_speed.py
+
+## The Blender add-on (blender/mrlib_addon/) as the zip that Blender installs: writes
+## dist/mrlib_addon.zip (standard library only, no .venv needed; docs/blender.md).
+blender-addon:
+	$(PYTHON) tools/make_blender_addon.py
 
 clean:
 	rm -rf $(VENV) outputs .pytest_cache
