@@ -87,6 +87,10 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
     # the tight threshold never covers more than the loose one, and is a column of its own
     assert all(r["coverage_tight_pct"] <= r["coverage_pct"] for r in res.rows)
     assert "Coverage (tight eps) %" in res.to_markdown()
+    from dataclasses import replace
+
+    same = ev.EvaluationResult(res.rows, replace(res.settings, tight_eps=res.settings.eps))
+    assert "Coverage (tight eps) %" not in same.to_markdown()  # no column repeating another
     # the same seeds give the same numbers
     again = ev.evaluate(
         {"dummy": noisy_crops(refs, 0.01)}, refs, reconstructions={"dummy": {"arc": ref}}, **kw

@@ -83,6 +83,11 @@ def test_the_number_checker_sees_an_unprinted_figure(tmp_path):
     assert all(n.why for n in notebook_claims.numbers(path))
 
 
+def _offset(lines: list[str], line: int, col: int) -> int:
+    """The character offset of an ast position (its column counts UTF-8 bytes)."""
+    return sum(len(x) for x in lines[: line - 1]) + len(lines[line - 1].encode()[:col].decode())
+
+
 def _plant(source: str) -> str | None:
     """The cell's source with its first quick ``check``'s verdict negated, or None."""
     tree = ast.parse(notebook_claims._python(source))
@@ -95,16 +100,8 @@ def _plant(source: str) -> str | None:
             if any(k.arg == "quick" and getattr(k.value, "value", False) for k in node.keywords):
                 holds = node.args[1]
                 lines = source.splitlines(keepends=True)
-
-                def at(line: int, col: int) -> int:  # ast columns count UTF-8 bytes
-                    return sum(len(x) for x in lines[: line - 1]) + len(
-                        lines[line - 1].encode()[:col].decode()
-                    )
-
-                start, end = (
-                    at(holds.lineno, holds.col_offset),
-                    at(holds.end_lineno, holds.end_col_offset),
-                )
+                start = _offset(lines, holds.lineno, holds.col_offset)
+                end = _offset(lines, holds.end_lineno, holds.end_col_offset)
                 return source[:start] + f"not ({source[start:end]})" + source[end:]
     return None
 

@@ -197,10 +197,12 @@ class EvaluationResult:
 
     def _columns(self) -> list[tuple[str, str, str]]:
         """Metric columns with at least one value (reconstruction and fidelity are
-        often absent)."""
+        often absent); the tight coverage only where its eps differs from ``eps``."""
+        same_eps = self.settings.tight_eps == self.settings.eps
         return [
             c for c in METRIC_COLUMNS
             if any(not math.isnan(float(r.get(c[0], math.nan))) for r in self.rows)
+            and not (same_eps and c[0] == "coverage_tight_pct")
         ]  # fmt: skip
 
     def to_markdown(self) -> str:

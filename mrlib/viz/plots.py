@@ -436,9 +436,13 @@ def plot_evaluation(result: Any, path: str | Path | None = None, *, overwrite: b
             if not len(v):
                 continue
             ax.bar(i, v.mean(), width=0.7, **styles[m])
-            ax.errorbar(i, v.mean(), yerr=v.std(), color="0.2", capsize=3, lw=1, zorder=2)
+            lo, hi = v.mean() - v.std(), v.mean() + v.std()
+            if key.endswith("_pct"):  # a share: the whisker stops at what is possible
+                lo, hi = max(lo, 0.0), min(hi, 100.0)
+            yerr = [[v.mean() - lo], [hi - v.mean()]]
+            ax.errorbar(i, v.mean(), yerr=yerr, color="0.2", capsize=3, lw=1, zorder=2)
             ax.scatter(i + rng.uniform(-0.18, 0.18, len(v)), v, s=14, color="k", zorder=3)
-            top = max(top, float(v.max()), float(v.mean() + v.std()))
+            top = max(top, float(v.max()), float(hi))
         title = headers[key]
         if key == "coverage_pct":
             title += f" (eps = {result.settings.eps:g})"
