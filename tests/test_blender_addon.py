@@ -19,6 +19,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import warnings
 import zipfile
 from pathlib import Path
 
@@ -458,6 +459,59 @@ def _fk(L: np.ndarray) -> np.ndarray:
     for j, p in enumerate(PARENTS):
         G[:, j] = L[:, j] if p < 0 else G[:, p] @ L[:, j]
     return G
+
+
+def _onto_rig_and_back(rig_path, motion_npz, tmp_path, stem, joint_map=None):
+    """The add-on's path: the bridge's ``onto-rig`` (as the add-on runs it), then the BVH
+    it writes read by mrlib's own loader, as mrlib reads any clip of the rig."""
+    from mrlib.io import load_motion
+
+    out, bvh = tmp_path / f"{stem}.json", tmp_path / f"{stem}.bvh"
+    argv = ["onto-rig", str(rig_path), str(motion_npz), "--out", str(out), "--bvh", str(bvh)]
+    if joint_map is not None:
+        argv += ["--joint-map", str(joint_map)]
+    assert _bridge().main(argv) == 0
+    return core.RigMotion.from_json(out), load_motion(bvh)
+
+
+@pytest.mark.parametrize("convention", ["mixamo", "character_creator"])
+def test_the_retarget_onto_a_non_smpl_rig_keeps_smpls_joint_positions(
+    convention, walks, body, tmp_path
+):
+    """The issue's acceptance line: a SMPL motion put onto a Mixamo-named and a Character
+    Creator-named rig (``tests/rigs.py``: fingers, end joints; CC's root on the ground, split
+    hip, twist, share and face bones, bone-aligned frames) reads back with mrlib's loader
+    within 3 cm of the SMPL motion's joints. A wrong joint map (legs swapped) does not."""
+    import rigs
+
+    from mrlib.io import save_motion
+    from mrlib.io.bvh import write_bvh
+    from mrlib.io.retarget import RetargetWarning
+
+    sad, happy = walks
+    rig_path = write_bvh(tmp_path / "rig.bvh", rigs.write_rig(sad, rigs.RIGS[convention], body))
+    happy_npz = save_motion(happy, tmp_path / "happy.npz")
+    want = body.motion_joints(happy)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RetargetWarning)  # read back without a complaint
+        m, back = _onto_rig_and_back(rig_path, happy_npz, tmp_path, "onto")
+    assert len(m.mapped) == 24 and back.num_frames == happy.num_frames
+    err_cm = 100 * float(np.linalg.norm(body.motion_joints(back) - want, axis=-1).max())
+    print(f"{convention}: max joint-position error {err_cm:.3f} cm")
+    assert err_cm <= 3.0, f"{convention}: {err_cm:.2f} cm"
+
+    # the legs' sides swapped in the map the bridge is given: far beyond the bound
+    legs = [f"{s}_{j}" for s in ("left", "right") for j in ("hip", "knee", "ankle", "foot")]
+    other = dict(zip(legs, legs[4:] + legs[:4], strict=True))
+    swapped = {other.get(smpl, smpl): bone for smpl, bone in m.mapped.items()}
+    jmap = tmp_path / "swapped.json"
+    jmap.write_text(json.dumps({"name": "swapped", "map": swapped}))
+    with pytest.warns(RetargetWarning, match="no person holds"):
+        _, wrong = _onto_rig_and_back(rig_path, happy_npz, tmp_path, "wrong", jmap)
+    wrong_cm = 100 * float(np.linalg.norm(body.motion_joints(wrong) - want, axis=-1).max())
+    print(f"{convention}, legs swapped: {wrong_cm:.1f} cm")
+    assert wrong_cm > 10.0
 
 
 def test_the_bridge_error_is_one_line(tmp_path, capsys):

@@ -15,8 +15,13 @@ Commands:
 
     * mapped bones: ``R_src(j) = A^T G_j C_j^T`` (their world rotations are exactly the ones
       that mrlib reads back as ``G_j``);
+    * bones between a SMPL joint's position and its rotation (Character Creator's Hip
+      above Pelvis, a neck or limb twist bone mrlib turns the joint with) turn with the
+      rotation's bone, at the rotation relative to it they have on average in ``RIG.bvh``
+      (the next mapped joints sit where mrlib's reading puts them only then);
     * bones no SMPL joint drives (fingers, twist and helper bones, a root above the hips)
-      keep their rest rotation relative to their parent, as mrlib's reading ignores them;
+      keep the rotation relative to their parent they have on average in ``RIG.bvh``
+      (their rest one when it holds the rest pose), as mrlib's reading ignores them;
     * the root moves so that the hips are where mrlib's pelvis puts them:
       ``P_hips = A^T (trans + J_pelvis - G_pelvis delta) / (s unit)``, with ``J_pelvis``
       of the body mrlib fitted to the rig, its pelvis offset ``delta`` and scale ``s``.
@@ -77,6 +82,15 @@ def _matrix_to_quat(R: np.ndarray) -> np.ndarray:
     return q.reshape(R.shape[:-2] + (4,))
 
 
+def _mean_relative(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """The rotation ``M`` closest to ``Ra^T Rb`` on average over frames (``(T, 3, 3)``
+    each, or ``Ra`` one ``(3, 3)``): the projection of their mean onto the rotations."""
+    m = (np.swapaxes(Ra, -1, -2) @ Rb).reshape(-1, 3, 3).mean(0)
+    u, _, vt = np.linalg.svd(m)
+    d = np.sign(np.linalg.det(u @ vt))
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
 def onto_rig(rig_bvh: str | Path, motion_path: str | Path, joint_map: str | None = None) -> dict:
     """The rig motion (see the module docstring) and the BVH of the rig, as
     ``{"json": dict, "bvh": mrlib.io.bvh.BVH}``."""
@@ -84,7 +98,7 @@ def onto_rig(rig_bvh: str | Path, motion_path: str | Path, joint_map: str | None
     from mrlib.io.axes import up_axis_rotation
     from mrlib.io.bodyfit import default_body, rest_joints_for
     from mrlib.io.bvh import BVH, read_bvh
-    from mrlib.io.bvh.kinematics import forward_kinematics, matrix_to_euler
+    from mrlib.io.bvh.kinematics import bvh_forward_kinematics, forward_kinematics, matrix_to_euler
     from mrlib.io.jointmap import validate_map
     from mrlib.io.rest_alignment import rotation_sources
     from mrlib.io.retarget import retarget_bvh
@@ -107,18 +121,33 @@ def onto_rig(rig_bvh: str | Path, motion_path: str | Path, joint_map: str | None
     for j in range(NUM_JOINTS):
         G[:, j] = L_smpl[:, j] if PARENTS[j] < 0 else G[:, PARENTS[j]] @ L_smpl[:, j]
 
-    # the rig's global rotations (file axes): mapped bones inverted, the others at rest
-    # relative to their parents
+    # the rig's global rotations (file axes): mapped bones inverted; the others keep their
+    # rotation relative to the bone they turn with that they have on average in RIG.bvh
     Rg = np.empty((T, Js, 3, 3))
     known = np.zeros(Js, bool)
     for j in range(NUM_JOINTS):
         if src[j] >= 0:
             Rg[:, rot[j]] = A.T @ G[:, j] @ C[j].T
             known[rot[j]] = True
+    R_clip, _ = bvh_forward_kinematics(bvh)
+    # a SMPL joint whose position and rotation come from different bones (Character
+    # Creator's Hip above Pelvis, a neck twist bone): the bones from the one down to the
+    # other turn with the rotation's bone, as mrlib's reading has it
+    for j in range(NUM_JOINTS):
+        way = [int(rot[j])] if src[j] >= 0 else []
+        while way and way[-1] != src[j]:  # up from the rotation's bone to the position's
+            way = way + [sk.parents[way[-1]]] if sk.parents[way[-1]] >= 0 else []
+        for k in way[1:]:
+            if not known[k]:
+                Rg[:, k] = Rg[:, rot[j]] @ _mean_relative(R_clip[:, rot[j]], R_clip[:, k])
+                known[k] = True
     for k in range(Js):  # parents precede children in a BVH
         if not known[k]:
             p = sk.parents[k]
-            Rg[:, k] = np.eye(3) if p < 0 else Rg[:, p]
+            if p < 0:
+                Rg[:, k] = _mean_relative(np.eye(3), R_clip[:, k])
+            else:
+                Rg[:, k] = Rg[:, p] @ _mean_relative(R_clip[:, p], R_clip[:, k])
     L = Rg.copy()
     for k in range(Js):
         p = sk.parents[k]
