@@ -209,7 +209,10 @@ def test_cancel_interrupts_the_child_and_it_stops_cleanly(tmp_path):
     marker = tmp_path / "stopped"
     child = textwrap.dedent(
         f"""
-        import sys, time
+        import signal, sys, time
+        # as mrlib's training does (a handler of its own): a parent that ignores SIGINT (a
+        # job started in the background by a shell) would otherwise pass that on
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         print("started", flush=True)
         try:
             while True:

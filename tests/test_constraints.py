@@ -570,6 +570,24 @@ def test_sample_cli_constraints(tmp_path, clips):
     assert main([*base, "--continue", files[0], "--seconds", "1"]) == 0
     assert main(["sample", ckpt, "--parts", "upper=wave,lower=walk_sad", "--out", str(out)]) == 0
     assert main(["sample", ckpt, "--in-step", "--out", str(out)]) == 1  # needs --parts
+    assert main([*base, "--loop", "--seconds", "2", "--fps", "30"]) == 1  # label samples only
+    rate = tmp_path / "rate"
+    fps = [
+        "sample",
+        ckpt,
+        "--label",
+        "walk_sad",
+        "--fps",
+        "25",
+        "--seconds",
+        "2",
+        "--out",
+        str(rate),
+    ]
+    assert main(fps) == 0
+    from mrlib.io import load_motion as _load
+
+    assert _load(next(rate.glob("*.npz"))).fps == 25.0
     step = ["sample", ckpt, "--parts", "upper=wave,lower=walk_sad", "--in-step"]
     assert main([*step, "--out", str(tmp_path / "in_step")]) == 0
     sharp = tmp_path / "sharp"

@@ -302,3 +302,48 @@ def test_ik_cleanup_of_a_one_minute_clip_is_vectorised(body):
     t = time.perf_counter()
     cleanup_foot_contacts(m, body)
     assert time.perf_counter() - t < 5.0  # a per-frame optimisation takes minutes here
+
+
+def test_samples_at_another_frame_rate(model):
+    """Sampler(fps=...): the draw at the model's rate, raised by splines, then cleaned."""
+    for bad in (0, -5.0, float("inf"), "30", True, 5000.0):
+        with pytest.raises(MotionValueError, match="fps"):
+            Sampler(fps=bad)
+    length = 30
+    low = generate(model, "walk_sad", length=length, seed=3, sampler=Sampler(fix_contacts=False))
+    high = generate(
+        model,
+        "walk_sad",
+        length=length,
+        seed=3,
+        sampler=Sampler(fps=3 * model.fps, fix_contacts=False),
+    )
+    assert high.fps == 3 * model.fps and high.num_frames == 3 * (length - 1) + 1
+    assert high.meta["sampler"]["fps"] == 3 * model.fps and low.meta["sampler"]["fps"] == model.fps
+    # the spline passes through the model's frames: every third frame is the draw itself
+    np.testing.assert_allclose(high.trans[::3], low.trans, atol=1e-5)
+    cleaned = generate(model, "walk_sad", length=length, seed=3, sampler=Sampler(fps=3 * model.fps))
+    assert cleaned.fps == 3 * model.fps and cleaned.contacts.shape == (high.num_frames, 6)
+
+
+def test_smooth_resampling_raises_a_rate_without_bends():
+    """Slerp and linear translation bend the motion at every input frame, which shows as
+    jerk at the higher rate; the cubic spline goes through the same frames without them."""
+    t = np.arange(16) / 10.0  # a 10-fps clip: a smooth swing and a curved root path
+    poses = np.zeros((16, 24, 3), np.float32)
+    poses[:, 1, 0] = 0.6 * np.sin(2 * np.pi * 0.7 * t)
+    trans = np.stack([np.sin(t), 0.9 + 0.02 * np.cos(3 * t), t], -1).astype(np.float32)
+    clip = Motion(poses=poses, trans=trans, betas=np.zeros(10, np.float32), fps=10.0)
+
+    def jerk(m):
+        return np.abs(np.diff(m.poses[:, 1, 0], 3)).mean() * m.fps**3
+
+    lin, spline = clip.resample(40.0), clip.resample(40.0, smooth=True)
+    assert lin.num_frames == spline.num_frames == 61
+    np.testing.assert_allclose(spline.poses[::4], clip.poses, atol=1e-5)  # through the frames
+    np.testing.assert_allclose(spline.trans[::4], clip.trans, atol=1e-5)
+    exact = (
+        0.6 * (2 * np.pi * 0.7) ** 3 * np.abs(np.cos(2 * np.pi * 0.7 * np.arange(61) / 40.0)).mean()
+    )
+    assert abs(jerk(spline) - exact) < 0.5 * exact < jerk(lin) - exact  # slerp: far more jerk
+    assert clip.resample(10.0, smooth=True).num_frames == 16

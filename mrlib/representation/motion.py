@@ -187,12 +187,17 @@ class Motion:
             return 2**62
         return int(np.floor(last + 1e-9)) + 1
 
-    def resample(self, fps: float) -> Motion:
+    def resample(self, fps: float, *, smooth: bool = False) -> Motion:
         """Resample to ``fps``: rotations by slerp, translation linearly, contact labels
         by nearest frame. The first frame is kept; the last output frame is the last
         one not after the input's end. A resampling that would make more than
         ``MAX_RESAMPLE_FRAMES`` frames (and more than the clip has) is refused before
-        anything is allocated."""
+        anything is allocated.
+
+        ``smooth=True`` interpolates rotations (unit quaternions) and translation with
+        cubic splines instead (:meth:`at_frames`): raising a generated clip's rate, slerp
+        bends the motion at every input frame, which shows as jerk at the higher rate;
+        the spline passes through the same frames without the bends."""
         n_out = self.resampled_frames(fps)
         if abs(fps - self.fps) < 1e-9:
             return self.replace()
@@ -211,12 +216,15 @@ class Motion:
                 "into pieces, or check its frame rate"
             )
         t = np.arange(n_out) * (self.fps / fps)  # positions in input frames
-        return self.at_frames(t).replace(fps=float(fps))
+        return self.at_frames(t, smooth=smooth).replace(fps=float(fps))
 
-    def at_frames(self, t) -> Motion:
+    def at_frames(self, t, *, smooth: bool = False) -> Motion:
         """The motion at fractional frame positions ``t`` (a 1-D array, clipped to the
         clip): rotations by slerp between the neighbouring frames, translation linearly,
-        contact labels from the nearer frame. Same frame rate; ``len(t)`` frames."""
+        contact labels from the nearer frame. Same frame rate; ``len(t)`` frames.
+        ``smooth=True``: rotations and translation by cubic splines through every frame
+        (quaternions kept on one hemisphere, then normalised; clips of under 4 frames by
+        slerp)."""
         try:
             t = np.asarray(t, np.float64).reshape(-1)
         except (TypeError, ValueError):
@@ -230,6 +238,8 @@ class Motion:
         i0 = np.clip(np.floor(t).astype(np.int64), 0, T - 1)
         i1 = np.clip(i0 + 1, 0, T - 1)
         w = t - i0
+        if smooth and T >= 4:
+            return self._spline_at(t, np.where(w < 0.5, i0, i1))
         quats = roma.rotvec_to_unitquat(torch.from_numpy(self.poses.astype(np.float64)))
         poses = np.empty((len(t), NUM_JOINTS, 3), np.float32)
         for a in range(0, len(t), _CHUNK):  # in pieces: temporaries stay small
@@ -243,6 +253,20 @@ class Motion:
         if self.contacts is not None:
             contacts = self.contacts[np.where(w < 0.5, i0, i1)]
         return self.replace(poses=poses, trans=trans, contacts=contacts)
+
+    def _spline_at(self, t: np.ndarray, nearest: np.ndarray) -> Motion:
+        from scipy.interpolate import CubicSpline
+
+        q = roma.rotvec_to_unitquat(torch.from_numpy(self.poses.astype(np.float64))).numpy()
+        flip = np.cumprod(np.where((q[1:] * q[:-1]).sum(-1) < 0, -1.0, 1.0), axis=0)
+        q[1:] *= flip[..., None]  # each frame on the hemisphere of the one before
+        frames = np.arange(self.num_frames, dtype=np.float64)
+        qt = CubicSpline(frames, q, axis=0)(t)
+        qt /= np.linalg.norm(qt, axis=-1, keepdims=True)
+        poses = roma.unitquat_to_rotvec(torch.from_numpy(qt)).numpy().astype(np.float32)
+        trans = CubicSpline(frames, np.asarray(self.trans, np.float64), axis=0)(t)
+        contacts = None if self.contacts is None else self.contacts[nearest]
+        return self.replace(poses=poses, trans=trans.astype(self.trans.dtype), contacts=contacts)
 
 
 def check_rotations(what: str, poses: np.ndarray) -> None:

@@ -235,7 +235,7 @@ def sampler_record(
     return {
         "seed": seed, "index": index, "fine_noise": sampler.fine_noise,
         "guidance": sampler.guidance, "labels": list(model.labels),
-        "label_weights": W.tolist(),
+        "label_weights": W.tolist(), "fps": sampler.fps or model.fps,
     }  # fmt: skip
 
 
@@ -287,6 +287,8 @@ def _label_samples(
     label = condition.name(model)
     names = [f"{label}_seed{seed}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
+    if sampler.fps is not None and sampler.fps != model.fps:  # raised before the feet are planted
+        motions = [m.resample(sampler.fps, smooth=True) for m in motions]
     for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)
         m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
     if sampler.fix_contacts:

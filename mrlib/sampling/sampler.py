@@ -9,6 +9,7 @@ import math
 from dataclasses import dataclass
 
 from mrlib.errors import MotionValueError
+from mrlib.representation.motion import MAX_FPS
 
 __all__ = ["Sampler", "raw_sampler", "FINE_NOISE", "GUIDANCE", "MAX_FINE_NOISE", "MAX_GUIDANCE"]
 
@@ -46,11 +47,18 @@ class Sampler:
             (``mrlib.sampling.cleanup.cleanup_foot_contacts``, on the floor of the
             training clips); False for the generator's raw output (clean it yourself
             with other options: ``cleanup_foot_contacts(m, body, ...)``).
+        fps: the frame rate of the output; None: the model's. A model trained at a lower
+            rate than its clips (the ``demo`` preset: 15 fps) draws at its own rate, and
+            the raw draw is raised to ``fps`` by cubic splines
+            (``Motion.resample(fps, smooth=True)``) before the clean-up plants the feet at
+            that rate. ``length`` still counts the model's frames. Used by
+            ``mrlib.generate`` (``mrlib sample --fps``).
     """
 
     fine_noise: float = FINE_NOISE
     guidance: float = GUIDANCE
     fix_contacts: bool = True
+    fps: float | None = None
 
     def __post_init__(self):
         for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
@@ -62,6 +70,17 @@ class Sampler:
             object.__setattr__(self, name, float(v))
         if not isinstance(self.fix_contacts, bool):
             raise MotionValueError(f"fix_contacts must be True or False, got {self.fix_contacts!r}")
+        if self.fps is not None:
+            v = self.fps
+            if (
+                isinstance(v, bool)
+                or not isinstance(v, (int, float))
+                or not (math.isfinite(v) and 0 < v <= MAX_FPS)
+            ):
+                raise MotionValueError(
+                    f"fps must be a frame rate in (0, {MAX_FPS:g}] or None, got {v!r}"
+                )
+            object.__setattr__(self, "fps", float(v))
 
 
 def raw_sampler(sampler: Sampler | None = None) -> Sampler:

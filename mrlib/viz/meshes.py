@@ -185,8 +185,14 @@ def render_meshes(
     pl.close()
     if frame_bodies:
         img = fit_to_bodies(img, window_size)
-    if path is not None:
-        Image.fromarray(img).save(str(path))
+    if path is not None:  # PNG bytes in memory, published by the atomic writer
+        import io
+
+        from mrlib.io.outputs import write_bytes
+
+        buf = io.BytesIO()
+        Image.fromarray(img).save(buf, format="PNG")
+        write_bytes(path, buf.getvalue(), overwrite=True)
     return img
 
 

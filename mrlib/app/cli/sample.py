@@ -4,6 +4,7 @@ body parts, speech), optionally under a path, keyframes, a loop or a continuatio
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 from pathlib import Path
 
@@ -179,6 +180,14 @@ def add_sample(sub) -> argparse.ArgumentParser:
         help="length in seconds (default: a training clip's)",
     )
     p.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate of the samples (label, crossover and blend samples): a model trained "
+        "at a lower rate than its clips (the demo preset: 15 fps) draws at its own, raised "
+        "by cubic splines before the feet are planted at this rate [default: the model's]",
+    )
+    p.add_argument(
         "--fit-steps",
         type=parse_steps,
         default=None,
@@ -272,6 +281,8 @@ def cmd_sample(args) -> int:
         raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
+    if args.fps is not None and (constrained or args.parts or args.audio is not None):
+        raise MrlibError("--fps applies to label, --crossover and --blend samples only")
     if args.sharpen != 0 and not args.parts:
         raise MrlibError("--sharpen applies to --parts only")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
@@ -292,6 +303,8 @@ def cmd_sample(args) -> int:
             motions = [follow_path(m, args.path, clean=not args.raw) for m in motions]
         return write_samples(motions, tag, args)
     sampler = sampler_from_args(args)
+    if args.fps is not None:
+        sampler = dataclasses.replace(sampler, fps=args.fps)  # its bounds checked there
     model = load_model(args.checkpoint, device=args.device)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")

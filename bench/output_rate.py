@@ -1,0 +1,101 @@
+"""Samples at the clips' frame rate: a model trained at a lower rate, its output raised.
+
+The ``demo`` preset trains at 15 fps on 30-fps clips, so its samples are 15-fps clips. Raised
+to the clips' 30 fps, they are scored against the 30-fps training clips: jerk (mean joint
+jerk over the clips') and foot skating (share of contact vertex-frames faster than
+``SKATE_SPEED_THRESHOLD``) beside the clips' own, for the two ways ``Motion.resample``
+raises a rate: slerp and linear translation (``smooth=False``) and cubic splines
+(``smooth=True``), both applied to the cleaned 15-fps samples, and ``Sampler(fps=30)``, which
+raises the raw draw by splines and plants the feet at 30 fps. The same for the samples at the model's own 15 fps, scored against the
+clips at 15 fps.
+
+Uses the ``demo`` model of the four Bandai walks (``walk_{normal,happy,sad,angry}_001``,
+``train_cached``: from mrlib's model cache, trained there first when missing, ~4 min), cleaned
+samples (the default sampler), ``--samples`` per label of twice the clip's length.
+
+    python bench/output_rate.py [--samples 10] [--seed 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+import mrlib
+from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
+from mrlib.training.data import TrainingSet
+from mrlib.training.trainer import train_cached
+
+CLIPS = ["walk_normal_001", "walk_happy_001", "walk_sad_001", "walk_angry_001"]
+
+
+def scores(m, body) -> tuple[float, float]:
+    joints, feet = motion_kinematics(m, body)
+    return mean_jerk(joints, m.fps), foot_skating(feet, m.contacts, m.fps)[1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--samples", type=int, default=10)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    mrlib.threads.use()
+    body = mrlib.load_body_model()
+    source = mrlib.datasets.bandai.tutorial_clips(CLIPS)
+    if source.synthetic:
+        print("the Bandai clips are not available here (MRLIB_DATA_DIR, cache or network)")
+        return 1
+    config = mrlib.get_preset("demo")
+    full = {m.label: m for m in (mrlib.load_motion(p, body=body) for p in source.paths)}
+    for m in full.values():
+        m.contacts = mrlib.representation.foot_contacts(m, body)
+    low = {k: m.resample(config.fps) for k, m in full.items()}
+    model, _ = train_cached(
+        TrainingSet.from_motions(list(low.values()), body=body), config, body=body, progress=False
+    )
+    print(
+        f"model at {model.fps:g} fps; clips at {next(iter(full.values())).fps:g} fps; "
+        f"{args.samples} cleaned samples per label, seeds {args.seed}..\n"
+    )
+    ways = ("slerp", "spline", "Sampler(fps)")
+    print(
+        "| label | rate | clip jerk | clip skating % | "
+        + " | ".join(f"{w}: jerk ratio | skating %" for w in ways)
+        + " |"
+    )
+    print("|---|---|---:|---:|" + "---:|---:|" * len(ways))
+    ratio = {w: [] for w in (*ways, "model")}
+    extra = {w: [] for w in ways}
+    for label, clip in full.items():
+        length = 2 * low[label].num_frames
+        kw = dict(length=length, seed=args.seed, num=args.samples, body=body)
+        samples = mrlib.generate(model, label, **kw)  # cleaned at the model's rate
+        at_rate = mrlib.generate(model, label, sampler=mrlib.Sampler(fps=clip.fps), **kw)
+        scored = {
+            "slerp": [scores(s.resample(clip.fps), body) for s in samples],
+            "spline": [scores(s.resample(clip.fps, smooth=True), body) for s in samples],
+            "Sampler(fps)": [scores(s, body) for s in at_rate],
+            "model": [scores(s, body) for s in samples],
+        }
+        r = {k: np.mean(v, axis=0) for k, v in scored.items()}
+        cj, cs = scores(clip, body)
+        lj, ls = scores(
+            low[label].replace(contacts=mrlib.representation.foot_contacts(low[label], body)), body
+        )
+        cells = " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways)
+        print(f"| {label} | {clip.fps:g} fps | {cj:.1f} | {100 * cs:.1f} | {cells} |")
+        print(f"| {label} | {model.fps:g} fps (model) | {lj:.1f} | {100 * ls:.1f} | {r['model'][0] / lj:.2f} | "
+              f"{100 * r['model'][1]:.1f} |" + " – | – |" * (len(ways) - 1))  # fmt: skip
+        for w in ways:
+            ratio[w].append(r[w][0] / cj)
+            extra[w].append(100 * (r[w][1] - cs))
+        ratio["model"].append(r["model"][0] / lj)
+    print(f"\nmean over labels at {clip.fps:g} fps, jerk over the clips' and skating minus the clips' (points): "
+          + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways)
+          + f"; at the model's own {model.fps:g} fps: jerk {np.mean(ratio['model']):.2f}x")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
