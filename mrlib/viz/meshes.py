@@ -223,7 +223,9 @@ def fit_to_bodies(image: np.ndarray, size: tuple[int, int], pad: float = 0.05) -
     bottom, right = max(0, r1 - img.shape[0]), max(0, c1 - img.shape[1])
     padded = np.pad(img, ((top, bottom), (left, right), (0, 0)), constant_values=255)
     crop = padded[r0 + top : r1 + top, c0 + left : c1 + left]
-    out = Image.fromarray(np.ascontiguousarray(crop)).resize((w_out, h_out), Image.Resampling.LANCZOS)
+    out = Image.fromarray(np.ascontiguousarray(crop)).resize(
+        (w_out, h_out), Image.Resampling.LANCZOS
+    )
     return np.asarray(out)[..., :3].copy()
 
 
