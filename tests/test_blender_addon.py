@@ -481,7 +481,7 @@ def _onto_rig_and_back(rig_path, motion_npz, tmp_path, stem, joint_map=None):
 def test_the_retarget_onto_a_non_smpl_rig_keeps_smpls_joint_positions(
     convention, walks, body, tmp_path
 ):
-    """The issue's acceptance line: a SMPL motion put onto a Mixamo-named and a Character
+    """A SMPL motion put onto a Mixamo-named and a Character
     Creator-named rig (``tests/rigs.py``: fingers, end joints; CC's root on the ground, split
     hip, twist, share and face bones, bone-aligned frames) reads back with mrlib's loader
     within 3 cm of the SMPL motion's joints. A wrong joint map (legs swapped) does not."""
