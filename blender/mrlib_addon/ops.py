@@ -237,9 +237,7 @@ class MRLIB_OT_resume(_Command, bpy.types.Operator):
 
     def build(self, context):
         s = context.scene.mrlib
-        ckpt = abs_file(s.checkpoint)
-        if ckpt is None or not ckpt.is_file():
-            raise core.SetupError(f"no checkpoint at {ckpt}: train first, or choose one")
+        ckpt = _checkpoint(context)
         argv = core.mrlib_command(
             python(context), *core.resume_args(ckpt, threads=threads(context))
         )
@@ -257,10 +255,7 @@ class MRLIB_OT_labels(_Command, bpy.types.Operator):
     title = "labels"
 
     def build(self, context):
-        s = context.scene.mrlib
-        ckpt = abs_file(s.checkpoint)
-        if ckpt is None or not ckpt.is_file():
-            raise core.SetupError(f"no checkpoint at {ckpt}")
+        ckpt = _checkpoint(context)
         out = Path(tempfile.mkdtemp(prefix="mrlib_labels_")) / "labels.json"
         argv = core.bridge_args(python(context), "labels", ckpt, "--out", out)
 
