@@ -61,6 +61,14 @@ def headless_defaults() -> None:
 
 
 # -- meshes (pyvista) ---------------------------------------------------------------------
+def _coloured_rows_cols(img: np.ndarray, min_saturation: int = 25) -> tuple[np.ndarray, np.ndarray]:
+    """The rows and columns of a render that hold coloured pixels (skin, contact markers):
+    the white background and the grey floor have (almost) equal RGB channels."""
+    rgb = img[..., :3].astype(np.int16)
+    coloured = (rgb.max(-1) - rgb.min(-1)) > min_saturation  # (H, W)
+    return np.flatnonzero(coloured.any(1)), np.flatnonzero(coloured.any(0))
+
+
 def crop_to_bodies(image: np.ndarray, pad: int = 16, min_saturation: int = 25) -> np.ndarray:
     """Crop a ``render_meshes`` image ``(H, W, 3)`` uint8 to its coloured pixels (skin,
     contact markers) plus ``pad`` pixels: the white background and the grey floor have
@@ -69,9 +77,7 @@ def crop_to_bodies(image: np.ndarray, pad: int = 16, min_saturation: int = 25) -
     img = np.asarray(image)
     if img.ndim != 3 or img.shape[2] < 3:
         raise MotionValueError(f"expected an (H, W, 3) image, got shape {img.shape}")
-    rgb = img[..., :3].astype(np.int16)
-    coloured = (rgb.max(-1) - rgb.min(-1)) > min_saturation  # (H, W)
-    rows, cols = np.flatnonzero(coloured.any(1)), np.flatnonzero(coloured.any(0))
+    rows, cols = _coloured_rows_cols(img, min_saturation)
     if len(rows) == 0:
         return img
     r0, r1 = max(0, rows[0] - pad), min(img.shape[0], rows[-1] + pad + 1)
@@ -203,9 +209,7 @@ def fit_to_bodies(image: np.ndarray, size: tuple[int, int], pad: float = 0.05) -
     and scaled to that size. Unchanged but scaled when nothing is coloured."""
     img = np.asarray(image)
     w_out, h_out = int(size[0]), int(size[1])
-    rgb = img[..., :3].astype(np.int16)
-    coloured = (rgb.max(-1) - rgb.min(-1)) > 25
-    rows, cols = np.flatnonzero(coloured.any(1)), np.flatnonzero(coloured.any(0))
+    rows, cols = _coloured_rows_cols(img)
     if len(rows) == 0:
         r0, r1, c0, c1 = 0, img.shape[0], 0, img.shape[1]
     else:
