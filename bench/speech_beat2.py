@@ -6,11 +6,13 @@ Run from the repository root, with the sample in ``../shared/data/beat2-sample``
     python bench/speech_beat2.py                     # speech_demo, seeds 0-2 (~15 min CPU)
     python bench/speech_beat2.py --seeds 0 --preset speech_demo
 
-Training set: the paired clip (63.5 s; its audio runs 0.6 s past the motion and is cut)
-and two unpaired recordings; ``2_scott_0_4_4`` is held out. Each trained model (one per
-training seed) is driven by three audios: the training clip's own, the held-out
-recording of the same speaker, and another speaker (a synthetic eSpeak NG voice reading
-corpus sentences, 40 s: the sample has one speaker only). ``evaluate_speech_sync`` scores
+Training set (``mrlib.speech.beat2_split``): the paired clip but its last ``--tail``
+seconds (63.5 s; its audio runs 0.6 s past the motion and is cut) and two unpaired
+recordings; ``2_scott_0_4_4`` is held out. Each trained model (one per training seed) is
+driven by three audios it never heard: the paired clip's last seconds (whose captured
+motion is the reference row), the held-out recording of the same speaker, and another
+speaker (a synthetic eSpeak NG voice reading corpus sentences, 40 s: the sample has one
+speaker only). ``evaluate_speech_sync`` scores
 every (audio, seed) run with its own audio and with the next audio's (the mismatched
 control, cut or repeated to length); the real clip's own row is the reference. Printed:
 the phrase lift (phrase loudness / wrist height r) own vs control, the wrists' speed
@@ -21,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import tempfile
 import time
 from pathlib import Path
 
@@ -48,6 +49,10 @@ def main() -> None:
     ap.add_argument("--sample", type=Path, default=Path(default))
     ap.add_argument("--preset", default="speech_demo")
     ap.add_argument("--seeds", default="0,1,2")
+    ap.add_argument("--tail", type=float, default=15.0, help="seconds held out (default 15)")
+    ap.add_argument(
+        "--per-utterance", action="store_true", help="standardise features per utterance"
+    )
     ap.add_argument("--threads", type=int, default=None)
     ap.add_argument("--out", type=Path, default=ROOT / "outputs" / "speech_beat2")
     a = ap.parse_args()
@@ -58,39 +63,33 @@ def main() -> None:
     print(describe(), flush=True)
 
     import numpy as np
-    import soundfile
 
-    import mrlib
     from mrlib.model.presets import get_preset
     from mrlib.speech import (
         SpeechFeatureExtractor,
-        SpeechTrainingSet,
+        beat2_split,
         evaluate_speech_sync,
         load_speech_model,
         speech_train,
     )
     from mrlib.speech.evaluate import hand_speed
 
-    tmp = Path(tempfile.mkdtemp())
-    (tmp / "paired").mkdir()
-    (tmp / "unpaired").mkdir()
-    for ext in (".npz", ".wav"):
-        (tmp / "paired" / clip.with_suffix(ext).name).symlink_to(clip.with_suffix(ext))
-    held = a.sample / "unpaired" / "2_scott_0_4_4.wav"
-    for p in sorted((a.sample / "unpaired").glob("*.wav")):
-        if p != held:
-            (tmp / "unpaired" / p.name).symlink_to(p)
-    extractor = SpeechFeatureExtractor(kind="logmel")
-    data = SpeechTrainingSet.from_folders(tmp / "paired", tmp / "unpaired", extractor, fps=25.0)
+    os.environ.setdefault("MRLIB_BEAT2_DIR", str(a.sample))
+    split = beat2_split(
+        SpeechFeatureExtractor(kind="logmel", per_utterance=a.per_utterance),
+        fps=25.0,
+        tail_s=a.tail,
+    )
+    data = split.data
     print(data, flush=True)
-
-    wav, sr = soundfile.read(clip.with_suffix(".wav"), dtype="float32")
-    real = mrlib.load_motion(clip, fps=25.0)
+    tail, held = split.with_motion[0], split.audio_only[0]
+    real = tail.motion
     audios = {
-        "training clip's audio": wav[: int(real.duration * sr)],
-        "held-out, same speaker": soundfile.read(held, dtype="float32")[0],
+        f"held-out last {a.tail:g} s": tail.wav,
+        "held-out recording, same speaker": held.wav,
         "another speaker (eSpeak NG)": _another_speaker(40.0),
     }
+    sr = tail.sr
     real_speed = float(hand_speed(real).mean())
     print(f"real clip: mean wrist speed {real_speed:.3f} m/s\n", flush=True)
     rows = []
@@ -114,8 +113,10 @@ def main() -> None:
                 flush=True,
             )
     wins = sum(r["lift_model"] > r["lift_shuffled"] for r in rows)
+    diff = np.mean([r["lift_model"] - r["lift_shuffled"] for r in rows])
     speeds = np.array([r["speed_model"] / real_speed for r in rows])
-    print(f"\nphrase lift own > control in {wins} of {len(rows)} (audio x seed) runs")
+    print(f"\nphrase lift own > control in {wins} of {len(rows)} (audio x seed) runs, ", end="")
+    print(f"own - control {diff:+.3f} on average")
     print(f"mean wrist speed {speeds.min():.0%}-{speeds.max():.0%} of the real clip's")
     print("\n| audio | lift own / control (per seed) | wrist speed, % of real |\n|---|---|---|")
     for name in audios:

@@ -15,6 +15,7 @@ import os
 import threading
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mrlib.datasets import beat2
@@ -261,3 +262,25 @@ def test_the_cli_fetches_ahead_of_time(cache, monkeypatch, capsys):
         "2_scott_0_1_1.npz",
         "2_scott_0_1_1.wav",
     ]
+
+
+@needs_sample
+def test_a_split_holds_out_the_last_seconds_with_their_motion(tmp_path, monkeypatch):
+    from mrlib.speech import SpeechFeatureExtractor, beat2_split, load_audio
+
+    monkeypatch.setenv("MRLIB_BEAT2_DIR", str(SAMPLE))
+    monkeypatch.setenv("MRLIB_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("MRLIB_BEAT2_URL", "http://127.0.0.1:9/never-asked")
+    split = beat2_split(SpeechFeatureExtractor(kind="logmel"), tail_s=15, progress=False)
+    assert not split.synthetic and "CC BY-NC" in split.licence and "2 (scott)" in split.source
+    tail, rec = split.held_out
+    assert split.with_motion == [tail] and split.audio_only == [rec]
+    assert rec.name == "2_scott_0_4_4" and rec.motion is None and rec.duration > 60
+    head_frames = split.data.motion.lengths[0]
+    assert tail.motion.num_frames == 15 * 25 and abs(tail.duration - 15) < 0.05
+    whole, sr = load_audio(SAMPLE / "2_scott_0_1_1.wav")
+    # the tail is the recording's audio from where the training part ends, and no earlier
+    start = int(round(head_frames / 25 * sr))
+    assert np.array_equal(tail.wav, whole[start : start + len(tail.wav)])
+    assert 48 * 25 < head_frames < 49 * 25  # 63.5 s - 15 s
+    assert abs(split.data.paired_features[0].shape[0] / 50 - head_frames / 25) < 0.05

@@ -297,3 +297,63 @@ def test_a_file_without_its_partner_can_be_skipped_from_the_command_line(
     with pytest.raises(Reached):
         main(args + ["--out", str(tmp_path / "y"), "--skip-unpaired-files"])
     assert "skipped, no motion file b.npz" in capsys.readouterr().err
+
+
+def test_split_pair_keeps_the_last_seconds_out(tmp_path):
+    from mrlib.speech import split_pair
+
+    _write_pair(tmp_path, "talk", seconds=8.0)
+    (pair,) = load_paired_folder(tmp_path, LOGMEL)
+    head, tail = split_pair(pair, 3.0)
+    assert head.motion.num_frames == 125 and abs(head.duration - 5.0) < 0.03
+    assert abs(head.features.shape[0] / 50 - 5.0) < 0.05
+    assert tail.motion.num_frames == 75 and len(tail.wav) == 3 * SR
+    # the two parts are the pair's frames, in order, with nothing left over or repeated
+    assert np.array_equal(
+        np.concatenate([head.motion.poses, tail.motion.poses]), pair.motion.poses[:200]
+    )
+    for bad in (0.0, 7.0, 1.0):
+        with pytest.raises(MotionValueError, match="at least 2 s"):
+            split_pair(pair, bad)
+
+
+def test_per_utterance_features_do_not_change_with_the_recording_level():
+    """A voice recorded 20 dB louder (or by another microphone's gain) reaches the model
+    as the same features; the training-set scale sees a shifted voice."""
+    rng = np.random.default_rng(0)
+    t = np.arange(3 * SR) / SR
+    wav = (0.05 * np.sin(2 * np.pi * 180 * t) * (1 + np.sin(2 * np.pi * 1.3 * t))).astype(np.float32)
+    wav += 0.003 * rng.standard_normal(len(wav)).astype(np.float32)
+    per = SpeechFeatureExtractor(kind="logmel", n_mels=20, per_utterance=True)
+    raw = SpeechFeatureExtractor(kind="logmel", n_mels=20)
+    a, b = per(wav, SR), per(10 * wav, SR)
+    assert float((a - b).abs().max()) < 1e-3
+    assert float((raw(wav, SR) - raw(10 * wav, SR)).abs().mean()) > 1.0
+    assert float(a.mean(0).abs().max()) < 1e-4
+    sd_ = a.std(0)  # every dimension at unit s.d., or constant (held at its floor)
+    assert bool((((sd_ - 1).abs() < 1e-3) | (sd_ < 1e-2)).all())
+
+
+def test_the_feature_scale_on_the_command_line(tmp_path, monkeypatch):
+    """train-speech standardises the features per utterance unless told otherwise; the
+    choice travels with the training set's feature config (and so with the model)."""
+    import mrlib.speech
+    from mrlib.app.cli import main
+
+    d = tmp_path / "paired"
+    _write_pair(d, "talk", seconds=3.0)
+    seen = []
+
+    class Reached(BaseException):
+        pass
+
+    def stop(data, *a, **k):
+        seen.append(data.feature_config.per_utterance)
+        raise Reached
+
+    monkeypatch.setattr(mrlib.speech, "speech_train", stop)
+    args = ["train-speech", str(d), "--preset", "speech_demo", "--iterations", "1"]
+    for k, extra in enumerate(([], ["--feature-scale", "training-set"], ["--feature-scale", "utterance"])):
+        with pytest.raises(Reached):
+            main(args + ["--out", str(tmp_path / f"r{k}"), *extra])
+    assert seen == [True, False, True]

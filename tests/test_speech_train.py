@@ -446,6 +446,13 @@ def test_audio_drives_the_motion_and_the_control_is_computed(trained, body):
     d = [r["r_model"] - r["r_shuffled"] for r in res.rows]
     assert n == 2 and wins == sum(x > 0 for x in d) and mean == pytest.approx(np.mean(d))
     assert se == pytest.approx(np.std(d, ddof=1) / np.sqrt(2))
+    # a reference motion is scored with its own audio and with the other utterance's
+    ref = generate_from_audio(model, bursts(3.0, 1), seed=5, sr=SR)
+    res = evaluate_speech_sync(model, utts, seeds=(0,), body=body, references=[ref, None])
+    assert {"lift_data", "lift_data_other"} <= set(res.rows[0]) and "lift_data" not in res.rows[1]
+    assert res.rows[0]["speed_data"] == res.rows[0]["speed_data_other"]  # same motion
+    assert res.rows[0]["lift_data"] != res.rows[0]["lift_data_other"]  # other audio
+    assert "reference motion, other utterance's audio" in res.to_markdown()
 
 
 def test_phrase_loudness_and_wrist_lift(body):

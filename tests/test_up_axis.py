@@ -17,9 +17,8 @@ import mrlib
 from mrlib.errors import MotionFileError
 from mrlib.io.axes import up_axis_rotation
 from mrlib.io.bodyfit import rest_pelvis
-from mrlib.representation.contacts import foot_contacts, foot_vertex_positions
+from mrlib.io.placement import stance
 from mrlib.representation.rotations import axis_angle_to_matrix, matrix_to_axis_angle
-from mrlib.representation.skeleton import JOINT_NAMES
 
 BEAT2 = Path(
     os.environ.get(
@@ -30,23 +29,8 @@ BEAT2 = Path(
 AXES = ["z", "y", "-z", "x", "-x", "-y"]
 
 
-def _upright(m, body) -> dict[str, float]:
-    J = body.motion_joints(m)
-    head, pelvis = J[:, JOINT_NAMES.index("head"), 1], J[:, 0, 1]
-    ankles = J[:, [JOINT_NAMES.index("left_ankle"), JOINT_NAMES.index("right_ankle")], 1]
-    R, t, b = body.motion_inputs(m)
-    F = foot_vertex_positions(body, R, t, b).numpy()
-    c = foot_contacts(m, body) > 0.5
-    low = np.where(c, F[..., 1], np.inf).min(1)[c.any(1)]
-    return {
-        "head_above_pelvis": float((head > pelvis).mean()),
-        "pelvis_above_ankles": float((pelvis > ankles.max(1)).mean()),
-        "floor_cm": float(np.median(np.abs(low)) * 100),
-    }
-
-
 def _assert_upright(m, body) -> None:
-    u = _upright(m, body)
+    u = stance(m, body)
     assert u["head_above_pelvis"] > 0.99 and u["pelvis_above_ankles"] > 0.99, u
     assert u["floor_cm"] <= 2.0, u
 
@@ -100,7 +84,7 @@ def test_the_up_axis_key_and_the_option_win_over_the_body(walk, body, tmp_path):
     assert m.meta["up_axis_reason"] == "the file's up_axis key" and "floor_shift_m" not in m.meta
     wrong = mrlib.load_motion(path, up_axis="y")  # as told, even when it lies the body down
     assert wrong.meta["up_axis_reason"] == "as given"
-    assert _upright(wrong, body)["head_above_pelvis"] < 0.5
+    assert stance(wrong, body)["head_above_pelvis"] < 0.5
     # mrlib's own files (up_axis="y") round-trip untouched
     own = mrlib.load_motion(mrlib.save_motion(walk, tmp_path / "own.npz"))
     np.testing.assert_array_equal(own.trans, walk.trans.astype(np.float32))

@@ -10,6 +10,8 @@ sinks on mrlib's body.
   average over the clip, by a clear margin; else a one-line refusal naming ``up_axis=``.
 * :func:`floor_height`: the height the feet stand at, the median over frames with a foot
   in contact of the lowest such foot vertex.
+* :func:`stance`: how a loaded ``Motion`` stands (head over pelvis over ankles, feet on
+  y = 0), to check a file was read upright and on the floor.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from mrlib.io.bodyfit import default_body
 from mrlib.representation.rotations import axis_angle_to_matrix
 from mrlib.representation.skeleton import JOINT_NAMES
 
-__all__ = ["detect_npz_up_axis", "floor_height", "FLOOR_TOLERANCE_M"]
+__all__ = ["detect_npz_up_axis", "floor_height", "stance", "FLOOR_TOLERANCE_M"]
 
 FLOOR_TOLERANCE_M = 0.005  # a floor closer than this to y = 0 is left where it is
 # how clearly the body's up directions must pick one axis: the mean up vector's largest
@@ -101,3 +103,27 @@ def floor_height(poses, trans, betas, fps: float, body=None) -> float | None:
     y = F[..., 1].numpy()
     lows = np.where(c, y, np.inf).min(1)[c.any(1)]
     return float(np.median(lows)) if len(lows) else None
+
+
+def stance(motion, body=None) -> dict[str, float]:
+    """How ``motion`` (a ``Motion``, Y up) stands on ``body`` (default mrlib's):
+
+    * ``head_above_pelvis``, ``pelvis_above_ankles``: shares of frames (1.0 upright);
+    * ``floor_cm``: over frames with a foot in contact, the median distance of the lowest
+      contact foot vertex from y = 0 (cm; NaN with no contact at all).
+    """
+    from mrlib.representation.contacts import foot_contacts, foot_vertex_positions
+
+    body = default_body() if body is None else body
+    J = body.motion_joints(motion)
+    head, pelvis = J[:, JOINT_NAMES.index("head"), 1], J[:, 0, 1]
+    ankles = J[:, [JOINT_NAMES.index("left_ankle"), JOINT_NAMES.index("right_ankle")], 1]
+    R, t, b = body.motion_inputs(motion)
+    feet = foot_vertex_positions(body, R, t, b).numpy()[..., 1]
+    c = foot_contacts(motion, body) > 0.5
+    low = np.where(c, feet, np.inf).min(1)[c.any(1)]
+    return {
+        "head_above_pelvis": float((head > pelvis).mean()),
+        "pelvis_above_ankles": float((pelvis > ankles.max(1)).mean()),
+        "floor_cm": float(np.median(np.abs(low)) * 100) if len(low) else float("nan"),
+    }

@@ -187,9 +187,8 @@ def speech_tutorial() -> TrainConfig:
 
 def speech_demo() -> TrainConfig:
     """``speech_tutorial``'s networks and losses on a budget of minutes on two CPU cores
-    (700 iterations instead of 3900), for notebook 04's default run on a handful of
-    synthetic clips: enough for the arms to follow the loudness, not for the tutorial's
-    measured synchrony."""
+    (700 iterations instead of 3900), for notebook 04's default run on a minute of BEAT2
+    speech (``docs/results.md``, "Co-speech gestures", for what it learns there)."""
     return speech_tutorial().replace(block_iterations=(300, 150, 100, 75, 75), checkpoint_every=0)
 
 

@@ -15,10 +15,11 @@ Pipeline::
 Modules, in the order data flows: ``audio`` (I/O, resampling, spectra, energy envelope,
 onsets), ``features`` (WavLM and the log-mel fallback), ``align`` (motion frame rate,
 levels, residuals, normalisation), ``data`` (folders of paired and unpaired clips, the
-training set), ``train`` (the trainer), ``sample`` (generation from audio),
+training set, ``split_pair``), ``split`` (a training set with the utterances held out of
+it), ``train`` (the trainer), ``sample`` (generation from audio),
 ``evaluate`` (hand speed, lagged correlation, beat alignment, synchrony of a model);
-``beat2`` (a training set from the BEAT2 files of ``mrlib.datasets.beat2`` in one call);
-``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``) and
+``beat2`` (a training set, or a split, from the BEAT2 files of ``mrlib.datasets.beat2`` in
+one call); ``synthetic`` makes a labelled-synthetic co-speech set with eSpeak NG (``espeak``) and
 rule-based gestures (``gestures``). The public names of ``audio``, ``features``,
 ``align``, ``sample`` and ``evaluate`` are all re-exported here; of the other modules,
 their entry points.
@@ -29,7 +30,7 @@ from mrlib.model.presets import speech_paper, speech_tutorial
 from mrlib.speech import align, audio, evaluate, features, sample
 from mrlib.speech.align import *  # noqa: F403 (its __all__, below)
 from mrlib.speech.audio import *  # noqa: F403 (its __all__, below)
-from mrlib.speech.beat2 import BEAT2_HELD_OUT, beat2_training_set
+from mrlib.speech.beat2 import BEAT2_HELD_OUT, beat2_split, beat2_training_set
 from mrlib.speech.data import (
     SPEECH_LABEL,
     SpeechClip,
@@ -37,18 +38,21 @@ from mrlib.speech.data import (
     SpeechTrainingSet,
     load_paired_folder,
     load_unpaired_folder,
+    split_pair,
 )
 from mrlib.speech.espeak import SpeechSynthesisError
 from mrlib.speech.evaluate import *  # noqa: F403 (its __all__, below)
 from mrlib.speech.features import *  # noqa: F403 (its __all__, below)
 from mrlib.speech.gestures import GestureParams, load_base_motions, standing_base
 from mrlib.speech.sample import *  # noqa: F403 (its __all__, below)
+from mrlib.speech.split import HeldOutSpeech, SpeechSplit
 from mrlib.speech.synthetic import (
     SyntheticCorpus,
     espeak_available,
     make_synthetic_pair,
     synthesize_speech,
     synthetic_corpus,
+    synthetic_split,
 )
 from mrlib.speech.train import RANDOM_AUDIO, SpeechDraw, SpeechTrainer, speech_train
 
@@ -65,8 +69,12 @@ __all__ = [
     "load_paired_folder",
     "load_unpaired_folder",
     "SpeechTrainingSet",
+    "HeldOutSpeech",
+    "SpeechSplit",
+    "split_pair",
     "BEAT2_HELD_OUT",
     "beat2_training_set",
+    "beat2_split",
     # training
     "speech_paper",
     "speech_tutorial",
@@ -88,4 +96,5 @@ __all__ = [
     "make_synthetic_pair",
     "SyntheticCorpus",
     "synthetic_corpus",
+    "synthetic_split",
 ]

@@ -24,6 +24,7 @@ from mrlib.representation.motion import Motion
 from mrlib.speech.align import SpeechNormalizer, interpolate_to_fps
 from mrlib.speech.audio import FEATURE_FPS, FRAME_OFFSET_S, AudioFileError, load_audio
 from mrlib.speech.features import SpeechFeatureConfig, SpeechFeatureExtractor
+from mrlib.speech.split import HeldOutSpeech
 from mrlib.training.data import TrainingSet
 
 __all__ = [
@@ -35,6 +36,7 @@ __all__ = [
     "load_paired_folder",
     "load_unpaired_folder",
     "SpeechTrainingSet",
+    "split_pair",
 ]
 
 SPEECH_LABEL = "speech"  # the one label every paired clip carries (sigma is averaged over them)
@@ -198,10 +200,12 @@ def load_paired_folder(
     return out
 
 
-def _trim_to_common(clip: SpeechClip, motion: Motion) -> tuple[SpeechClip, Motion]:
-    """Audio and motion cut to the shorter of the two, both from their start (BEAT2's
-    audio usually runs ~0.6 s past its motion; recordings start together)."""
-    seconds = min(clip.duration, motion.duration)
+def _trim_to_common(
+    clip: SpeechClip, motion: Motion, seconds: float | None = None
+) -> tuple[SpeechClip, Motion]:
+    """Audio and motion cut to the shorter of the two (or to ``seconds``), both from their
+    start (BEAT2's audio usually runs ~0.6 s past its motion; recordings start together)."""
+    seconds = min(clip.duration, motion.duration, seconds or float("inf"))
     if clip.duration > seconds:
         frames = max(1, int(round((seconds - clip.frame_offset_s) * clip.fps)) + 1)
         clip = replace(clip, features=clip.features[:frames], duration=seconds)
@@ -209,6 +213,33 @@ def _trim_to_common(clip: SpeechClip, motion: Motion) -> tuple[SpeechClip, Motio
     if motion.num_frames > frames >= 2:
         motion = motion.slice(0, frames)
     return clip, motion
+
+
+def split_pair(pair: SpeechMotionPair, tail_s: float) -> tuple[SpeechMotionPair, HeldOutSpeech]:
+    """One recording, two parts: the pair up to its last ``tail_s`` seconds (to train on)
+    and those last seconds, audio and motion (held out: a model is judged on speech it
+    never heard, next to the motion that was captured with it).
+
+    Raises:
+        MotionValueError: ``tail_s`` not positive, or leaving under 2 s on either side.
+    """
+    if pair.motion is None:
+        raise MotionValueError(f"{pair.name}: no motion to split")
+    total = min(pair.duration, pair.motion.duration)
+    if not tail_s > 0 or total - tail_s < 2.0 or tail_s < 2.0:
+        raise MotionValueError(
+            f"tail_s={tail_s}: {pair.name} lasts {total:.1f} s; both parts need at least 2 s"
+        )
+    cut = total - tail_s
+    clip, motion = _trim_to_common(pair, pair.motion, cut)
+    head = SpeechMotionPair(**{**vars(clip), "motion": motion, "motion_path": pair.motion_path})
+    wav, sr = load_audio(pair.audio_path)
+    start = int(round(motion.num_frames / motion.fps * sr))
+    frames = int(round(tail_s * pair.motion.fps))
+    tail_motion = pair.motion.slice(motion.num_frames, motion.num_frames + frames)
+    tail_wav = wav[start : start + int(round(tail_motion.duration * sr))]
+    name = f"{pair.name} (last {tail_s:g} s)"
+    return head, HeldOutSpeech(name, tail_wav, sr, tail_motion, Path(pair.audio_path))
 
 
 # -- the training set ----------------------------------------------------------------------

@@ -323,7 +323,9 @@ class SyncResult:
             (``_shuffled``): ``r`` energy / hand-speed correlation, ``beat`` beat
             alignment, ``lift`` phrase-loudness / wrist-height correlation, ``pause``
             wrist speed talking / in pauses, ``speed`` mean wrist speed (m/s); ``_data``
-            versions for utterances with a reference motion.
+            versions for utterances with a reference motion, and ``_data_other``: the
+            reference scored against the other utterance's audio (the control a measure
+            must beat on real motion before it can judge a model).
     """
 
     rows: list[dict]
@@ -359,7 +361,7 @@ class SyncResult:
 
     def summary(self) -> dict[str, float]:
         """Means over the rows: ``{"r_model": ..., "r_shuffled": ..., ...}``."""
-        keys = [f"{k}_{w}" for w in ("model", "shuffled", "data") for k in self.KEYS]
+        keys = [f"{k}_{w}" for w in ("model", "shuffled", "data", "data_other") for k in self.KEYS]
         return {k: self.mean(k) for k in keys if any(k in r for r in self.rows)}
 
     def to_markdown(self) -> str:
@@ -381,9 +383,13 @@ class SyncResult:
             diffs.append(f"{m:+.3f} +- {se:.3f} s.e. ({wins}/{n} higher)")
         lines.append("| own - other audio, paired | " + " | ".join(diffs) + " |")
         if any("r_data" in r for r in self.rows):
-            lines.append(
-                "| reference motion | " + " | ".join(cell(f"{k}_data") for k in self.KEYS) + " |"
-            )
+            for who, name in (
+                ("data", "reference motion, own audio"),
+                ("data_other", "reference motion, other utterance's audio"),
+            ):
+                lines.append(
+                    f"| {name} | " + " | ".join(cell(f"{k}_{who}") for k in self.KEYS) + " |"
+                )
         return "\n".join(lines)
 
 
@@ -414,7 +420,8 @@ def evaluate_speech_sync(
       speed: more gesture while talking than in pauses;
     * ``speed``: the mean wrist speed (m/s), to compare with the real clip's.
 
-    ``references`` (e.g. the held-out pairs' own motions) are scored the same way once.
+    ``references`` (e.g. the held-out pairs' own motions) are scored the same way once,
+    against their own audio and against the other utterance's (``_data_other``).
 
     Args:
         utterances: ``(wav (N,), sr)`` pairs, at least two.
@@ -450,7 +457,10 @@ def evaluate_speech_sync(
         other = fit_audio_length(other if osr == sr else resample_audio(other, osr, sr), len(wav))
         onsets = detect_onsets(wav, sr)
         ref = None if references is None else references[k]
-        extra = {} if ref is None else score(ref, wav, sr, onsets, "data")
+        extra = {}
+        if ref is not None:
+            extra = score(ref, wav, sr, onsets, "data")
+            extra.update(score(ref, other, sr, detect_onsets(other, sr), "data_other"))
         for seed in seeds:
             own = generate_from_audio(model, wav, sr=sr, seed=seed, sampler=sampler)
             shuf = generate_from_audio(model, other, sr=sr, seed=seed, sampler=sampler)

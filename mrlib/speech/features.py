@@ -291,6 +291,10 @@ class SpeechFeatureConfig:
         n_mels: log-mel bands of the fallback.
         pitch: add voicing and log F0 to the fallback.
         chunk_seconds: WavLM chunk length for long clips (None: one pass).
+        per_utterance: standardise every dimension over each utterance (its mean and
+            s.d. over the clip), so that a voice louder, higher or recorded on another
+            microphone than the training speaker's reaches the model on the same scale;
+            what is left is how the speech changes within the utterance.
     """
 
     kind: str = "wavlm"
@@ -299,6 +303,7 @@ class SpeechFeatureConfig:
     n_mels: int = 80
     pitch: bool = True
     chunk_seconds: float | None = 30.0
+    per_utterance: bool = False
 
     def __post_init__(self):
         if self.kind not in ("wavlm", "logmel"):
@@ -359,15 +364,20 @@ class SpeechFeatureExtractor:
         """``wav (N,)`` (or ``(N, channels)``) at ``sr`` -> ``(T_a, D)`` float32."""
         c = self.config
         if c.kind == "logmel":
-            return log_mel_features(wav, sr, n_mels=c.n_mels, pitch=c.pitch)
-        return wavlm_features(
-            self._wavlm(),
-            wav,
-            sr,
-            layer=c.layer,
-            do_normalize=self._do_normalize,
-            chunk_seconds=c.chunk_seconds,
-        )
+            x = log_mel_features(wav, sr, n_mels=c.n_mels, pitch=c.pitch)
+        else:
+            x = wavlm_features(
+                self._wavlm(),
+                wav,
+                sr,
+                layer=c.layer,
+                do_normalize=self._do_normalize,
+                chunk_seconds=c.chunk_seconds,
+            )
+        if c.per_utterance:
+            std = x.std(0, keepdim=True) if len(x) > 1 else torch.ones_like(x[:1])
+            x = (x - x.mean(0, keepdim=True)) / std.clamp_min(1e-3)
+        return x
 
     def from_file(self, path: str | Path) -> torch.Tensor:
         """Features of an audio file (``load_audio``: mono, 16 kHz)."""

@@ -55,8 +55,14 @@ from mrlib.errors import MotionValueError
 from mrlib.io import save_motion
 from mrlib.io.outputs import write_text
 from mrlib.representation.motion import Motion
-from mrlib.speech.audio import SAMPLE_RATE, resample_audio
+from mrlib.speech.audio import SAMPLE_RATE, load_audio, resample_audio
+from mrlib.speech.data import (
+    SpeechTrainingSet,
+    load_paired_folder,
+    load_unpaired_folder,
+)
 from mrlib.speech.espeak import espeak_backend, espeak_speak
+from mrlib.speech.features import SpeechFeatureExtractor
 from mrlib.speech.gestures import (
     GestureParams,
     apply_offsets,
@@ -64,6 +70,7 @@ from mrlib.speech.gestures import (
     load_base_motions,
     loop_motion,
 )
+from mrlib.speech.split import HeldOutSpeech, SpeechSplit
 
 __all__ = [
     "SENTENCES",
@@ -77,6 +84,7 @@ __all__ = [
     "corpus_text",
     "SyntheticCorpus",
     "synthetic_corpus",
+    "synthetic_split",
 ]
 
 
@@ -338,3 +346,44 @@ def synthetic_corpus(
     }
     write_text(corpus.manifest, json.dumps(manifest, indent=1), overwrite=True)
     return corpus
+
+
+def synthetic_split(
+    out_dir: str | Path,
+    n_paired: int = 8,
+    n_unpaired: int = 8,
+    n_held_out: int = 3,
+    extractor=None,
+    *,
+    fps: float = 25.0,
+    seed: int = 0,
+    base_motions: list[Motion] | None = None,
+) -> SpeechSplit:
+    """A :class:`~mrlib.speech.SpeechSplit` of a **synthetic** set (``synthetic_corpus``
+    in ``out_dir``): ``n_paired`` pairs and ``n_unpaired`` speech-only clips to train on,
+    and ``n_held_out`` further pairs (audio and their synthetic gestures) held out. The
+    stand-in where no recorded co-speech data is at hand (see ``mrlib.speech.beat2_split``).
+
+    Args:
+        extractor: a ``SpeechFeatureExtractor`` (default: WavLM, which needs weights).
+        base_motions: standing clips to build on (default: ``load_base_motions``).
+    Raises:
+        SpeechSynthesisError: espeak-ng is missing; MotionValueError: counts below 1.
+    """
+    if n_paired < 1 or n_held_out < 1:
+        raise MotionValueError(
+            f"n_paired and n_held_out must be >= 1, got {n_paired}, {n_held_out}"
+        )
+    corpus = synthetic_corpus(
+        n_paired + n_held_out, n_unpaired, out_dir, seed=seed, base_motions=base_motions, fps=fps
+    )
+    ex = extractor if extractor is not None else SpeechFeatureExtractor()
+    pairs = load_paired_folder(corpus.root / "paired", ex, motion_fps=fps)
+    unpaired = load_unpaired_folder(corpus.root / "unpaired", ex) if n_unpaired else []
+    held = [
+        HeldOutSpeech(p.name, *load_audio(p.audio_path), motion=p.motion, audio_path=p.audio_path)
+        for p in pairs[n_paired:]
+    ]
+    data = SpeechTrainingSet.from_clips(pairs[:n_paired], unpaired, ex.config, fps=fps)
+    source = "synthetic (eSpeak NG voices, rule-based gestures on standing stances)"
+    return SpeechSplit(data, held, source, synthetic=True)

@@ -352,6 +352,14 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
         "--wavlm", type=Path, default=None, help="folder of WavLM weights (else $MRLIB_WAVLM_PATH)"
     )
     p.add_argument(
+        "--feature-scale",
+        choices=["utterance", "training-set"],
+        default=None,
+        help="standardise the speech features over each utterance (so another voice, "
+        "microphone or loudness reaches the model on the training speaker's scale) or over "
+        "the training set only [default: utterance]",
+    )
+    p.add_argument(
         "--preset",
         default=None,
         choices=preset_choices("speech") + [_short(n) for n in preset_choices("speech")],
@@ -408,6 +416,7 @@ def cmd_train_speech(args) -> int:
                 "unpaired": "--unpaired",
                 "features": "--features",
                 "wavlm": "--wavlm",
+                "feature_scale": "--feature-scale",
                 "preset": "--preset",
                 "iterations": "--iterations",
                 "random_audio": "--random-audio",
@@ -429,7 +438,11 @@ def cmd_train_speech(args) -> int:
         cfg = cfg.replace(seed=args.seed)
     cfg = cfg.replace(device=args.device or "cpu")
     wavlm = None if args.wavlm is None else str(args.wavlm)
-    extractor = SpeechFeatureExtractor(kind=args.features or "logmel", wavlm_path=wavlm)
+    extractor = SpeechFeatureExtractor(
+        kind=args.features or "logmel",
+        wavlm_path=wavlm,
+        per_utterance=args.feature_scale != "training-set",
+    )
     fps = args.fps if args.fps is not None else cfg.fps if cfg.fps is not None else 25.0
     mismatch = 1.0 if args.max_mismatch is None else args.max_mismatch
     data = SpeechTrainingSet.from_folders(
