@@ -228,6 +228,11 @@ def test_extractor_config_round_trip():
     assert SpeechFeatureExtractor(c).dim == 41
     with pytest.raises(MotionValueError):
         SpeechFeatureConfig(kind="mfcc")
+    # a model saved before per-utterance scaling existed keeps the training-set scale
+    old = {k: v for k, v in c.to_dict().items() if k != "per_utterance"}
+    assert SpeechFeatureConfig.from_dict(old).per_utterance is False
+    c = SpeechFeatureConfig(kind="logmel", per_utterance=True)
+    assert SpeechFeatureConfig.from_dict(c.to_dict()).per_utterance is True
 
 
 # -- audio ---------------------------------------------------------------------------------
