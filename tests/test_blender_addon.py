@@ -25,12 +25,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 ROOT = Path(__file__).resolve().parent.parent
 ADDON = ROOT / "blender" / "mrlib_addon"
 sys.path.insert(0, str(ROOT / "blender"))
 
-from mrlib_addon import core  # noqa: E402  (the add-on's bpy-free module)
+from mrlib_addon import core  # noqa: E402  (the add-on's bpy-free modules)
+from mrlib_addon import rig as rig_math  # noqa: E402
 
 A_Z_UP = np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])  # Blender's Z up -> mrlib's Y up
 
@@ -45,13 +47,13 @@ def _bridge():
 def _random_rotations(rng, n: int) -> np.ndarray:
     q = rng.normal(size=(n, 4))
     q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return np.array([core.quat_to_matrix(v) for v in q])
+    return np.array([rig_math.quat_to_matrix(v) for v in q])
 
 
 # -- no bpy -------------------------------------------------------------------------------------
 def test_the_core_module_and_the_package_import_without_bpy():
     code = (
-        "import sys; sys.path.insert(0, sys.argv[1]); import mrlib_addon, mrlib_addon.core; "
+        "import sys; sys.path.insert(0, sys.argv[1]); import mrlib_addon, mrlib_addon.core, mrlib_addon.rig; "
         "assert 'bpy' not in sys.modules and 'torch' not in sys.modules; "
         "print(mrlib_addon.bl_info['blender'])"
     )
@@ -104,6 +106,11 @@ def test_the_arguments_parse_with_mrlibs_own_parser(tmp_path):
     assert (args.blend, args.loop) == (["a", "b", "0.25"], True)
     args = parser.parse_args(core.sample_args("c.pt", tmp_path, core.Condition(label="a"), path="p.csv"))  # fmt: skip
     assert (args.label, args.path) == ("a", "p.csv")
+    label = core.Condition(label="a")
+    args = parser.parse_args(core.sample_args("c.pt", tmp_path, label, seconds=1.6, keyframes="k.npz"))  # fmt: skip
+    assert (str(args.keyframes), args.seconds, args.loop) == ("k.npz", 1.6, False)
+    args = parser.parse_args(core.sample_args("c.pt", tmp_path, label, seconds=1, prefix="a.npz"))
+    assert (str(args.prefix), args.seconds) == ("a.npz", 1.0)
     args = parser.parse_args(core.restyle_args("c.pt", "clip.bvh", "a", tmp_path, level=2, keep="detail"))  # fmt: skip
     assert (args.label, args.level, args.keep, str(args.clip)) == ("a", 2, "detail", "clip.bvh")
 
@@ -122,6 +129,32 @@ def test_conditions_are_checked_before_anything_runs():
             cond.args()
     with pytest.raises(core.SetupError, match="loop and a path"):
         core.sample_args("c", "o", core.Condition(label="a"), loop=True, path="p.csv")
+    label = core.Condition(label="a")
+    with pytest.raises(core.SetupError, match="a path and timeline keyframes cannot be combined"):
+        core.sample_args("c", "o", label, seconds=1, path="p.csv", keyframes="k.npz")
+    with pytest.raises(core.SetupError, match="keyframes and continuing the action"):
+        core.sample_args("c", "o", label, seconds=1, keyframes="k.npz", prefix="a.npz")
+    with pytest.raises(core.SetupError, match="keyframes need a length"):
+        core.sample_args("c", "o", label, keyframes="k.npz")
+    with pytest.raises(core.SetupError, match="continuing needs a length"):
+        core.sample_args("c", "o", label, prefix="a.npz")
+
+
+def test_timeline_keys_are_taken_from_the_start_frame():
+    # keys at scene frames 1, 11.4 (a sub-frame key), 13 and 25 of an action exported from
+    # frame 1, a motion starting at frame 11 of a 24-fps scene
+    keys = core.timeline_keys([25.0, 1.0, 11.4, 13.0, 13.0], first=1, start=11, scene_fps=24)
+    assert keys == [core.TimelineKey(10, 0.0), core.TimelineKey(12, 2 / 24), core.TimelineKey(24, 14 / 24)]  # fmt: skip
+    assert core.keyframe_seconds(keys, 0.0, 24) == pytest.approx(15 / 24)
+    assert core.keyframe_seconds(keys, 2.0, 24) == 2.0
+    with pytest.raises(core.SetupError, match="at least 0.625 s"):
+        core.keyframe_seconds(keys, 0.5, 24)
+    with pytest.raises(core.SetupError, match="no keyframes at or after the start frame 30"):
+        core.timeline_keys([1.0, 25.0], first=1, start=30, scene_fps=24)
+    argv = core.keyframes_args("py", "rig.bvh", "m.pt", keys, "k.npz", joint_map="map.json")
+    assert argv[2:] == ["keyframes", "rig.bvh", "m.pt", "--frames", "10,12,24",
+                        "--times", "0.000000,0.083333,0.583333", "--out", "k.npz",
+                        "--joint-map", "map.json"]  # fmt: skip
     with pytest.raises(core.SetupError):
         core.restyle_args("c", "clip", "", "o")
 
@@ -306,47 +339,47 @@ def test_basis_rotations_invert_what_blenders_bvh_exporter_writes():
     G = P @ np.swapaxes(R, 1, 2)
     for j, p in enumerate(parents):
         L = G[j] if p < 0 else G[p].T @ G[j]
-        q = core.basis_from_local(core.quat_from_matrix(L), core.quat_from_matrix(R[j]))
-        np.testing.assert_allclose(core.quat_to_matrix(q), B[j], atol=1e-12)
+        q = rig_math.basis_from_local(rig_math.quat_from_matrix(L), rig_math.quat_from_matrix(R[j]))
+        np.testing.assert_allclose(rig_math.quat_to_matrix(q), B[j], atol=1e-12)
     head_posed = heads[0] + R[0] @ loc  # the root's posed head
-    back = core.root_location(head_posed, heads[0], core.quat_from_matrix(R[0]))
+    back = rig_math.root_location(head_posed, heads[0], rig_math.quat_from_matrix(R[0]))
     np.testing.assert_allclose(back, loc, atol=1e-12)
 
 
 def test_quaternion_helpers():
     rng = np.random.default_rng(1)
     for M in _random_rotations(rng, 20):
-        q = core.quat_from_matrix(M)
+        q = rig_math.quat_from_matrix(M)
         assert q[0] >= 0 and math.isclose(sum(c * c for c in q), 1.0)
-        np.testing.assert_allclose(core.quat_to_matrix(q), M, atol=1e-12)
+        np.testing.assert_allclose(rig_math.quat_to_matrix(q), M, atol=1e-12)
         v = rng.normal(size=3)
-        np.testing.assert_allclose(core.quat_rotate(q, v), M @ v, atol=1e-12)
-    flipped = core.continuous([(1, 0, 0, 0), (-0.99, -0.1, 0, 0), (0.98, 0.2, 0, 0)])
+        np.testing.assert_allclose(rig_math.quat_rotate(q, v), M @ v, atol=1e-12)
+    flipped = rig_math.continuous([(1, 0, 0, 0), (-0.99, -0.1, 0, 0), (0.98, 0.2, 0, 0)])
     assert all(q[0] > 0 for q in flipped)
-    assert core.key_frames(3, 15, 30, start=1) == [1, 3, 5]
-    assert core.key_frames(2, 30, 24, start=0) == [0, 0.8]
+    assert rig_math.key_frames(3, 15, 30, start=1) == [1, 3, 5]
+    assert rig_math.key_frames(2, 30, 24, start=0) == [0, 0.8]
 
 
 def test_a_rig_motion_file_is_read_and_checked(tmp_path):
     d = {
-        "format": core.RIG_MOTION_FORMAT, "fps": 15, "bones": ["__0", "hips", "leg"],
+        "format": rig_math.RIG_MOTION_FORMAT, "fps": 15, "bones": ["__0", "hips", "leg"],
         "parents": [-1, 0, 1], "mover": "hips", "positions": [[0, 0, 1], [0, 0.1, 1]],
         "rotations": {b: [[1, 0, 0, 0]] * 2 for b in ("__0", "hips", "leg")},
         "mapped": {"pelvis": "hips"},
     }  # fmt: skip
     path = tmp_path / "m.json"
     path.write_text(json.dumps(d))
-    m = core.RigMotion.from_json(path)
+    m = rig_math.RigMotion.from_json(path)
     assert (m.num_frames, m.fps, m.mover) == (2, 15.0, "hips")
     assert m.missing_bones(["hips", "leg"]) == []  # the exporter's dummy root is no bone
     assert m.missing_bones(["hips"]) == ["leg"]
     d["rotations"]["leg"] = [[1, 0, 0, 0]]
     path.write_text(json.dumps(d))
     with pytest.raises(core.SetupError, match="frames"):
-        core.RigMotion.from_json(path)
+        rig_math.RigMotion.from_json(path)
     path.write_text("{}")
     with pytest.raises(core.SetupError, match="not a rig motion"):
-        core.RigMotion.from_json(path)
+        rig_math.RigMotion.from_json(path)
 
 
 def test_joint_maps_paths_and_names(tmp_path):
@@ -396,7 +429,7 @@ def test_the_bridge_puts_a_motion_onto_an_smpl_rig_exactly(walks, tmp_path):
     happy_npz = save_motion(happy, tmp_path / "happy.npz")
     out, bvh = tmp_path / "m.json", tmp_path / "onto.bvh"
     assert _bridge().main(["onto-rig", str(rig), str(happy_npz), "--out", str(out), "--bvh", str(bvh)]) == 0  # fmt: skip
-    m = core.RigMotion.from_json(out)
+    m = rig_math.RigMotion.from_json(out)
     assert (m.num_frames, m.fps, m.mover, len(m.mapped)) == (happy.num_frames, happy.fps, "pelvis", 24)  # fmt: skip
     back = load_motion(bvh)
     np.testing.assert_allclose(back.poses, happy.poses, atol=1e-5)
@@ -405,7 +438,7 @@ def test_the_bridge_puts_a_motion_onto_an_smpl_rig_exactly(walks, tmp_path):
     from mrlib.representation.skeleton import JOINT_NAMES
 
     q = np.array([m.rotations[n] for n in JOINT_NAMES]).transpose(1, 0, 2)  # (T, 24, 4)
-    L = np.array([[core.quat_to_matrix(v) for v in row] for row in q[:5]])
+    L = np.array([[rig_math.quat_to_matrix(v) for v in row] for row in q[:5]])
     np.testing.assert_allclose(L, _local_matrices(happy)[:5], atol=1e-6)
 
 
@@ -445,7 +478,7 @@ def test_the_bridge_inverts_mrlibs_reading_of_another_rig(walks, tmp_path):
     out, bvh = tmp_path / "m.json", tmp_path / "onto.bvh"
     argv = ["onto-rig", str(rig_path), str(happy_npz), "--out", str(out), "--bvh", str(bvh), "--joint-map", str(jmap)]  # fmt: skip
     assert _bridge().main(argv) == 0
-    m = core.RigMotion.from_json(out)
+    m = rig_math.RigMotion.from_json(out)
     assert m.meta["up_axis"] == "z" and m.mover == "Bone_00"
     calib = calibrate_retarget([read_bvh(rig_path)], str(jmap), max_frames_per_clip=10**6)
     r = retarget_bvh(read_bvh(bvh), **calib, warn=False)
@@ -474,7 +507,7 @@ def _onto_rig_and_back(rig_path, motion_npz, tmp_path, stem, joint_map=None):
     if joint_map is not None:
         argv += ["--joint-map", str(joint_map)]
     assert _bridge().main(argv) == 0
-    return core.RigMotion.from_json(out), load_motion(bvh)
+    return rig_math.RigMotion.from_json(out), load_motion(bvh)
 
 
 @pytest.mark.parametrize("convention", ["mixamo", "character_creator"])
@@ -517,6 +550,36 @@ def test_the_retarget_onto_a_non_smpl_rig_keeps_smpls_joint_positions(
     assert wrong_cm > 10.0
 
 
+def test_the_bridge_reads_a_rig_and_its_keyframes(walks, tmp_path, plumbing_model, default_body, capsys):  # fmt: skip
+    from mrlib import load_model
+    from mrlib.io import load_motion, save_motion
+    from mrlib.sampling.constraints import load_keyframes
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train
+
+    sad = walks[0].resample(15)
+    rig = save_motion(sad, tmp_path / "rig.bvh")
+    bridge = _bridge()
+    assert bridge.main(["read", str(rig), "--out", str(tmp_path / "rig.npz")]) == 0
+    read = load_motion(tmp_path / "rig.npz")
+    assert read.num_frames == sad.num_frames and np.abs(read.trans - sad.trans).max() < 1e-5
+    torch.set_num_threads(1)
+    ckpt = train(TrainingSet.from_motions(walks), plumbing_model.config, tmp_path / "model",
+                 body=default_body, progress=False).checkpoint  # fmt: skip
+    # BVH frames 4, 19, 20 held 0, 0.5 and 0.51 s in: the last two fall on one model frame
+    k = round(0.5 * load_model(ckpt).fps)
+    argv = ["keyframes", str(rig), str(ckpt), "--frames", "4,19,20", "--times", "0,0.5,0.51",
+            "--out", str(tmp_path / "k.npz")]  # fmt: skip
+    assert bridge.main(argv) == 0
+    assert f"two keys on the model's frame {k} " in capsys.readouterr().err
+    keys = load_keyframes(tmp_path / "k.npz")
+    assert [kf.frame for kf in keys] == [0, k]
+    assert np.abs(keys[1].poses - read.poses[20]).max() < 1e-6
+    assert np.abs(keys[0].trans - read.trans[4]).max() < 1e-6
+    assert bridge.main([*argv[:3], "--frames", "4,999", "--times", "0,1", *argv[-2:]]) == 1
+    assert "frame 999 is outside its 120 frames" in capsys.readouterr().err
+
+
 def test_the_bridge_error_is_one_line(tmp_path, capsys):
     assert _bridge().main(["onto-rig", str(tmp_path / "no.bvh"), "x.npz", "--out", str(tmp_path / "o.json")]) == 1  # fmt: skip
     err = capsys.readouterr().err.strip().splitlines()
@@ -535,7 +598,7 @@ def test_the_zip_holds_the_addon_with_bl_info_and_its_registration(tmp_path):
         names = z.namelist()
         files = {n: z.read(n).decode() for n in names}
     assert all(n.startswith("mrlib_addon/") and n.endswith(".py") for n in names)
-    expected = {"__init__", "core", "bridge", "props", "ops", "panel", "scene_io"}
+    expected = {"__init__", "core", "rig", "bridge", "props", "ops", "panel", "scene_io"}
     assert {Path(n).stem for n in names} == expected
     init = ast.parse(files["mrlib_addon/__init__.py"])
     info = next(
@@ -586,8 +649,9 @@ BLENDER = _blender()
 # one's action, then writes every bone's rotation relative to its parent per frame.
 _BLENDER_SCRIPT = textwrap.dedent(
     """
-    import builtins, json, os, sys
+    import builtins, json, math, os, sys
     import bpy, addon_utils
+    from mathutils import Vector
 
     zip_path, mrlib_python, work, clip_a, clip_b, out_json = sys.argv[sys.argv.index("--") + 1:]
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -634,7 +698,8 @@ _BLENDER_SCRIPT = textwrap.dedent(
             L = {pb.name: [list(r) for r in (G[pb.parent.name].inverted() @ G[pb.name]
                                               if pb.parent else G[pb.name])]
                  for pb in arm.pose.bones}
-            frames.append({"local": L, "pelvis": list(arm.pose.bones["pelvis"].head)})
+            frames.append({"local": L, "pelvis": list(arm.pose.bones["pelvis"].head),
+                           "heads": {pb.name: list(pb.head) for pb in arm.pose.bones}})
         return {"action": action.name, "range": [lo, hi], "frames": frames,
                 "modes": sorted({pb.rotation_mode for pb in arm.pose.bones})}
 
@@ -652,7 +717,52 @@ _BLENDER_SCRIPT = textwrap.dedent(
     s.restyle_label, s.restyle_level, s.seed = "walk_happy", 2, 0
     res["restyle"] = {"result": sorted(bpy.ops.mrlib.restyle(action_name="restyle"))}
     res["restyle"].update(dump(rigs[0]))
-    s.label, s.mode = "no_such_label", "label"
+    # poses keyed on the timeline: three of the first armature's walk, keyed in a new
+    # action at frames 1, 12 and 24
+    arm, walk = rigs[0], bpy.data.actions["walk_sad"]
+    arm.animation_data.action, poses = walk, []
+    for f in (5, 20, 35):
+        scene.frame_set(f)
+        poses.append({pb.name: (tuple(pb.rotation_euler), tuple(pb.location))
+                      for pb in arm.pose.bones})
+    arm.animation_data.action = bpy.data.actions.new("timeline")
+    for f, pose in zip((1, 12, 24), poses):
+        for pb in arm.pose.bones:
+            pb.rotation_euler, pb.location = pose[pb.name]
+            pb.keyframe_insert("rotation_euler", frame=f)
+            pb.keyframe_insert("location", frame=f)
+    res["timeline"] = dump(arm)
+    select(rigs[:1])
+    s.mode, s.label, s.seconds, s.seed, s.loop, s.hold_keys = "label", "walk_sad", 0.0, 2, False, True
+    res["keys"] = {"result": sorted(bpy.ops.mrlib.generate(action_name="keys"))}
+    res["keys"].update(dump(rigs[0]))
+    # that action continued for one second
+    s.label, s.seconds, s.seed, s.hold_keys, s.continue_action = "walk_happy", 1.0, 4, False, True
+    res["continued"] = dump(rigs[0])
+    res["continue"] = {"result": sorted(bpy.ops.mrlib.generate(action_name="continue"))}
+    res["continue"].update(dump(rigs[0]))
+    # a curve of the scene as the root's path: a 2 m line, then a quarter circle of 1 m
+    pts = [(0.4 * i, 0.0) for i in range(6)] + [
+        (2 + math.sin(a * math.pi / 16), 1 - math.cos(a * math.pi / 16)) for a in range(1, 9)]
+    curve = bpy.data.curves.new("path", "CURVE")
+    spline = curve.splines.new("POLY")
+    spline.points.add(len(pts) - 1)
+    for p, (x, y) in zip(spline.points, pts):
+        p.co = (x, y, 0.0, 1.0)
+    path_obj = bpy.data.objects.new("path", curve)
+    scene.collection.objects.link(path_obj)
+    to_arm = rigs[0].matrix_world.inverted()
+    res["curve"] = [list((to_arm @ Vector((x, y, 0.0)))[:2]) for x, y in pts]
+    s.continue_action, s.path_curve, s.seconds, s.seed = False, path_obj, 0.0, 5
+    res["path"] = {"result": sorted(bpy.ops.mrlib.generate(action_name="path"))}
+    res["path"].update(dump(rigs[0]))
+    s.path_curve = None
+    s.continue_action, s.loop, s.hold_keys = True, True, False
+    try:
+        res["two_controls"] = sorted(bpy.ops.mrlib.generate())
+    except RuntimeError as e:
+        res["two_controls"] = str(e).strip()
+    s.label, s.mode, s.continue_action, s.loop = "no_such_label", "label", False, False
     try:  # an operator's error report is a RuntimeError when a script calls it
         res["bad_label"] = sorted(bpy.ops.mrlib.generate())
     except RuntimeError as e:
@@ -725,6 +835,40 @@ def test_the_addon_trains_and_generates_onto_armatures_headless(walks, tmp_path)
             "--seed",
             "1",
         ],  # fmt: skip
+        "keys": [
+            "sample",
+            ckpt,
+            "--label",
+            "walk_sad",
+            "--keyframes",
+            str(next((work / "run" / "generated").glob("*/keys.npz"))),
+            "--seconds",
+            "1.6",
+            "--seed",
+            "2",
+        ],  # fmt: skip
+        "continue": [
+            "sample",
+            ckpt,
+            "--label",
+            "walk_happy",
+            "--continue",
+            str(next((work / "run" / "generated").glob("*/action.npz"))),
+            "--seconds",
+            "1",
+            "--seed",
+            "4",
+        ],  # fmt: skip
+        "path": [
+            "sample",
+            ckpt,
+            "--label",
+            "walk_happy",
+            "--path",
+            str(next((work / "run" / "generated").glob("*/path.csv"))),
+            "--seed",
+            "5",
+        ],  # fmt: skip
         "restyle": [
             "restyle",
             ckpt,
@@ -755,3 +899,31 @@ def test_the_addon_trains_and_generates_onto_armatures_headless(walks, tmp_path)
         print(f"{name}: {len(L)} frames, rotations within {err:.1e}, pelvis within {perr:.1e} m")
         assert perr < 1e-4, (name, perr)
     assert res["crossover"]["modes"] != ["QUATERNION"] and res["blend"]["modes"] == ["QUATERNION"]
+    assert res["two_controls"] == "Error: mrlib: a loop and continuing the action cannot be combined: choose one"  # fmt: skip
+
+    def heads(frames):
+        return np.array([[f["heads"][n] for n in JOINT_NAMES] for f in frames])
+
+    # the poses keyed on the timeline are held on the armature, at their frames
+    timeline, keys = res["timeline"], res["keys"]
+    assert timeline["range"] == [1.0, 24.0] and keys["range"] == [1.0, 24.0]
+    held = np.linalg.norm(heads(keys["frames"])[[0, 11, 23]] - heads(timeline["frames"])[[0, 11, 23]], axis=-1)  # fmt: skip
+    print(f"keyframes held within {held.max() * 100:.2f} cm")
+    assert held.max() < 0.01
+    free = heads(res["crossover"]["frames"])[[0, 11, 23]] - heads(timeline["frames"])[[0, 11, 23]]
+    assert np.linalg.norm(free, axis=-1).max() > 0.05  # what a sample not told of them does
+    # a continued action starts as the action did
+    before, after = heads(res["continued"]["frames"]), heads(res["continue"]["frames"])
+    assert len(after) == len(before) + 15
+    kept = np.linalg.norm(after[: len(before) // 2] - before[: len(before) // 2], axis=-1)
+    print(f"continued action's first half within {kept.max() * 100:.2f} cm")
+    assert kept.max() < 0.01
+    # the root walks the scene's curve: its ground track against the curve's polyline
+    curve = np.array(res["curve"])
+    track = np.array([f["pelvis"][:2] for f in res["path"]["frames"]])
+    a, b = curve[:-1], curve[1:]
+    u = np.clip(np.einsum("tsk,sk->ts", track[:, None] - a, b - a) / ((b - a) ** 2).sum(-1), 0, 1)
+    off = np.linalg.norm(track[:, None] - (a + u[..., None] * (b - a)), axis=-1).min(1)
+    print(f"path: the root within {off.mean() * 100:.1f} cm of the curve on average, {off.max() * 100:.1f} cm at most; start {np.linalg.norm(track[0] - curve[0]) * 100:.1f} cm, end {np.linalg.norm(track[-1] - curve[-1]) * 100:.1f} cm from the curve's")  # fmt: skip
+    assert off.max() < 0.05 and np.linalg.norm(track[0] - curve[0]) < 0.05
+    assert np.linalg.norm(track[-1] - curve[-1]) < 0.15  # a mirrored or turned path: metres

@@ -30,6 +30,16 @@ Commands:
     (what Blender's BVH exporter writes) as quaternions and the root's positions;
     ``OUT.bvh`` (optional) is the same motion as a BVH of the rig.
 
+``read RIG.bvh --out MOTION.npz [--joint-map MAP]``
+    A clip of the rig as mrlib reads it (``mrlib.load_motion``), as SMPL parameters: what
+    ``mrlib sample --continue`` continues.
+
+``keyframes RIG.bvh CHECKPOINT --frames I,... --times S,... --out KF.npz [--joint-map MAP]``
+    The poses (and the root) of frames ``I`` of a clip of the rig, as mrlib reads them, held
+    ``S`` seconds into the motion to generate: a keyframe file of ``mrlib sample
+    --keyframes``, its frames at the model's rate (two keys on one frame there: the later
+    one is kept, with a warning).
+
 ``labels CHECKPOINT --out OUT.json``
     The model's labels, levels and frame rate (loading it needs torch).
 
@@ -40,6 +50,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -219,6 +230,45 @@ def onto_rig(rig_bvh: str | Path, motion_path: str | Path, joint_map: str | None
     return {"json": data, "bvh": out_bvh}
 
 
+def read_rig(rig_bvh: str | Path, out: str | Path, joint_map: str | None = None):
+    from mrlib.io import load_motion, save_motion
+
+    motion = load_motion(rig_bvh, joint_map=joint_map)
+    save_motion(motion, out)
+    return motion
+
+
+def rig_keyframes(
+    rig_bvh: str | Path,
+    checkpoint: str | Path,
+    frames: list[int],
+    times: list[float],
+    out: str | Path,
+    joint_map: str | None = None,
+) -> list:
+    """The keyframes (``mrlib.sampling.constraints.Keyframe``) written to ``out``."""
+    from mrlib import load_model
+    from mrlib.io import load_motion
+    from mrlib.sampling.constraints import Keyframe, save_keyframes
+
+    if len(frames) != len(times) or not frames:
+        raise ValueError(f"{len(frames)} frames and {len(times)} times: give one time per frame")
+    motion = load_motion(rig_bvh, joint_map=joint_map)
+    fps = float(load_model(checkpoint).fps)
+    held: dict[int, object] = {}
+    for i, t in zip(frames, times, strict=True):
+        if not 0 <= i < motion.num_frames:
+            raise ValueError(f"{rig_bvh}: frame {i} is outside its {motion.num_frames} frames")
+        k = int(round(t * fps))
+        if k in held:
+            print(f"warning: two keys on the model's frame {k} ({fps:g} fps): the later one is held",
+                  file=sys.stderr)  # fmt: skip
+        held[k] = Keyframe.from_motion(motion, i, k)
+    keys = [held[k] for k in sorted(held)]
+    save_keyframes(out, keys)
+    return keys
+
+
 def checkpoint_labels(checkpoint: str | Path) -> dict:
     from mrlib import load_model
 
@@ -237,6 +287,25 @@ def _write_json(path: str | Path, data: dict) -> None:
     tmp.replace(path)
 
 
+def _ints(text: str) -> list[int]:
+    try:
+        return [int(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"not whole numbers separated by commas: {text!r}"
+        ) from None
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise argparse.ArgumentTypeError(f"not seconds >= 0 separated by commas: {text!r}")
+    return values
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bridge.py", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -245,6 +314,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("motion")
     p.add_argument("--out", required=True)
     p.add_argument("--bvh")
+    p.add_argument("--joint-map")
+    p = sub.add_parser("read", help="a clip of a rig as SMPL parameters")
+    p.add_argument("rig")
+    p.add_argument("--out", required=True)
+    p.add_argument("--joint-map")
+    p = sub.add_parser("keyframes", help="poses of a clip of a rig as a keyframe file")
+    p.add_argument("rig")
+    p.add_argument("checkpoint")
+    p.add_argument("--frames", required=True, type=_ints)
+    p.add_argument("--times", required=True, type=_floats)
+    p.add_argument("--out", required=True)
     p.add_argument("--joint-map")
     p = sub.add_parser("labels", help="a checkpoint's labels and levels")
     p.add_argument("checkpoint")
@@ -260,6 +340,13 @@ def main(argv: list[str] | None = None) -> int:
             _write_json(args.out, res["json"])
             d = res["json"]
             print(f"wrote {args.out}: {d['frames']} frames of {len(d['bones'])} bones ({len(d['mapped'])} mapped)")  # fmt: skip
+        elif args.command == "read":
+            m = read_rig(args.rig, args.out, args.joint_map)
+            print(f"wrote {args.out}: {m.num_frames} frames at {m.fps:g} fps")
+        elif args.command == "keyframes":
+            keys = rig_keyframes(args.rig, args.checkpoint, args.frames, args.times, args.out,
+                                 args.joint_map)  # fmt: skip
+            print(f"wrote {args.out}: {len(keys)} keyframes")
         else:
             _write_json(args.out, checkpoint_labels(args.checkpoint))
             print(f"wrote {args.out}")

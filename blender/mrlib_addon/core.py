@@ -1,4 +1,4 @@
-"""The add-on's logic that needs no Blender: it imports without ``bpy`` (plain Python 3.10+,
+"""The add-on's logic that needs no Blender (poses on the rig: ``rig.py``): it imports without ``bpy`` (plain Python 3.10+,
 no numpy), so ``tests/test_blender_addon.py`` tests it outside Blender.
 
 * **Which Python** (``resolve_python``): the preference may name a Python executable or a
@@ -14,9 +14,6 @@ no numpy), so ``tests/test_blender_addon.py`` tests it outside Blender.
   read by threads into a queue that ``poll()`` drains (Blender calls it from a timer, so
   its UI never waits); ``cancel()`` sends an interrupt (mrlib's training then saves its
   checkpoint), then terminates, then kills a child that does not stop.
-* **Poses on the rig** (``basis_from_local``, ``root_location``, ``RigMotion``): the
-  bridge writes the motion as per-bone BVH rotations in the armature's axes; turning them
-  into pose-bone rotations is plain quaternion algebra, done here.
 * **Joint maps** (``read_joint_map``, ``check_joint_map``): ``{SMPL joint: bone}`` files
   as ``mrlib info --write-map`` writes them, checked against an armature's bone names.
 """
@@ -24,7 +21,6 @@ no numpy), so ``tests/test_blender_addon.py`` tests it outside Blender.
 from __future__ import annotations
 
 import json
-import math
 import os
 import queue
 import re
@@ -44,7 +40,6 @@ SMPL_JOINTS = (
     "left_wrist", "right_wrist", "left_hand", "right_hand",
 )  # fmt: skip
 BRIDGE = Path(__file__).with_name("bridge.py")
-RIG_MOTION_FORMAT = "mrlib-rig-motion"
 
 
 class SetupError(Exception):
@@ -198,18 +193,32 @@ def sample_args(
     seed: int = 0,
     loop: bool = False,
     path: str | Path | None = None,
+    keyframes: str | Path | None = None,
+    prefix: str | Path | None = None,
     raw: bool = False,
     overwrite: bool = True,
     threads: int | None = None,
 ) -> list[str]:
-    """``mrlib sample`` arguments for one sample (``--num 1``) written to ``out``."""
-    if loop and path:
-        raise SetupError("a loop and a path cannot be combined: choose one")
+    """``mrlib sample`` arguments for one sample (``--num 1``) written to ``out``: at most
+    one of a loop, a ``path`` CSV, a ``keyframes`` file (``--keyframes``, needs
+    ``seconds``) and a ``prefix`` motion to continue (``--continue``, ``seconds`` more)."""
+    chosen = [name for name, on in (("a loop", loop), ("a path", path),
+                                    ("timeline keyframes", keyframes),
+                                    ("continuing the action", prefix)) if on]  # fmt: skip
+    if len(chosen) > 1:
+        raise SetupError(f"{' and '.join(chosen)} cannot be combined: choose one")
+    if (keyframes or prefix) and not (seconds and seconds > 0):
+        what = "keyframes need" if keyframes else "continuing needs"
+        raise SetupError(f"{what} a length in seconds")
     args = ["sample", str(checkpoint), *condition.args()]
     if loop:
         args.append("--loop")
     if path:
         args += ["--path", str(path)]
+    if keyframes:
+        args += ["--keyframes", str(keyframes)]
+    if prefix:
+        args += ["--continue", str(prefix)]
     if seconds:
         args += ["--seconds", f"{float(seconds):g}"]
     args += ["--seed", str(int(seed)), "--num", "1", "--out", str(out)]
@@ -271,6 +280,77 @@ def onto_rig_args(
     if joint_map:
         args += ["--joint-map", joint_map]
     return bridge_args(python, "onto-rig", *args)
+
+
+def read_args(
+    python: str, rig_bvh: str | Path, out: str | Path, *, joint_map: str | Path | None = None
+) -> list[str]:
+    """The bridge's ``read``: a clip of the rig as mrlib reads it (SMPL parameters, .npz)."""
+    args = [rig_bvh, "--out", out]
+    if joint_map:
+        args += ["--joint-map", joint_map]
+    return bridge_args(python, "read", *args)
+
+
+@dataclass(frozen=True)
+class TimelineKey:
+    """A keyed frame of the timeline: ``index`` into the clip exported from the action's
+    first frame, ``seconds`` after the frame the generated motion starts at."""
+
+    index: int
+    seconds: float
+
+
+def timeline_keys(
+    keyed: Iterable[float], first: int, start: float, scene_fps: float
+) -> list[TimelineKey]:
+    """The keys of frames ``keyed`` (scene frames with a key on any bone; sub-frame keys
+    taken at the nearest frame) of an action exported from scene frame ``first``, for a
+    motion starting at scene frame ``start``: the keys before ``start`` are left out."""
+    if scene_fps <= 0:
+        raise SetupError(f"the scene's frame rate must be positive, got {scene_fps:g}")
+    frames = sorted({int(round(float(f))) for f in keyed})
+    out = [
+        TimelineKey(f - first, (f - start) / scene_fps) for f in frames if f >= start and f >= first
+    ]
+    if not out:
+        raise SetupError(
+            f"no keyframes at or after the start frame {start:g}: key the armature's pose "
+            "on the timeline first"
+        )
+    return out
+
+
+def keyframe_seconds(keys: Sequence[TimelineKey], seconds: float, scene_fps: float) -> float:
+    """The length to generate: ``seconds`` (0: up to the last key, one frame past it); a
+    length that ends before the last key is refused."""
+    need = keys[-1].seconds + 1.0 / scene_fps
+    if not seconds:
+        return need
+    if seconds < need - 1e-9:
+        raise SetupError(
+            f"the last keyframe is {keys[-1].seconds:.3g} s after the start frame: ask for at "
+            f"least {need:.3g} s, or 0 for that"
+        )
+    return float(seconds)
+
+
+def keyframes_args(
+    python: str,
+    rig_bvh: str | Path,
+    checkpoint: str | Path,
+    keys: Sequence[TimelineKey],
+    out: str | Path,
+    *,
+    joint_map: str | Path | None = None,
+) -> list[str]:
+    """The bridge's ``keyframes``: the poses of ``rig_bvh`` at ``keys`` as a keyframe file
+    of ``mrlib sample --keyframes`` (frames at the model's rate)."""
+    args = [rig_bvh, checkpoint, "--frames", ",".join(str(k.index) for k in keys),
+            "--times", ",".join(f"{k.seconds:.6f}" for k in keys), "--out", out]  # fmt: skip
+    if joint_map:
+        args += ["--joint-map", joint_map]
+    return bridge_args(python, "keyframes", *args)
 
 
 # -- progress and error lines -------------------------------------------------------------------
@@ -487,18 +567,25 @@ class Job:
         """Poll until the command ends (``timeout`` seconds: cancel it); its exit status."""
         if self.proc is None:
             self.start()
-        end = None if timeout is None else time.monotonic() + timeout
-        while not self.done:
-            for e in self.poll():
-                if on_event is not None:
-                    on_event(e)
-            if end is not None and time.monotonic() > end and not self.cancelled:
-                self.cancel(grace=2.0)
-            time.sleep(interval)
-        for e in self.poll():
+        _drive(self, lambda: self.done, lambda: self.cancel(grace=2.0), timeout, interval, on_event)
+        for e in self.poll():  # what the last reads queued
             if on_event is not None:
                 on_event(e)
         return int(self.returncode or 0)
+
+
+def _drive(runner, done: Callable[[], bool], cancel: Callable[[], None], timeout: float | None,
+           interval: float, on_event: Callable[[Event], None] | None) -> None:  # fmt: skip
+    """Poll ``runner`` (a ``Job`` or ``Pipeline``) until ``done()``, handing its events to
+    ``on_event``; past ``timeout`` seconds ``cancel()`` it once."""
+    end = None if timeout is None else time.monotonic() + timeout
+    while not done():
+        for e in runner.poll():
+            if on_event is not None:
+                on_event(e)
+        if end is not None and time.monotonic() > end and not runner.cancelled:
+            cancel()
+        time.sleep(interval)
 
 
 @dataclass
@@ -590,176 +677,8 @@ class Pipeline:
     def wait(self, timeout: float | None = None, interval: float = 0.05,
              on_event: Callable[[Event], None] | None = None) -> bool:  # fmt: skip
         """Run to the end (headless); True when every step succeeded."""
-        end = None if timeout is None else time.monotonic() + timeout
-        while not self.finished:
-            for e in self.poll():
-                if on_event is not None:
-                    on_event(e)
-            if end is not None and time.monotonic() > end and not self.cancelled:
-                self.cancel()
-            time.sleep(interval)
+        _drive(self, lambda: self.finished, self.cancel, timeout, interval, on_event)
         return self.error is None and not self.cancelled
-
-
-# -- quaternions (w, x, y, z) and poses on the rig --------------------------------------------------
-Quat = tuple[float, float, float, float]
-Vec = tuple[float, float, float]
-
-
-def quat_mul(a: Sequence[float], b: Sequence[float]) -> Quat:
-    aw, ax, ay, az = a
-    bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-def quat_conj(q: Sequence[float]) -> Quat:
-    return (q[0], -q[1], -q[2], -q[3])
-
-
-def quat_normalized(q: Sequence[float]) -> Quat:
-    n = math.sqrt(sum(c * c for c in q)) or 1.0
-    return (q[0] / n, q[1] / n, q[2] / n, q[3] / n)
-
-
-def quat_rotate(q: Sequence[float], v: Sequence[float]) -> Vec:
-    w, x, y, z = quat_mul(quat_mul(q, (0.0, *v)), quat_conj(q))
-    return (x, y, z)
-
-
-def quat_from_matrix(m: Sequence[Sequence[float]]) -> Quat:
-    """The unit quaternion of a 3x3 rotation matrix (rows), w >= 0."""
-    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = ((float(v) for v in r) for r in m)
-    tr = m00 + m11 + m22
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = (0.25 * s, (m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s)
-    elif m00 > m11 and m00 > m22:
-        s = math.sqrt(1.0 + m00 - m11 - m22) * 2
-        q = ((m21 - m12) / s, 0.25 * s, (m01 + m10) / s, (m02 + m20) / s)
-    elif m11 > m22:
-        s = math.sqrt(1.0 + m11 - m00 - m22) * 2
-        q = ((m02 - m20) / s, (m01 + m10) / s, 0.25 * s, (m12 + m21) / s)
-    else:
-        s = math.sqrt(1.0 + m22 - m00 - m11) * 2
-        q = ((m10 - m01) / s, (m02 + m20) / s, (m12 + m21) / s, 0.25 * s)
-    q = quat_normalized(q)
-    return q if q[0] >= 0 else (-q[0], -q[1], -q[2], -q[3])
-
-
-def quat_to_matrix(q: Sequence[float]) -> list[list[float]]:
-    w, x, y, z = quat_normalized(q)
-    return [
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ]
-
-
-def basis_from_local(local: Sequence[float], rest: Sequence[float]) -> Quat:
-    """A pose bone's rotation (``matrix_basis``, in the bone's rest frame) from its BVH
-    rotation as Blender's BVH exporter writes it.
-
-    With ``R`` the bone's rest orientation in armature space (``bone.matrix_local``) and
-    ``P`` its posed one (``pose_bone.matrix``), the exporter writes ``G = P R^-1`` of the
-    root and ``G_parent^-1 G`` of every other bone (``io_anim_bvh.export_bvh``), all in the
-    armature's axes. Since ``P = P_parent R_parent^-1 R B`` (``B``: the basis rotation),
-    ``G_parent^-1 G = R B R^-1``, so ``B = R^-1 (G_parent^-1 G) R``: ``local`` and ``rest``
-    are those two rotations as quaternions."""
-    return quat_normalized(quat_mul(quat_mul(quat_conj(rest), local), rest))
-
-
-def root_location(position: Sequence[float], head: Sequence[float], rest: Sequence[float]) -> Vec:
-    """A parentless pose bone's location (in its rest frame) that puts its head at
-    ``position`` (armature space): ``R^-1 (position - head_rest)``."""
-    d = tuple(float(p) - float(h) for p, h in zip(position, head, strict=True))
-    return quat_rotate(quat_conj(rest), d)
-
-
-def continuous(quats: Iterable[Sequence[float]]) -> list[Quat]:
-    """``quats`` with signs flipped so each is in the hemisphere of the one before (no
-    spins through the long way when Blender interpolates the components)."""
-    out: list[Quat] = []
-    for q in quats:
-        q = tuple(float(c) for c in q)
-        if out and sum(a * b for a, b in zip(out[-1], q, strict=True)) < 0:
-            q = tuple(-c for c in q)
-        out.append(q)  # type: ignore[arg-type]
-    return out
-
-
-def key_frames(count: int, motion_fps: float, scene_fps: float, start: float = 1.0) -> list[float]:
-    """Scene frames of ``count`` motion frames at ``motion_fps`` (fractional where the
-    rates differ; the first at ``start``)."""
-    if motion_fps <= 0 or scene_fps <= 0:
-        raise SetupError(f"frame rates must be positive, got {motion_fps:g} and {scene_fps:g}")
-    step = scene_fps / motion_fps
-    return [start + i * step for i in range(count)]
-
-
-@dataclass(frozen=True)
-class RigMotion:
-    """What the bridge's ``onto-rig`` writes: a motion as rotations of the rig's bones.
-
-    Attributes:
-        fps: frames per second of the motion.
-        bones: the rig's bones in the file's order (every one the clip exported).
-        parents: index of each bone's parent in ``bones`` (-1: none).
-        rotations: bone -> ``T`` quaternions (w, x, y, z), the bone's BVH rotation
-            relative to its parent, in the armature's axes (see ``basis_from_local``).
-        mover: the bone that carries the motion's translation (the rig's root).
-        positions: ``T`` positions of ``mover``'s head, armature space and units.
-        mapped: the joint map used, SMPL joint -> bone.
-        meta: the rest (label, source files, retargeting error, ...).
-    """
-
-    fps: float
-    bones: tuple[str, ...]
-    parents: tuple[int, ...]
-    rotations: dict[str, list[Quat]]
-    mover: str
-    positions: list[Vec]
-    mapped: dict[str, str]
-    meta: dict
-
-    @property
-    def num_frames(self) -> int:
-        return len(self.positions)
-
-    @classmethod
-    def from_json(cls, path: str | Path) -> RigMotion:
-        path = Path(path)
-        try:
-            d = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as e:
-            raise SetupError(f"{path}: cannot read the rig motion ({e})") from None
-        if not isinstance(d, dict) or d.get("format") != RIG_MOTION_FORMAT:
-            raise SetupError(f"{path}: not a rig motion written by the add-on's bridge")
-        T = len(d["positions"])
-        rots = {b: [tuple(q) for q in qs] for b, qs in d["rotations"].items()}
-        short = [b for b, qs in rots.items() if len(qs) != T]
-        if short:
-            raise SetupError(f"{path}: bone {short[0]!r} has {len(rots[short[0]])} frames, not {T}")
-        meta = {k: v for k, v in d.items() if k not in ("rotations", "positions")}
-        return cls(
-            fps=float(d["fps"]), bones=tuple(d["bones"]), parents=tuple(d["parents"]),
-            rotations=rots, mover=d["mover"], positions=[tuple(p) for p in d["positions"]],
-            mapped=dict(d.get("mapped", {})), meta=meta,
-        )  # fmt: skip
-
-    def missing_bones(self, names: Iterable[str]) -> list[str]:
-        """The bones this motion drives that an armature with bones ``names`` lacks."""
-        have = set(names)
-        return [b for b in self.bones if b not in have and not is_dummy_root(b)]
-
-
-def is_dummy_root(name: str) -> bool:
-    """The root Blender's BVH exporter adds above an armature of several root bones."""
-    return re.fullmatch(r"__\d+", name) is not None
 
 
 # -- joint maps, clips and paths ---------------------------------------------------------------------

@@ -13,7 +13,7 @@ from pathlib import Path
 import bpy
 from bpy.props import StringProperty
 
-from . import core, scene_io
+from . import core, rig, scene_io
 from .props import prefs
 
 # the one command running (one at a time): its pipeline, title and last message
@@ -301,15 +301,19 @@ def _target(context):
 
 def _rig_clip(context, arm, folder: Path) -> Path:
     """A BVH of ``arm`` whose reading calibrates the transfer: its training clip when it
-    has one (the calibration training used), else its action, else its current pose."""
+    has one that still drives its bones (the calibration training used), else its action,
+    else its current pose."""
     s = context.scene.mrlib
-    action = next((c.action for c in s.clips if c.armature == arm and c.action), None)
+    action = next((c.action for c in s.clips if c.armature == arm and c.action
+                   and scene_io.drives_pose(c.action, arm)), None)  # fmt: skip
     return scene_io.export_bvh(context.scene, arm, folder / "rig.bvh", action)
 
 
-def _onto_rig_steps(context, arm, run: Path, produce: core.Step, action_name: str) -> core.Pipeline:
-    """``produce`` (a command writing one .npz to ``run/sample``), then the bridge putting it
-    onto ``arm``, then the new action."""
+def _onto_rig_steps(
+    context, arm, run: Path, produce: core.Step, action_name: str, before=()
+) -> core.Pipeline:
+    """The steps ``before``, ``produce`` (a command writing one .npz to ``run/sample``),
+    then the bridge putting it onto ``arm``, then the new action."""
     s = context.scene.mrlib
     py = python(context)
     rig_bvh = _rig_clip(context, arm, run)
@@ -328,7 +332,7 @@ def _onto_rig_steps(context, arm, run: Path, produce: core.Step, action_name: st
                                   joint_map=jm)  # fmt: skip
 
     def apply() -> None:
-        motion = core.RigMotion.from_json(run / "rig_motion.json")
+        motion = rig.RigMotion.from_json(run / "rig_motion.json")
         target = bpy.data.objects.get(arm_name)
         if target is None:
             raise core.SetupError(f"the armature {arm_name!r} is gone")
@@ -339,7 +343,7 @@ def _onto_rig_steps(context, arm, run: Path, produce: core.Step, action_name: st
         )
 
     onto = core.Step("onto rig", onto_rig_argv, after=apply)
-    return core.Pipeline([produce, onto], name=f"mrlib {produce.name}")
+    return core.Pipeline([*before, produce, onto], name=f"mrlib {produce.name}")
 
 
 def _checkpoint(context) -> Path:
@@ -368,17 +372,42 @@ class MRLIB_OT_generate(_Command, bpy.types.Operator):
                               fine=s.fine.strip(), level=s.level, num_levels=levels,
                               weight=s.weight)  # fmt: skip
         cond.args()  # refuses a bad condition before anything is written
+        action = arm.animation_data.action if arm.animation_data else None
+        if (s.hold_keys or s.continue_action) and action is None:
+            what = "keyframes to hold" if s.hold_keys else "action to continue"
+            raise core.SetupError(f"{arm.name} has no {what}")
+        # a bad combination of controls is refused before anything is written
+        core.sample_args(ckpt, "-", cond, seconds=1.0, loop=s.loop, path=s.path_curve is not None,
+                         keyframes=s.hold_keys, prefix=s.continue_action)  # fmt: skip
+        fps = context.scene.render.fps / context.scene.render.fps_base
+        seconds, keyframes, prefix, before = s.seconds, None, None, []
+        if s.hold_keys:
+            first = scene_io.action_frame_range(action)[0]
+            keys = core.timeline_keys(scene_io.keyed_frames(action), first, s.start_frame, fps)
+            seconds = core.keyframe_seconds(keys, s.seconds, fps)
+        elif s.continue_action:
+            first, last = scene_io.action_frame_range(action)
+            seconds = s.seconds or (last - first + 1) / fps
         run = new_run_folder(abs_dir(s.out_dir) / "generated", core.safe_file_stem(arm.name))
         path = None
         if s.path_curve is not None:
             path = run / "path.csv"
             pts = scene_io.curve_ground_points(s.path_curve, arm)
             path.write_text(core.path_csv(pts), encoding="utf-8")
-        argv = core.mrlib_command(python(context), *core.sample_args(
-            ckpt, run / "sample", cond, seconds=s.seconds or None, seed=s.seed, loop=s.loop,
-            path=path, raw=s.raw, threads=threads(context),
+        py, jm = python(context), abs_file(s.joint_map)
+        if s.hold_keys:
+            clip, keyframes = scene_io.export_bvh(context.scene, arm, run / "keys.bvh"), run / "keys.npz"  # fmt: skip
+            argv = core.keyframes_args(py, clip, ckpt, keys, keyframes, joint_map=jm)
+            before.append(core.Step("keyframes", argv, weight=0.2))
+        elif s.continue_action:
+            clip, prefix = scene_io.export_bvh(context.scene, arm, run / "action.bvh"), run / "action.npz"  # fmt: skip
+            before.append(core.Step("read action", core.read_args(py, clip, prefix, joint_map=jm), 0.1))  # fmt: skip
+        argv = core.mrlib_command(py, *core.sample_args(
+            ckpt, run / "sample", cond, seconds=seconds or None, seed=s.seed, loop=s.loop,
+            path=path, keyframes=keyframes, prefix=prefix, raw=s.raw, threads=threads(context),
         ))  # fmt: skip
-        return _onto_rig_steps(context, arm, run, core.Step("sample", argv), self.action_name)
+        sample = core.Step("sample", argv)
+        return _onto_rig_steps(context, arm, run, sample, self.action_name, before=before)
 
 
 class MRLIB_OT_restyle(_Command, bpy.types.Operator):

@@ -135,6 +135,15 @@ class MRLIB_PG_settings(bpy.types.PropertyGroup):
     loop: BoolProperty(name="Loop", description="a seamless loop (--loop)")
     path_curve: PointerProperty(name="Path", description="walk along this curve (--path)",
                                 type=bpy.types.Object, poll=_curve_poll)  # fmt: skip
+    hold_keys: BoolProperty(
+        name="Hold keys",
+        description="hold the poses the armature's action keys on the timeline, at their "
+        "frames from the start frame (--keyframes); Seconds 0: up to the last key",
+    )
+    continue_action: BoolProperty(
+        name="Continue",
+        description="the armature's action followed by Seconds of new motion (--continue)",
+    )
     raw: BoolProperty(name="Raw", description="skip mrlib's foot-contact clean-up")
     start_frame: IntProperty(name="Start frame", default=1)
     # -- restyle

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import bpy
 from mathutils import Quaternion
 
-from . import core
+from . import core, rig
 
 
 def action_frame_range(action) -> tuple[int, int]:
@@ -70,6 +70,42 @@ def clip_actions(arm) -> list:
     return out
 
 
+def action_fcurves(action) -> list:
+    """The F-curves of ``action``: its own list, or those of its layers' strips (the
+    layered actions of Blender 4.4+, where the list may be gone)."""
+    fcurves = getattr(action, "fcurves", None)
+    if fcurves is not None:
+        return list(fcurves)
+    out = []
+    for layer in getattr(action, "layers", ()):
+        for strip in layer.strips:
+            for bag in getattr(strip, "channelbags", ()):
+                out.extend(bag.fcurves)
+    return out
+
+
+def keyed_frames(action) -> list[float]:
+    """The frames at which ``action`` keys any pose bone (its keyframes on the timeline)."""
+    frames = set()
+    for fc in action_fcurves(action):
+        if fc.data_path.startswith("pose.bones["):
+            frames.update(float(k.co[0]) for k in fc.keyframe_points)
+    return sorted(frames)
+
+
+def drives_pose(action, arm) -> bool:
+    """Whether ``action`` keys the rotations ``arm``'s bones read (an action keyed in Euler
+    angles does not move bones set to quaternions since)."""
+    prop = {"QUATERNION": "rotation_quaternion", "AXIS_ANGLE": "rotation_axis_angle"}
+    keyed = {fc.data_path for fc in action_fcurves(action)}
+    for pb in arm.pose.bones:
+        path = f'pose.bones["{bpy.utils.escape_identifier(pb.name)}"]'
+        rotations = {p for p in keyed if p.startswith(path + ".rotation_")}
+        if rotations and f"{path}.{prop.get(pb.rotation_mode, 'rotation_euler')}" not in rotations:
+            return False
+    return True
+
+
 def curve_ground_points(curve, arm) -> list[tuple[float, float]]:
     """The points of ``curve`` (evaluated, in order) in ``arm``'s armature space, on the
     ground: ``(x, y)``."""
@@ -90,7 +126,10 @@ def curve_ground_points(curve, arm) -> list[tuple[float, float]]:
 
 def _new_fcurve(action, obj, data_path: str, index: int, group: str):
     if hasattr(action, "fcurve_ensure_for_datablock"):  # Blender 4.4+: layered actions
-        return action.fcurve_ensure_for_datablock(obj, data_path, index=index, group_name=group)
+        try:  # group_name: Blender 5.0; 4.4 and 4.5 group nothing
+            return action.fcurve_ensure_for_datablock(obj, data_path, index=index, group_name=group)  # fmt: skip
+        except TypeError:
+            return action.fcurve_ensure_for_datablock(obj, data_path, index=index)
     return action.fcurves.new(data_path, index=index, action_group=group)
 
 
@@ -101,7 +140,7 @@ def _key(fc, frames: list[float], values: list[float]) -> None:
     fc.update()
 
 
-def apply_rig_motion(scene, arm, motion: core.RigMotion, name: str, start: float = 1.0):
+def apply_rig_motion(scene, arm, motion: rig.RigMotion, name: str, start: float = 1.0):
     """A new action ``name`` on ``arm`` holding ``motion`` (keys at every motion frame, at
     the scene's frame rate from ``start``), made the armature's active action. Bones the
     motion does not drive keep no keys; their location is reset to the rest pose."""
@@ -113,17 +152,20 @@ def apply_rig_motion(scene, arm, motion: core.RigMotion, name: str, start: float
             "exported"
         )
     fps = scene.render.fps / scene.render.fps_base
-    frames = core.key_frames(motion.num_frames, motion.fps, fps, start)
+    frames = rig.key_frames(motion.num_frames, motion.fps, fps, start)
     action = bpy.data.actions.new(name)
     if arm.animation_data is None:
         arm.animation_data_create()
+    old = arm.animation_data.action
+    if old is not None and old.users <= 1:  # the new action replaces it: keep it in the file
+        old.use_fake_user = True
     arm.animation_data.action = action
     for bone_name in motion.bones:
         if bone_name not in bones:  # the exporter's dummy root
             continue
         pb = bones[bone_name]
         rest = tuple(pb.bone.matrix_local.to_quaternion())
-        quats = core.continuous(core.basis_from_local(q, rest) for q in motion.rotations[bone_name])
+        quats = rig.continuous(rig.basis_from_local(q, rest) for q in motion.rotations[bone_name])
         path = f'pose.bones["{bpy.utils.escape_identifier(bone_name)}"]'
         mode = pb.rotation_mode
         if mode == "QUATERNION":
@@ -149,7 +191,7 @@ def apply_rig_motion(scene, arm, motion: core.RigMotion, name: str, start: float
             _key(_new_fcurve(action, arm, f"{path}.{prop}", i, bone_name), frames, list(values))
         if bone_name == motion.mover:
             head = tuple(pb.bone.head_local)
-            locs = [core.root_location(p, head, rest) for p in motion.positions]
+            locs = [rig.root_location(p, head, rest) for p in motion.positions]
             for i, values in enumerate(zip(*locs, strict=True)):
                 _key(
                     _new_fcurve(action, arm, f"{path}.location", i, bone_name), frames, list(values)

@@ -106,6 +106,11 @@ def step():
 
 
 def finish():
+    # where the sidebar and the status bar are in the screenshots (compose.py crops them)
+    log["window"] = [win.width, win.height]
+    log["sidebar"] = [ui.x - win.x if ui.x >= win.x else ui.x, ui.y, ui.width, ui.height]
+    bar = next((a for a in win.screen.areas if a.type == "STATUSBAR"), None)
+    log["statusbar"] = [bar.x, bar.y, bar.width, bar.height] if bar else None
     json.dump(log, open(os.path.join(out_dir, "ui_log.json"), "w"), indent=1)
     bpy.ops.wm.quit_blender()
 
