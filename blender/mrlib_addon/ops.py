@@ -11,7 +11,7 @@ import tempfile
 from pathlib import Path
 
 import bpy
-from bpy.props import StringProperty
+from bpy.props import CollectionProperty, StringProperty
 
 from . import core, rig, scene_io
 from .props import prefs
@@ -170,6 +170,37 @@ class MRLIB_OT_clip_add_selected(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class MRLIB_OT_clip_add_files(bpy.types.Operator):
+    """Add motion files (BVH, SMPL/AMASS .npz) as training clips, labelled by file name"""
+
+    bl_idname = "mrlib.clip_add_files"
+    bl_label = "Add Motion Files"
+    bl_options = {"REGISTER", "UNDO"}
+
+    directory: StringProperty(subtype="DIR_PATH")
+    files: CollectionProperty(type=bpy.types.OperatorFileListElement)
+    filter_glob: StringProperty(default="*.bvh;*.npz", options={"HIDDEN"})
+
+    def invoke(self, context, event):
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        s = context.scene.mrlib
+        have = {bpy.path.abspath(c.filepath) for c in s.clips if c.filepath}
+        paths = [Path(bpy.path.abspath(self.directory)) / f.name for f in self.files if f.name]
+        bad = [p.name for p in paths if p.suffix.lower() not in (".bvh", ".npz") or not p.is_file()]
+        if bad:
+            self.report({"ERROR"}, f"mrlib: not a .bvh or .npz file: {', '.join(bad[:3])}")
+            return {"CANCELLED"}
+        for path in paths:
+            if str(path) not in have:
+                clip = s.clips.add()
+                clip.filepath, clip.label = str(path), path.stem
+        s.clip_index = len(s.clips) - 1
+        return {"FINISHED"}
+
+
 class MRLIB_OT_clip_remove(bpy.types.Operator):
     """Remove the clip selected in the list"""
 
@@ -206,17 +237,18 @@ class MRLIB_OT_train(_Command, bpy.types.Operator):
 
     def build(self, context):
         s, scene = context.scene.mrlib, context.scene
-        clips = [c for c in s.clips if c.use and c.armature is not None and c.action is not None]
+        clips = [c for c in s.clips if c.use and (c.filepath or (c.armature and c.action))]
         if not clips:
-            raise core.SetupError("no clips: select armatures and press 'Add Selected'")
+            raise core.SetupError("no clips: add armatures' actions or motion files")
         py = python(context)
         out = abs_dir(s.out_dir)
-        labels = [c.label.strip() or c.action.name for c in clips]
+        labels = [c.label.strip() or Path(c.filepath).stem or c.action.name for c in clips]
         stems = core.unique_stems(labels)
         paths = [
-            scene_io.export_bvh(scene, c.armature, out / "clips" / f"{stem}.bvh", c.action)
+            Path(bpy.path.abspath(c.filepath)) if c.filepath
+            else scene_io.export_bvh(scene, c.armature, out / "clips" / f"{stem}.bvh", c.action)
             for c, stem in zip(clips, stems, strict=True)
-        ]
+        ]  # fmt: skip
         model = out / "model"
         jm = abs_file(s.joint_map)
         argv = core.mrlib_command(py, *core.train_args(
@@ -481,6 +513,7 @@ class MRLIB_OT_cancel(bpy.types.Operator):
 
 CLASSES = (
     MRLIB_OT_clip_add_selected,
+    MRLIB_OT_clip_add_files,
     MRLIB_OT_clip_remove,
     MRLIB_OT_train,
     MRLIB_OT_resume,

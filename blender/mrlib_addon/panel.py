@@ -14,6 +14,9 @@ class MRLIB_UL_clips(bpy.types.UIList):
         row.prop(item, "label", text="", emboss=False, icon="ACTION")
         sub = row.row()
         sub.enabled = False
+        if item.filepath:
+            sub.label(text=bpy.path.basename(item.filepath), icon="FILE")
+            return
         arm = item.armature.name if item.armature else "?"
         act = item.action.name if item.action else "?"
         sub.label(text=f"{arm} / {act}")
@@ -74,6 +77,7 @@ class MRLIB_PT_train(_Panel, bpy.types.Panel):
         row.template_list("MRLIB_UL_clips", "", s, "clips", s, "clip_index", rows=3)
         col = row.column(align=True)
         col.operator("mrlib.clip_add_selected", text="", icon="ADD")
+        col.operator("mrlib.clip_add_files", text="", icon="FILEBROWSER")
         col.operator("mrlib.clip_remove", text="", icon="REMOVE")
         layout.prop(s, "preset")
         col = layout.column(align=True)

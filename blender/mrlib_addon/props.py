@@ -66,6 +66,8 @@ def _labels(self, context, edit_text):
 class MRLIB_PG_clip(bpy.types.PropertyGroup):
     armature: PointerProperty(name="Armature", type=bpy.types.Object, poll=_armature_poll)
     action: PointerProperty(name="Action", type=bpy.types.Action)
+    filepath: StringProperty(name="File", description="a motion file (instead of an action)",
+                             subtype="FILE_PATH")  # fmt: skip
     label: StringProperty(name="Label", description="The clip's label (condition)")
     use: BoolProperty(name="Use", default=True)
 
