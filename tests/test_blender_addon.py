@@ -644,9 +644,11 @@ def _blender() -> list[str] | None:
 BLENDER = _blender()
 
 # Runs inside Blender: installs the zip, points the add-on at this repository's Python,
-# imports two walks as armatures, trains on the first one's action and the second's file, generates a crossover onto the first armature
-# (Euler bones), a blended loop onto the second (quaternion bones) and restyles the first
-# one's action, then writes every bone's rotation relative to its parent per frame.
+# imports two walks as armatures, trains on the first one's action and the second's BVH
+# file, generates a crossover onto the first armature (Euler bones), a blended loop onto the
+# second (quaternion bones), restyles the first one's action, holds poses keyed on the
+# timeline, continues an action and walks a curve, then writes every bone's rotation
+# relative to its parent (and every bone's head) per frame.
 _BLENDER_SCRIPT = textwrap.dedent(
     """
     import builtins, json, math, os, sys
