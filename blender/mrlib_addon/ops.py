@@ -350,7 +350,9 @@ def _onto_rig_steps(
     py = python(context)
     rig_bvh = _rig_clip(context, arm, run)
     jm = abs_file(s.joint_map)
-    arm_name, start = arm.name, s.start_frame
+    arm_name, start, body = arm.name, s.start_frame, s.body_mesh
+    if body:
+        produce.argv = [*produce.argv, "--glb"]
     sample_dir = run / "sample"
     found: dict = {}
 
@@ -373,6 +375,17 @@ def _onto_rig_steps(
         RUN["message"] = (
             f"{action.name} on {arm_name}: {motion.num_frames} frames at {motion.fps:g} fps ({run})"
         )
+        glb = core.find_outputs(sample_dir, ".glb")
+        if body and glb:
+            try:
+                scene_io.import_body(glb[0], action.name)
+                RUN["message"] += f"; body mesh from {glb[0].name}"
+            except Exception as e:  # the importer's own failure: the action stands
+                why = " ".join(str(e).split())[-160:]
+                RUN["pipeline"].warnings.append(
+                    f"the body mesh was not imported (Blender's glTF importer: {why}); "
+                    f"it is in {glb[0]}"
+                )
 
     onto = core.Step("onto rig", onto_rig_argv, after=apply)
     return core.Pipeline([*before, produce, onto], name=f"mrlib {produce.name}")

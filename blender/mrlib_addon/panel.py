@@ -120,6 +120,7 @@ class MRLIB_PT_generate(_Panel, bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(s, "hold_keys")
         row.prop(s, "continue_action")
+        layout.prop(s, "body_mesh")
         layout.prop(s, "start_frame")
         arm = context.active_object
         target = arm.name if arm is not None and arm.type == "ARMATURE" else None

@@ -147,6 +147,11 @@ class MRLIB_PG_settings(bpy.types.PropertyGroup):
         description="the armature's action followed by Seconds of new motion (--continue)",
     )
     raw: BoolProperty(name="Raw", description="skip mrlib's foot-contact clean-up")
+    body_mesh: BoolProperty(
+        name="Body mesh",
+        description="also import mrlib's skinned body (SMPL topology, glTF, --glb) moving "
+        "with the result",
+    )
     start_frame: IntProperty(name="Start frame", default=1)
     # -- restyle
     restyle_label: StringProperty(name="Label", search=_labels)

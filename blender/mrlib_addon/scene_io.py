@@ -124,6 +124,21 @@ def curve_ground_points(curve, arm) -> list[tuple[float, float]]:
     return out
 
 
+def import_body(path: str | Path, name: str) -> list:
+    """The objects of a .glb mrlib wrote (its skinned body and the body's skeleton), imported
+    by Blender's glTF importer; the parentless ones named after ``name``."""
+    import addon_utils
+
+    addon_utils.enable("io_scene_gltf2", default_set=False)
+    before = set(bpy.data.objects)
+    bpy.ops.import_scene.gltf(filepath=str(path))
+    new = [o for o in bpy.data.objects if o not in before]
+    for o in new:
+        if o.parent is None:
+            o.name = f"{name} body"
+    return new
+
+
 def _new_fcurve(action, obj, data_path: str, index: int, group: str):
     if hasattr(action, "fcurve_ensure_for_datablock"):  # Blender 4.4+: layered actions
         try:  # group_name: Blender 5.0; 4.4 and 4.5 group nothing
