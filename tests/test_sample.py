@@ -324,6 +324,12 @@ def test_samples_at_another_frame_rate(model):
     np.testing.assert_allclose(high.trans[::3], low.trans, atol=1e-5)
     cleaned = generate(model, "walk_sad", length=length, seed=3, sampler=Sampler(fps=3 * model.fps))
     assert cleaned.fps == 3 * model.fps and cleaned.contacts.shape == (high.num_frames, 6)
+    # the clean-up's jitter filter spans the time of JITTER_SIGMA model frames
+    from mrlib.sampling.cleanup import JITTER_SIGMA
+
+    own = generate(model, "walk_sad", length=length, seed=3)
+    assert own.meta["contact_cleanup"]["jitter_sigma"] == JITTER_SIGMA
+    assert cleaned.meta["contact_cleanup"]["jitter_sigma"] == pytest.approx(3 * JITTER_SIGMA)
 
 
 def test_smooth_resampling_raises_a_rate_without_bends():

@@ -24,7 +24,7 @@ from mrlib.model.trained import GenerativeModel
 from mrlib.representation.features import features_to_motion, features_to_motions
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
-from mrlib.sampling.cleanup import cleanup_foot_contacts
+from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 from mrlib.sampling.conditions import Condition, as_condition
 from mrlib.sampling.sampler import Sampler
 
@@ -293,7 +293,10 @@ def _label_samples(
         m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
     if sampler.fix_contacts:
         floor = training_floor(model, [int(k) for k in W.argmax(1).unique()], body)
-        motions = [cleanup_foot_contacts(m, body, floor=floor) for m in motions]
+        # the generator's frame-to-frame jitter spans fps / model.fps frames once raised:
+        # filtered over the same time (bench/output_rate.py)
+        jitter = JITTER_SIGMA * (sampler.fps or model.fps) / model.fps
+        motions = [cleanup_foot_contacts(m, body, floor=floor, jitter=jitter) for m in motions]
     if not levels:
         return motions, None
     fps_i = level_fps(model.fps, lengths)

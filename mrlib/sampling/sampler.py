@@ -51,7 +51,8 @@ class Sampler:
             rate than its clips (the ``demo`` preset: 15 fps) draws at its own rate, and
             the raw draw is raised to ``fps`` by cubic splines
             (``Motion.resample(fps, smooth=True)``) before the clean-up plants the feet at
-            that rate. ``length`` still counts the model's frames. Used by
+            that rate (its jitter filter spans the same time as at the model's rate:
+            ``JITTER_SIGMA`` model frames). ``length`` still counts the model's frames. Used by
             ``mrlib.generate`` (``mrlib sample --fps``).
     """
 
