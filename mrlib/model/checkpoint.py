@@ -13,6 +13,8 @@ Keys (``FORMAT_VERSION`` 1)::
     config                   TrainConfig as JSON
     labels                   condition names, list[str]; clip_labels list[int] per clip
     clip_names, fps, betas   training clips' names, frame rate, body shape (10,)
+    clip_fps                 each clip's own rate before resampling to fps (optional;
+                             ``clip_rates``)
     cond_dim                 size D of a condition vector
     normalizer               {"mean": (C,), "std": (C,)}
     features                 training clips, list of (T_k, C) unnormalised
@@ -58,6 +60,7 @@ __all__ = [
     "save_checkpoint",
     "load_checkpoint",
     "state_checksum",
+    "clip_rates",
     "reading",
     "CheckpointError",
     "CheckpointWarning",
@@ -194,6 +197,21 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         )
     _check_labels(path, state)
     return state
+
+
+def clip_rates(state: dict[str, Any]) -> list[float] | None:
+    """The training clips' own frame rates (``clip_fps``, written since 2026-12-06): one
+    finite rate in (0, 1000] per clip, else None (older checkpoints, or values that are not
+    rates: the key is a record, never a reason to refuse a model)."""
+    rates = state.get("clip_fps")
+    n = len(state.get("clip_names", ()))
+    if not isinstance(rates, (list, tuple)) or len(rates) != n or n == 0:
+        return None
+    try:
+        out = [float(r) for r in rates]
+    except (TypeError, ValueError):
+        return None
+    return out if all(np.isfinite(r) and 0 < r <= 1000.0 for r in out) else None
 
 
 def _unreadable(path: Path) -> str:

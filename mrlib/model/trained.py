@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from mrlib.errors import ArgumentError, MotionValueError, check_args, check_path, shown
-from mrlib.model.checkpoint import load_checkpoint, reading
+from mrlib.model.checkpoint import clip_rates, load_checkpoint, reading
 from mrlib.model.config import TrainConfig, config_from_json
 from mrlib.model.generator import MultiResGenerator, build_generator
 from mrlib.representation.features import FeatureNormalizer
@@ -48,6 +48,17 @@ class GenerativeModel:
     features: list[torch.Tensor]  # N x (T_k, C) training clips, unnormalised
     trained_levels: int  # levels whose training finished (all of them for a done run)
     progress: dict | None = None  # the checkpoint's {"block", "iteration", "done"}
+    clip_fps: list[float] | None = None  # the clips' own rates before training resampled them
+
+    @property
+    def source_fps(self) -> float | None:
+        """The frame rate the training clips were captured at (the highest, if they
+        differ) when the checkpoint records it and it is above the model's own rate:
+        the rate ``mrlib sample`` writes by default. None otherwise."""
+        if not self.clip_fps:
+            return None
+        r = max(self.clip_fps)
+        return r if r > self.fps + 1e-6 else None
 
     @property
     def num_levels(self) -> int:
@@ -116,6 +127,7 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
         trained_levels=int(done_levels),
         progress={"block": int(p["block"]), "iteration": int(p["iteration"]),
                   "done": bool(p["done"])},
+        clip_fps=clip_rates(state),
     )  # fmt: skip
 
 

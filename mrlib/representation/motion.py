@@ -197,7 +197,8 @@ class Motion:
         ``smooth=True`` interpolates rotations (unit quaternions) and translation with
         cubic splines instead (:meth:`at_frames`): raising a generated clip's rate, slerp
         bends the motion at every input frame, which shows as jerk at the higher rate;
-        the spline passes through the same frames without the bends."""
+        the spline passes through the same frames without the bends. ``meta["source_fps"]``
+        keeps the first rate the motion had (the one it was read at)."""
         n_out = self.resampled_frames(fps)
         if abs(fps - self.fps) < 1e-9:
             return self.replace()
@@ -216,7 +217,10 @@ class Motion:
                 "into pieces, or check its frame rate"
             )
         t = np.arange(n_out) * (self.fps / fps)  # positions in input frames
-        return self.at_frames(t, smooth=smooth).replace(fps=float(fps))
+        # the rate it was captured at stays known (a model trained on resampled clips
+        # records it: GenerativeModel.source_fps)
+        meta = {**self.meta, "source_fps": float(self.meta.get("source_fps", self.fps))}
+        return self.at_frames(t, smooth=smooth).replace(fps=float(fps), meta=meta)
 
     def at_frames(self, t, *, smooth: bool = False) -> Motion:
         """The motion at fractional frame positions ``t`` (a 1-D array, clipped to the

@@ -40,6 +40,7 @@ def trainer_state(tr) -> dict:
         "clip_labels": [int(k) for k in d.clip_labels],
         "clip_names": list(d.names),
         "fps": float(d.fps),
+        **({"clip_fps": [float(r) for r in d.source_fps]} if d.source_fps else {}),
         "betas": torch.as_tensor(np.asarray(d.betas), dtype=torch.float32),
         "cond_dim": int(tr.signal.dim),
         "normalizer": d.normalizer.state_dict(),

@@ -26,6 +26,7 @@ from mrlib.errors import (
     shown,
 )
 from mrlib.io.jointmap import check_joint_map
+from mrlib.model.checkpoint import clip_rates
 from mrlib.model.config import ConfigError
 from mrlib.representation.body import check_body
 from mrlib.representation.features import NUM_FEATURES, FeatureNormalizer, motion_to_features
@@ -71,6 +72,8 @@ class TrainingSet:
         names: clip names (file stems).
         normalizer: fitted on all clips (root channels only by default).
         betas: ``(10,)`` body shape used by the body-model losses (mean of the clips').
+        source_fps: every clip's own frame rate before it was resampled to ``fps``
+            (``Motion.meta["source_fps"]``, else its rate); None where unknown.
     """
 
     features: list[torch.Tensor]
@@ -80,6 +83,7 @@ class TrainingSet:
     names: list[str]
     normalizer: FeatureNormalizer
     betas: np.ndarray = field(default_factory=lambda: np.zeros(10, np.float32))
+    source_fps: list[float] | None = None
 
     def __post_init__(self):
         if not self.features:
@@ -133,6 +137,7 @@ class TrainingSet:
                     "or check its frame rate"
                 )
         names, clip_label_names, feats = [], [], []
+        source_fps = [float(m.meta.get("source_fps", m.fps)) for m in motions]
         for k, m in enumerate(motions):
             if abs(m.fps - fps) > 1e-6:
                 m = m.resample(fps)
@@ -148,7 +153,8 @@ class TrainingSet:
         label_names = sorted(set(clip_label_names))
         clip_labels = [label_names.index(lab) for lab in clip_label_names]
         betas = np.mean([np.asarray(m.betas, np.float32)[:10] for m in motions], 0)
-        return cls(feats, clip_labels, label_names, fps, names, FeatureNormalizer.fit(feats), betas)
+        normalizer = FeatureNormalizer.fit(feats)
+        return cls(feats, clip_labels, label_names, fps, names, normalizer, betas, source_fps)
 
     @classmethod
     def from_state(cls, state: dict) -> TrainingSet:
@@ -161,6 +167,7 @@ class TrainingSet:
             names=list(state["clip_names"]),
             normalizer=FeatureNormalizer.from_state_dict(state["normalizer"]),
             betas=state["betas"].numpy(),
+            source_fps=clip_rates(state),
         )
 
     @classmethod

@@ -185,7 +185,9 @@ def add_sample(sub) -> argparse.ArgumentParser:
         default=None,
         help="frame rate of the samples (label, crossover and blend samples): a model trained "
         "at a lower rate than its clips (the demo preset: 15 fps) draws at its own, raised "
-        "by cubic splines before the feet are planted at this rate [default: the model's]",
+        "by cubic splines before the feet are planted at this rate [default: the rate of "
+        "the clips it was trained on, recorded in checkpoints since 2026-12-06; else the "
+        "model's]",
     )
     p.add_argument(
         "--fit-steps",
@@ -351,6 +353,10 @@ def cmd_sample(args) -> int:
         )
         motions = _constrained(model, condition, sampler, length, args)
         return write_samples(motions, f"{tag}_{what}", args)
+    if args.fps is None and model.source_fps is not None:
+        sampler = dataclasses.replace(sampler, fps=model.source_fps)
+        print(f"samples at {model.source_fps:g} fps, the training clips' rate (the model draws "
+              f"at {model.fps:g} fps: --fps {model.fps:g} for that)")  # fmt: skip
     motions = generate(
         model, condition, length=length, seed=args.seed, num=args.num, sampler=sampler
     )

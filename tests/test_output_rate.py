@@ -1,0 +1,77 @@
+"""A model trained at a lower rate than its clips records the clips' rate, and the command
+line writes its samples at that rate unless told otherwise (``GenerativeModel.source_fps``,
+``mrlib sample --fps``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrlib.app.cli import main
+from mrlib.datasets.synthetic import synthetic_walk
+from mrlib.io import load_motion, save_motion
+from mrlib.model.checkpoint import clip_rates, load_checkpoint, save_checkpoint
+from mrlib.model.trained import load_model
+from mrlib.training.data import TrainingSet
+
+TRAIN = ["--iterations", "1", "--levels", "2", "--no-progress", "--fps", "15"]
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> Path:
+    """A run trained by the CLI at 15 fps on two 30-fps clips (seconds)."""
+    root = tmp_path_factory.mktemp("rate")
+    clips = [
+        save_motion(synthetic_walk(style, seconds=2.4, fps=30.0, seed=k), root / f"{style}.npz")
+        for k, style in enumerate(("walk_sad", "walk_happy"))
+    ]
+    assert main(["train", *map(str, clips), *TRAIN, "--out", str(root / "run")]) == 0
+    return root / "run"
+
+
+def test_resampling_keeps_the_rate_a_motion_was_read_at():
+    m = synthetic_walk("walk_sad", seconds=1.0, fps=30.0)
+    assert "source_fps" not in m.meta
+    assert m.resample(15).meta["source_fps"] == 30.0
+    assert m.resample(15).resample(10).meta["source_fps"] == 30.0
+    data = TrainingSet.from_motions([m.resample(15), synthetic_walk("walk_happy", 1.0, fps=24.0)], fps=15)  # fmt: skip
+    assert data.fps == 15 and data.source_fps == [30.0, 24.0]
+
+
+def test_the_model_records_its_clips_rate(run):
+    model = load_model(run / "checkpoint.pt")
+    assert model.fps == 15 and model.clip_fps == [30.0, 30.0] and model.source_fps == 30.0
+
+
+def test_samples_come_at_the_clips_rate_unless_asked(run, tmp_path, capsys):
+    ckpt = str(run / "checkpoint.pt")
+    assert main(["sample", ckpt, "--seconds", "2", "--out", str(tmp_path / "a"), "--no-progress"]) == 0  # fmt: skip
+    assert "samples at 30 fps, the training clips' rate" in capsys.readouterr().out
+    (npz,) = (tmp_path / "a").glob("*.npz")
+    m = load_motion(npz)
+    assert m.fps == 30.0 and m.num_frames == 59  # 30 model frames raised to 30 fps
+    argv = ["sample", ckpt, "--seconds", "2", "--fps", "15", "--out", str(tmp_path / "b"), "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    assert load_motion(next((tmp_path / "b").glob("*.npz"))).fps == 15.0
+
+
+def test_a_checkpoint_without_the_record_samples_at_the_models_rate(run, tmp_path):
+    state = load_checkpoint(run / "checkpoint.pt")
+    del state["clip_fps"]
+    old = tmp_path / "old.pt"
+    save_checkpoint(old, state)
+    assert load_model(old).source_fps is None
+    assert main(["sample", str(old), "--seconds", "2", "--out", str(tmp_path / "s"), "--no-progress"]) == 0  # fmt: skip
+    assert load_motion(next((tmp_path / "s").glob("*.npz"))).fps == 15.0
+
+
+@pytest.mark.parametrize(
+    "value", [None, "30", [30.0], [30.0, float("nan")], [30.0, -1.0], [30.0, 1e6], [30.0, "x"]]
+)
+def test_rates_that_are_not_rates_are_ignored(value):
+    state = {"clip_names": ["a", "b"], "clip_fps": value}
+    assert clip_rates(state) is None
+    assert clip_rates({"clip_names": ["a", "b"], "clip_fps": [30, 24.0]}) == [30.0, 24.0]
+    assert np.isfinite(clip_rates({"clip_names": ["a"], "clip_fps": [15]})[0])
