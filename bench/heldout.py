@@ -65,6 +65,8 @@ def main(argv=None) -> int:
     p.add_argument("--split", choices=["heldout", "dev"], default="heldout",
                    help="the held-out styles, or the development walks they are judged against")  # fmt: skip
     p.add_argument("--fps", type=float, default=None, help="the model's frame rate [the preset's]")
+    p.add_argument("--levels", type=int, default=None,
+                   help="pyramid levels, as mrlib train --levels [the preset's]")  # fmt: skip
     p.add_argument("--window-s", type=float, default=None,
                    help="coverage window and PNN T_min in seconds, the local-diversity window "
                         "half of it [the frame counts of EvaluationSettings]")  # fmt: skip
@@ -77,7 +79,7 @@ def main(argv=None) -> int:
     from mrlib.datasets.bandai import tutorial_clips
     from mrlib.errors import ClipTooShortError
     from mrlib.evaluation import EvaluationSettings, evaluate_model
-    from mrlib.model.presets import get_preset
+    from mrlib.model.presets import get_preset, training_config
     from mrlib.sampling.restyling import restyle, restyle_lengths, restyle_level
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_cached
@@ -91,7 +93,7 @@ def main(argv=None) -> int:
     if source.synthetic:
         raise SystemExit(f"the Bandai clips are needed: {source.note}")
     paths = dict(zip(train_names + take2_names, source.paths, strict=True))
-    base = get_preset("demo")
+    base = get_preset("demo") if a.levels is None else training_config("demo", levels=a.levels)
     base = base if a.fps is None else base.replace(fps=a.fps)
     clips = [mrlib.load_motion(paths[n], fps=base.fps) for n in train_names]
     data = TrainingSet.from_motions(clips, body=body)
