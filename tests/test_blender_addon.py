@@ -644,11 +644,11 @@ def _blender() -> list[str] | None:
 BLENDER = _blender()
 
 # Runs inside Blender: installs the zip, points the add-on at this repository's Python,
-# imports two walks as armatures, trains on the first one's action and the second's BVH
-# file, generates a crossover onto the first armature (Euler bones), a blended loop onto the
-# second (quaternion bones), restyles the first one's action, holds poses keyed on the
-# timeline, continues an action and walks a curve, then writes every bone's rotation
-# relative to its parent (and every bone's head) per frame.
+# imports two walks as armatures, lists a motion file as a clip (then removes it), trains on
+# the two armatures' actions, generates a crossover onto the first armature (Euler bones), a
+# blended loop onto the second (quaternion bones), restyles the first one's action, holds
+# poses keyed on the timeline, continues an action and walks a curve, then writes every
+# bone's rotation relative to its parent (and every bone's head) per frame.
 _BLENDER_SCRIPT = textwrap.dedent(
     """
     import builtins, json, math, os, sys
@@ -680,16 +680,19 @@ _BLENDER_SCRIPT = textwrap.dedent(
             o.select_set(o in objs)
         bpy.context.view_layer.objects.active = objs[0]
 
-    # the first walk as an armature's action, the second as a BVH file
-    select(rigs[:1])
+    # the two armatures' actions as clips; a motion file is listed too, then removed
+    select(rigs)
     assert bpy.ops.mrlib.clip_add_selected() == {"FINISHED"}
     folder, name = os.path.split(clip_b)
     assert bpy.ops.mrlib.clip_add_files(directory=folder, files=[{"name": name}]) == {"FINISHED"}
     s = scene.mrlib
+    res = {"listed": [[c.armature.name if c.armature else os.path.basename(c.filepath),
+                       c.label] for c in s.clips]}
+    s.clip_index = 2
+    assert bpy.ops.mrlib.clip_remove() == {"FINISHED"}
     s.preset, s.iterations, s.levels, s.overwrite = "demo", 2, 4, True
     s.out_dir = os.path.join(work, "run")
-    res = {"clips": [[c.armature.name if c.armature else os.path.basename(c.filepath),
-                      c.label] for c in s.clips]}
+    res["clips"] = [[c.armature.name, c.action.name, c.label] for c in s.clips]
     res["train"] = sorted(bpy.ops.mrlib.train())
     res["checkpoint"], res["labels"], res["num_levels"] = s.checkpoint, s.labels, s.num_levels
 
@@ -814,7 +817,8 @@ def test_the_addon_trains_and_generates_onto_armatures_headless(walks, tmp_path)
     if not out.exists():
         pytest.fail(f"Blender failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
     res = json.loads(out.read_text())
-    assert res["clips"] == [["rig_walk_sad", "walk_sad"], ["walk_happy.bvh", "walk_happy"]]
+    assert res["listed"] == [["rig_walk_sad", "walk_sad"], ["rig_walk_happy", "walk_happy"], ["walk_happy.bvh", "walk_happy"]]  # fmt: skip
+    assert res["clips"] == [["rig_walk_sad", "walk_sad", "walk_sad"], ["rig_walk_happy", "walk_happy", "walk_happy"]]  # fmt: skip
     assert res["train"] == ["FINISHED"] and res["num_levels"] == 4
     assert res["labels"] == "walk_sad,walk_happy"
     # the command line's one-line error, as the operator's error report
