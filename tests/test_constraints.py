@@ -106,6 +106,9 @@ def test_a_walk_bent_onto_a_path_follows_it_with_feet_planted(walk, body, spec):
     walked = C.ground_track(walk, body)["arc"][-1] / C.parse_path(spec).length
     assert err["progress"] == pytest.approx(walked, rel=0.05)  # the eight's crossing: no lobe jump
     assert contact_skating(m, body) <= contact_skating(walk, body) + 0.05
+    # planting the feet leaves the root on the path: the legs take the corrections
+    bent = C.follow_path(walk, spec, body=body, clean=False)
+    np.testing.assert_allclose(m.trans[:, [0, 2]], bent.trans[:, [0, 2]], atol=1e-5)
     # it travels along the path: its heading is the tangent at the nearest path point
     path = C.parse_path(spec)
     grid, h = path.at(np.linspace(0, path.length, 4000, endpoint=False))

@@ -338,7 +338,8 @@ def follow_path(
         motion: any motion (label or speech model output, a capture).
         path: a :class:`GroundPath` or a spec for :func:`parse_path`.
         smooth_s: low-pass of the travel, seconds (the sway of a step is kept).
-        clean: plant the feet afterwards (``mrlib.sampling.cleanup.cleanup_foot_contacts``; needs
+        clean: plant the feet afterwards (``mrlib.sampling.cleanup.cleanup_foot_contacts``
+            with ``keep_path``: the root keeps the path, the legs plant the feet; needs
             contact labels, skipped without them).
     Returns:
         The motion with new translation and global orientation; ``meta["path"]`` says
@@ -389,7 +390,8 @@ def follow_path(
     if clean and out.contacts is not None:
         from mrlib.sampling.cleanup import cleanup_foot_contacts
 
-        out = cleanup_foot_contacts(out, body)
+        # the root stays on the path: the legs take the feet's ground corrections
+        out = cleanup_foot_contacts(out, body, keep_path=True)
     return out
 
 
