@@ -53,6 +53,7 @@ import torch
 from mrlib.errors import MotionFileError, MrlibError
 from mrlib.io.outputs import OutputWriteError, atomic_write, write_text
 from mrlib.io.transaction import make_folders, output_transaction
+from mrlib.representation.motion import MAX_FPS
 
 __all__ = [
     "FORMAT",
@@ -201,8 +202,8 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
 
 def clip_rates(state: dict[str, Any]) -> list[float] | None:
     """The training clips' own frame rates (``clip_fps``, written since 2026-12-06): one
-    finite rate in (0, 1000] per clip, else None (older checkpoints, or values that are not
-    rates: the key is a record, never a reason to refuse a model)."""
+    finite rate in (0, ``MAX_FPS``] per clip, else None (older checkpoints, or values that
+    are not rates: the key is a record, never a reason to refuse a model)."""
     rates = state.get("clip_fps")
     n = len(state.get("clip_names", ()))
     if not isinstance(rates, (list, tuple)) or len(rates) != n or n == 0:
@@ -211,7 +212,7 @@ def clip_rates(state: dict[str, Any]) -> list[float] | None:
         out = [float(r) for r in rates]
     except (TypeError, ValueError):
         return None
-    return out if all(np.isfinite(r) and 0 < r <= 1000.0 for r in out) else None
+    return out if all(np.isfinite(r) and 0 < r <= MAX_FPS for r in out) else None
 
 
 def _unreadable(path: Path) -> str:
