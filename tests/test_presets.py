@@ -27,9 +27,17 @@ def test_every_preset_has_a_one_line_summary_and_a_kind():
     assert preset_names() == list(PRESETS)
     assert sorted(preset_names("labels") + preset_names("speech")) == sorted(PRESETS)
     assert "demo" in preset_names("labels") and "speech_tutorial" in preset_names("speech")
-    assert get_preset("demo").fps == 15.0 and get_preset("tutorial").fps is None
+    assert get_preset("demo").fps == 30.0 and get_preset("tutorial").fps is None
+    assert get_preset("preview").fps == 15.0 and "preview" in preset_names("labels")
     with pytest.raises(ConfigError):
         preset_names("images")
+
+
+def test_preview_is_the_demo_preset_at_15_fps_on_the_smaller_budget():
+    d, p = get_preset("demo"), get_preset("preview")
+    assert (d.fps, p.fps) == (30.0, 15.0)
+    assert sum(p.block_iterations) < sum(d.block_iterations)
+    assert p.replace(fps=d.fps, block_iterations=d.block_iterations) == d
 
 
 def test_describe_presets_lists_each_with_its_summary():

@@ -270,7 +270,7 @@ def test_interrupt_inside_a_step_keeps_the_last_checkpoint(data, body, tmp_path)
 
 
 def test_train_honours_the_frame_rate_of_the_config(data, body, tmp_path):
-    """A config that trains at a rate of its own (``TrainConfig.fps``, the demo preset's 15)
+    """A config that trains at a rate of its own (``TrainConfig.fps``, the preview preset's 15)
     refuses clips at another rate, saying how to build them, before it writes anything;
     clips built at that rate (as ``mrlib train`` builds them) train."""
     from mrlib.errors import MrlibError

@@ -154,7 +154,7 @@ class TrainConfig:
     critic_mixed: str = "none"
     seed: int = 0
     # Frame rate the clips are resampled to before training (None: the clips' own). The
-    # demo preset trains at 15 fps, half the Bandai clips' rate, for minutes on two CPU cores.
+    # preview preset trains at 15 fps, half the Bandai clips' rate, the demo preset at 30.
     fps: float | None = None
     checkpoint_every: int = 1000  # iterations; 0 = only at the end of each block
     log_every: int = 10  # iterations between CSV rows / progress-bar updates
