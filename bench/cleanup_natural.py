@@ -1,7 +1,7 @@
 """Does the foot-contact clean-up leave motion natural? Issue #37, part 3.
 
-Trains (or reuses, ``outputs/cleanup_natural/demo_seed<S>/``) the ``demo`` preset on the
-four Bandai walks at the preset's frame rate (``demo().fps``, 15 fps), draws
+Trains (or reuses, ``outputs/cleanup_natural/demo_seed<S>/``) the ``preview`` preset on the
+four Bandai walks at the preset's frame rate (``preview().fps``, 15 fps), draws
 ``--samples`` raw samples per walk of twice the clip's length (seeds 0..n-1), and scores
 them raw, after the clean-up with its defaults and after each ``--method`` with
 ``mrlib.evaluation.evaluate.score_motions`` (the evaluation's own code: coverage at
@@ -104,12 +104,12 @@ def custom(spec: str):
 
 def train_model(seed: int, body):
     import mrlib
-    from mrlib.model.presets import demo
+    from mrlib.model.presets import preview
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
 
-    fps = demo().fps
-    cfg = mrlib.get_preset("demo").replace(seed=seed)
+    fps = preview().fps
+    cfg = mrlib.get_preset("preview").replace(seed=seed)
     clips = [mrlib.load_motion(p, fps=fps) for p in bandai_clips(TUTORIAL_CLIPS)]
     data = TrainingSet.from_motions(clips, body=body)
     t0 = time.perf_counter()

@@ -1,11 +1,11 @@
 """Quality and time of a training budget on the demo's data (the four synthetic clips of
-``data_samples/`` at 15 fps): how the ``demo`` preset was sized.
+``data_samples/`` at 15 fps): how the ``preview`` preset was sized.
 
 Trains the ``tutorial`` networks and losses with the given iterations per block and
 critic steps, then prints the training time and the demo's headline figures (coverage,
 condition fidelity, foot skating) beside the calibration rows:
 
-    python bench/demo_budget.py                                   # the demo preset
+    python bench/demo_budget.py                                   # the preview preset
     python bench/demo_budget.py --iterations 600 --n-critic 1
     python bench/demo_budget.py --iterations 400 --n-critic 2 --threads 2
 
@@ -47,14 +47,14 @@ def main(argv: list[str] | None = None) -> int:
     import mrlib
     from mrlib.app.demo import DATA_SAMPLES, headline_table
     from mrlib.evaluation.evaluate import EvaluationSettings, evaluate_model
-    from mrlib.model.presets import demo
+    from mrlib.model.presets import preview
     from mrlib.model.trained import load_model
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train
 
     set_threads(args.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
     print(describe(), flush=True)
-    cfg = demo().replace(seed=args.seed, fps=args.fps)
+    cfg = preview().replace(seed=args.seed, fps=args.fps)
     if args.iterations:
         its = tuple(int(v) for v in args.iterations.split(","))
         cfg = cfg.replace(block_iterations=its * cfg.num_blocks if len(its) == 1 else its)

@@ -1,6 +1,6 @@
 """Samples at the clips' frame rate: a model trained at a lower rate, its output raised.
 
-The ``demo`` preset trains at 15 fps on 30-fps clips, so its samples are 15-fps clips. Raised
+The ``preview`` preset trains at 15 fps on 30-fps clips, so its samples are 15-fps clips. Raised
 to the clips' 30 fps, they are scored against the 30-fps training clips: jerk (mean joint
 jerk over the clips') and foot skating (share of contact vertex-frames faster than
 ``SKATE_SPEED_THRESHOLD``) beside the clips' own, for the two ways ``Motion.resample``
@@ -9,11 +9,11 @@ raises a rate: slerp and linear translation (``smooth=False``) and cubic splines
 raises the raw draw by splines and plants the feet at 30 fps. The same for the samples at the model's own 15 fps, scored against the
 clips at 15 fps.
 
-Uses the ``demo`` model of the four Bandai walks (``walk_{normal,happy,sad,angry}_001``,
+Uses the ``preview`` model of the four Bandai walks (``walk_{normal,happy,sad,angry}_001``,
 ``train_cached``: from mrlib's model cache, trained there first when missing, ~4 min), cleaned
 samples (the default sampler), ``--samples`` per label of twice the clip's length.
-``--split heldout``: the ``demo`` models of ``bench/heldout.py`` (its five held-out styles,
-training seeds ``--seeds``; the same cache entries), for figures from walks no setting of
+``--split heldout``: ``preview`` models of the five held-out styles of ``bench/heldout.py``
+(training seeds ``--seeds``), for figures from walks no setting of
 the raised output was chosen on.
 
     python bench/output_rate.py [--samples 10] [--seed 0] [--split dev|heldout] [--seeds 0,1]
@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     if source.synthetic:
         print("the Bandai clips are not available here (MRLIB_DATA_DIR, cache or network)")
         return 1
-    config = mrlib.get_preset("demo")
+    config = mrlib.get_preset("preview")
     full = {m.label: m for m in (mrlib.load_motion(p, body=body) for p in source.paths)}
     for m in full.values():
         m.contacts = mrlib.representation.foot_contacts(m, body)

@@ -3,14 +3,14 @@
 Run from the repository root (the Bandai Namco clips are found as ``mrlib.datasets.bandai``
 finds them)::
 
-    python bench/restyle.py --seed 0          # trains or reuses the demo model (5-8 min)
+    python bench/restyle.py --seed 0          # trains or reuses the preview model (5-8 min)
     python bench/restyle.py --seed 1          # the second training seed
     python bench/restyle.py --seed 0 --iterations 2   # a nearly untrained model: the negative
     python bench/restyle.py --checkpoint ckpt.pt      # measure a given checkpoint
     python bench/restyle.py --seed 0 --guidance 0.5   # restyled with label guidance
 
-Model: the ``demo`` preset trained on ``walk_{normal,happy,sad,angry}_001`` resampled
-to 15 fps (``mrlib.model.presets.demo().fps``), through ``mrlib.training.trainer.train_cached``
+Model: the ``preview`` preset trained on ``walk_{normal,happy,sad,angry}_001`` resampled
+to 15 fps (``mrlib.model.presets.preview().fps``), through ``mrlib.training.trainer.train_cached``
 (the same model as notebook 03's for seed 0, reused from mrlib's cache).
 
 Inputs the model never saw: the second takes ``walk_{style}_002`` and the side walks
@@ -166,22 +166,22 @@ def level_table(rows: list[dict], L: int) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seed", type=int, default=0, help="training seed [0]")
-    add_iterations_arg(p, "iterations per block (overrides the demo preset's; 2: untrained)")
+    add_iterations_arg(p, "iterations per block (overrides the preview preset's; 2: untrained)")
     p.add_argument("--level", type=int, default=None, help="level of the 120 s restyle [L//2]")
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads [1]")
     p.add_argument("--guidance", type=float, default=None,
                    help="restyle with this Sampler guidance [mrlib's: 0]")  # fmt: skip
     p.add_argument("--json", type=Path, default=None, help="also write the rows here")
     p.add_argument("--checkpoint", type=Path, default=None,
-                   help="measure this checkpoint instead of the cached demo model")  # fmt: skip
+                   help="measure this checkpoint instead of the cached preview model")  # fmt: skip
     a = p.parse_args(argv)
     set_threads(a.threads)  # explicit: mrlib's own calls keep it (mrlib.threads)
 
     body = mrlib.load_body_model()
-    fps = get_preset("demo").fps
+    fps = get_preset("preview").fps
     clips = [c.resample(fps) for c in load(TRAIN).values()]
     data = TrainingSet.from_motions(clips, body=body)
-    cfg, _ = with_iterations(get_preset("demo").replace(seed=a.seed), a.iterations)
+    cfg, _ = with_iterations(get_preset("preview").replace(seed=a.seed), a.iterations)
     t = time.perf_counter()
     if a.checkpoint is not None:
         model, how = load_model(a.checkpoint), f"loaded {a.checkpoint}"
@@ -190,7 +190,7 @@ def main(argv=None) -> int:
         model, record = train_cached(data, cfg, body=body, progress=False)
         how = "reused" if record.reused else f"trained in {time.perf_counter() - t:.0f} s"
         how += f" ({record.checkpoint})"
-    print(f"{data}\ndemo preset, training seed {cfg.seed}, iterations {cfg.block_iterations}: "
+    print(f"{data}\npreview preset, training seed {cfg.seed}, iterations {cfg.block_iterations}: "
           f"{how}", flush=True)  # fmt: skip
     L = model.num_levels
     level = L // 2 if a.level is None else a.level

@@ -2,12 +2,12 @@
 
 Run from the repository root::
 
-    python bench/restyle_path.py                  # both demo models, levels 2 and L-2
+    python bench/restyle_path.py                  # both preview models, levels 2 and L-2
     python bench/restyle_path.py --levels 1,4,6   # other levels k
     python bench/restyle_path.py --json out.json  # also write the rows
 
 Models (``mrlib.training.trainer.train_cached``: reused from mrlib's model cache, trained
-there first when missing, 5-30 min on two busy cores): the ``demo`` preset (8 levels at
+there first when missing, 5-30 min on two busy cores): the ``preview`` preset (8 levels at
 15 fps) trained on the four synthetic clips of ``data_samples/`` (the ``mrlib demo``
 model), and, where the Bandai Namco clips are found (``$MRLIB_DATA_DIR`` or the shared
 mirror), on ``walk_{normal,happy,sad,angry}_001`` (``bench/restyle.py``'s model).
@@ -65,7 +65,7 @@ def holds(s: dict) -> bool:
 
 
 def models(iterations, body) -> dict:
-    """``{name: model}``: the demo preset on the synthetic samples, and on the Bandai
+    """``{name: model}``: the preview preset on the synthetic samples, and on the Bandai
     walks when they are found."""
     import mrlib
     from mrlib.datasets.bandai import tutorial_clips
@@ -73,7 +73,7 @@ def models(iterations, body) -> dict:
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_cached
 
-    cfg = get_preset("demo")
+    cfg = get_preset("preview")
     if iterations is not None:
         cfg = quick(cfg, iterations if len(iterations) > 1 else iterations[0])
     sets = {"synthetic": [mrlib.load_motion(p, fps=cfg.fps)

@@ -11,7 +11,7 @@ Each subcommand prints one table of that note:
 ``diagnose`` and ``probe`` score a model of ``bench/cleanup_natural.py --train-only``
 (``outputs/cleanup_natural/demo_seed<S>/``, or ``--checkpoint``). ``variant`` trains
 (or reuses, ``outputs/label_fidelity/<NAME>_seed<S>/``) on the four Bandai walks the
-``demo`` preset as it was before the mismatch term (``base``) or with one change:
+``preview`` preset as it was before the mismatch term (``base``) or with one change:
 ``band_full`` (``critic_band="full"``) or ``mismatchW`` (``LossWeights.mismatch = W``;
 ``mismatch2`` is today's preset). Fidelity: the share of 30-frame windows of
 10 raw samples per label whose nearest training window is the label's.
@@ -107,11 +107,11 @@ def probe(a) -> None:
 
 def variant(a) -> None:
     import mrlib
-    from mrlib.model.presets import demo
+    from mrlib.model.presets import preview
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_or_reuse
 
-    cfg = mrlib.get_preset("demo").replace(seed=a.seed)
+    cfg = mrlib.get_preset("preview").replace(seed=a.seed)
     cfg = cfg.replace(loss=dataclasses.replace(cfg.loss, mismatch=0.0))  # as it was
     if a.name == "band_full":
         cfg = cfg.replace(model=dataclasses.replace(cfg.model, critic_band="full"))
@@ -120,7 +120,7 @@ def variant(a) -> None:
     elif a.name != "base":
         sys.exit(f"unknown variant {a.name!r}: base, band_full or mismatchW")
     body = mrlib.load_body_model()
-    fps = demo().fps
+    fps = preview().fps
     data = TrainingSet.from_motions(
         [mrlib.load_motion(p, fps=fps) for p in bandai_clips(TUTORIAL_CLIPS)], body=body
     )
@@ -160,7 +160,7 @@ def synthetic(a) -> None:
     body = mrlib.load_body_model()
     clips = [mrlib.load_motion(p, fps=DEMO_FPS) for p in sorted(DATA_SAMPLES.glob("*.npz"))]
     clips = [c.replace(contacts=mrlib.representation.foot_contacts(c, body)) for c in clips]
-    cfg = mrlib.get_preset("demo").replace(seed=a.seed)
+    cfg = mrlib.get_preset("preview").replace(seed=a.seed)
     cfg = cfg.replace(loss=dataclasses.replace(cfg.loss, mismatch=a.mismatch))
     out = RUNS / f"synthetic_mismatch{a.mismatch:g}_seed{a.seed}"
     model, _ = train_or_reuse(TrainingSet.from_motions(clips, body=body), cfg, out, body=body,

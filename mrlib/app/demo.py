@@ -5,9 +5,9 @@ Runs on the synthetic clips in ``data_samples/`` (nothing to download), in six s
 1. **load** the labelled clips, compute foot contacts, render them;
 2. **retarget** one Bandai Namco BVH onto SMPL, if the dataset is found
    (``MRLIB_DATA_DIR``), and render it next to its contact labels;
-3. **train** the multi-resolution GAN on the four clips: the ``demo`` preset
-   (``mrlib.model.presets.demo``, minutes on two CPU cores) by default, ``tutorial`` or ``paper``
-   with ``preset=``;
+3. **train** the multi-resolution GAN on the four clips: the ``preview`` preset
+   (``mrlib.model.presets.preview``, minutes on two CPU cores) by default, any label
+   preset (``demo``, ``tutorial``, ``paper``) with ``preset=``;
 4. **sample** every label (feet planted by the contact clean-up, ``mrlib.sampling.cleanup``),
    export SMPL ``.npz`` and ``.bvh``, render each, and write an animated preview
    (``sample.gif``);
@@ -34,13 +34,13 @@ import numpy as np
 
 from mrlib.io.outputs import write_text
 from mrlib.io.transaction import make_folders, output_transaction, when_written
-from mrlib.model.presets import demo
+from mrlib.model.presets import preview
 from mrlib.progress import bar as progress_bar
 
 __all__ = ["run_demo", "DATA_SAMPLES", "DEMO_FPS"]
 
 DATA_SAMPLES = Path(__file__).resolve().parents[2] / "data_samples"
-DEMO_FPS = demo().fps  # the demo preset trains on the samples resampled to this rate
+DEMO_FPS = preview().fps  # the default preset trains on the samples resampled to this rate
 STAGES = ("load", "retarget", "train", "sample", "crossover", "evaluate")
 
 
@@ -133,7 +133,7 @@ def _publish_model(scratch: Path, model_dir: Path) -> None:
 def run_demo(
     out: str | Path = "outputs",
     *,
-    preset: str = "demo",
+    preset: str = "preview",
     quick: bool = False,
     iterations: int | None = None,
     samples: int = 10,
@@ -144,8 +144,8 @@ def run_demo(
     """Run the demo, writing into ``out``; returns the path of ``summary.md``.
 
     Args:
-        preset: ``"demo"`` (default; the clips at ``DEMO_FPS``), ``"tutorial"`` or
-            ``"paper"`` (the clips at their own 30 fps).
+        preset: ``"preview"`` (default; the clips at ``DEMO_FPS``), ``"demo"`` (30 fps),
+            ``"tutorial"`` or ``"paper"`` (the clips at their own 30 fps).
         quick: a smoke-test budget (seconds; the results mean nothing).
         iterations: per-block iteration count, overriding the preset's.
         samples: evaluation samples per label.
@@ -171,7 +171,7 @@ def run_demo(
     if its is not None:
         cfg = cfg.replace(block_iterations=(its,) * cfg.num_blocks, checkpoint_every=0)
     cfg = dataclasses.replace(cfg, seed=seed)
-    fps = DEMO_FPS if preset == "demo" else None
+    fps = cfg.fps  # the preset's rate; None: the clips' own
     n_eval = 2 if quick else samples
 
     out = Path(out)

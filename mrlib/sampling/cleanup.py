@@ -68,7 +68,7 @@ __all__ = [
 # Gaussian sigma, in frames, of the jitter filter that opens the smooth clean-up. The
 # finest level's noise reaches a sample as frame-to-frame jitter (FINE_NOISE); half a
 # frame keeps 73 % of the amplitude at a quarter of the frame rate and 29 % at the
-# Nyquist rate. On the demo preset's Bandai walks (two training seeds) it took the cleaned
+# Nyquist rate. On the preview preset's Bandai walks (two training seeds) it took the cleaned
 # samples' jerk from 1.24 / 1.15x the training clips' to 0.96 / 0.88x with coverage at
 # eps 1 up by 0.0-2.1 points and condition fidelity within 0.1 (bench/cleanup_natural.py).
 JITTER_SIGMA = 0.5

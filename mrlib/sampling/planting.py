@@ -52,7 +52,7 @@ LEG_HOLD_S = 0.04  # s: the same for a leg's (ankle's) correction: the legs move
 LIFT_HOLD_S = 0.01  # s: the same for a leg's vertical correction (it bends the knee)
 SLIDE = 0.1  # m/s: contact vertices still faster than this are pinned harder (reweighted)
 # Re-solves with the vertices still sliding faster than SLIDE pinned harder. One took the
-# cleaned skating of the demo preset's samples from 4.8 / 5.9 % to 1.6 / 2.2 % on the
+# cleaned skating of the preview preset's samples from 4.8 / 5.9 % to 1.6 / 2.2 % on the
 # Bandai walks at the same coverage, jerk and fidelity, and from 12.3 to 5.1 % on the
 # synthetic demo clips, whose raw feet slide at 0.28 m/s (bench/cleanup_natural.py).
 REWEIGHT = 1

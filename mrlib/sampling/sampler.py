@@ -48,7 +48,7 @@ class Sampler:
             training clips); False for the generator's raw output (clean it yourself
             with other options: ``cleanup_foot_contacts(m, body, ...)``).
         fps: the frame rate of the output; None: the model's. A model trained at a lower
-            rate than its clips (the ``demo`` preset: 15 fps) draws at its own rate, and
+            rate than its clips (the ``preview`` preset: 15 fps) draws at its own rate, and
             the raw draw is raised to ``fps`` by cubic splines
             (``Motion.resample(fps, smooth=True)``) before the clean-up plants the feet at
             that rate (its jitter filter spans the same time as at the model's rate:

@@ -20,17 +20,17 @@ def add_demo(sub) -> argparse.ArgumentParser:
         "demo",
         "end-to-end demo on the bundled data (train, sample, crossover, evaluate)",
         "Load the synthetic clips in data_samples/, retarget a Bandai Namco BVH if "
-        "MRLIB_DATA_DIR points at the dataset, train (the 'demo' preset: a few minutes on two CPU "
-        "cores), sample every label and a coarse/fine crossover, evaluate, and write renders, "
+        "MRLIB_DATA_DIR points at the dataset, train (the 'preview' preset: a few minutes on two "
+        "CPU cores), sample every label and a coarse/fine crossover, evaluate, and write renders, "
         "animated previews, exports and summary.md to --out.",
         more=preset_help("labels"),
     )
     p.add_argument("--out", type=Path, default=Path("outputs"))
     p.add_argument(
         "--preset",
-        default="demo",
+        default="preview",
         choices=preset_choices("labels"),
-        help="training schedule, one of the presets listed below [default: demo]",
+        help="training schedule, one of the presets listed below [default: preview]",
     )
     p.add_argument(
         "--quick", action="store_true", help="smoke-test budget (seconds; results not meaningful)"

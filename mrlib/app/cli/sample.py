@@ -184,7 +184,7 @@ def add_sample(sub) -> argparse.ArgumentParser:
         type=float,
         default=None,
         help="frame rate of the samples (label, crossover and blend samples): a model trained "
-        "at a lower rate than its clips (the demo preset: 15 fps) draws at its own, raised "
+        "at a lower rate than its clips (the preview preset: 15 fps) draws at its own, raised "
         "by cubic splines before the feet are planted at this rate [default: the rate of "
         "the clips it was trained on, recorded in checkpoints since 2026-12-06; else the "
         "model's]",

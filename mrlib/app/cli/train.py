@@ -148,8 +148,9 @@ def add_train(sub) -> argparse.ArgumentParser:
         "--preset",
         default=None,
         choices=preset_choices("labels"),
-        help="training schedule, one of the presets listed below; 'demo' also resamples "
-        "the clips to its frame rate unless --fps is given [default: tutorial]",
+        help="training schedule, one of the presets listed below; one with a rate "
+        "('demo', 'preview') also resamples the clips to it unless --fps is given "
+        "[default: tutorial]",
     )
     iterations_option(
         p,
