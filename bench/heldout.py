@@ -3,10 +3,11 @@ five walking styles that no default of mrlib was chosen on, judged per label, an
 restyling judged on the second takes of those styles.
 
 Run from the repository root (the Bandai Namco clips in ``$MRLIB_DATA_DIR``, the shared
-mirror or the cache; ~20 min on two cores)::
+mirror or the cache; ~18 min on two cores, one minute with the models in the cache)::
 
-    python bench/heldout.py                 # seeds 0 and 1, 20 samples per label
-    python bench/heldout.py --seeds 0 --samples 10
+    python bench/heldout.py                    # seeds 0 and 1, 20 samples per label
+    python bench/heldout.py --preset preview   # the 15-fps preset
+    python bench/heldout.py --split dev --seeds 0 --samples 10
 
 The split. Development (what the presets, the clean-up and the label-fidelity work were
 tuned on): ``walk_{normal,happy,sad,angry}_001``. Held out, never looked at while a
@@ -64,9 +65,14 @@ def main(argv=None) -> int:
     p.add_argument("--samples", type=int, default=20, help="samples per label [20]")
     p.add_argument("--split", choices=["heldout", "dev"], default="heldout",
                    help="the held-out styles, or the development walks they are judged against")  # fmt: skip
+    p.add_argument("--preset", choices=["demo", "preview"], default="demo",
+                   help="the label preset trained as the README says [demo]")  # fmt: skip
     p.add_argument("--fps", type=float, default=None, help="the model's frame rate [the preset's]")
     p.add_argument("--levels", type=int, default=None,
                    help="pyramid levels, as mrlib train --levels [the preset's]")  # fmt: skip
+    p.add_argument("--iterations", default=None,
+                   help="iterations per block, one value or one per block, as mrlib train "
+                        "--iterations [the preset's]")  # fmt: skip
     p.add_argument("--window-s", type=float, default=None,
                    help="coverage window and PNN T_min in seconds, the local-diversity window "
                         "half of it [the frame counts of EvaluationSettings]")  # fmt: skip
@@ -93,7 +99,9 @@ def main(argv=None) -> int:
     if source.synthetic:
         raise SystemExit(f"the Bandai clips are needed: {source.note}")
     paths = dict(zip(train_names + take2_names, source.paths, strict=True))
-    base = get_preset("demo") if a.levels is None else training_config("demo", levels=a.levels)
+    its = None if a.iterations is None else [int(v) for v in a.iterations.split(",")]
+    plain = a.levels is None and its is None
+    base = get_preset(a.preset) if plain else training_config(a.preset, its, levels=a.levels)
     base = base if a.fps is None else base.replace(fps=a.fps)
     clips = [mrlib.load_motion(paths[n], fps=base.fps) for n in train_names]
     data = TrainingSet.from_motions(clips, body=body)
@@ -103,8 +111,9 @@ def main(argv=None) -> int:
         t = time.perf_counter()
         model, rec = train_cached(data, base.replace(seed=seed), body=body, progress=False)
         how = "reused" if rec.reused else f"trained in {time.perf_counter() - t:.0f} s"
-        print(f"\n## seed {seed}: demo preset at {base.fps:g} fps on {', '.join(train_names)} "
-              f"({how})\n", flush=True)  # fmt: skip
+        print(f"\n## seed {seed}: {a.preset} preset at {base.fps:g} fps, {base.model.num_levels} levels, "
+              f"iterations {list(base.block_iterations)}, on {', '.join(train_names)} ({how})\n",
+              flush=True)  # fmt: skip
         t = time.perf_counter()
         windows = {}
         if a.window_s is not None:

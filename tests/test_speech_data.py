@@ -322,7 +322,9 @@ def test_per_utterance_features_do_not_change_with_the_recording_level():
     as the same features; the training-set scale sees a shifted voice."""
     rng = np.random.default_rng(0)
     t = np.arange(3 * SR) / SR
-    wav = (0.05 * np.sin(2 * np.pi * 180 * t) * (1 + np.sin(2 * np.pi * 1.3 * t))).astype(np.float32)
+    wav = (0.05 * np.sin(2 * np.pi * 180 * t) * (1 + np.sin(2 * np.pi * 1.3 * t))).astype(
+        np.float32
+    )
     wav += 0.003 * rng.standard_normal(len(wav)).astype(np.float32)
     per = SpeechFeatureExtractor(kind="logmel", n_mels=20, per_utterance=True)
     raw = SpeechFeatureExtractor(kind="logmel", n_mels=20)
@@ -353,7 +355,9 @@ def test_the_feature_scale_on_the_command_line(tmp_path, monkeypatch):
 
     monkeypatch.setattr(mrlib.speech, "speech_train", stop)
     args = ["train-speech", str(d), "--preset", "speech_demo", "--iterations", "1"]
-    for k, extra in enumerate(([], ["--feature-scale", "training-set"], ["--feature-scale", "utterance"])):
+    for k, extra in enumerate(
+        ([], ["--feature-scale", "training-set"], ["--feature-scale", "utterance"])
+    ):
         with pytest.raises(Reached):
             main(args + ["--out", str(tmp_path / f"r{k}"), *extra])
     assert seen == [True, False, True]

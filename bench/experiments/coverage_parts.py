@@ -1,0 +1,106 @@
+"""What the tight coverage (eps 1) of the label presets' models misses: rotations or contacts
+(docs/notes/2026-12-06-heldout.md, "What eps 1 measures").
+
+    python bench/experiments/coverage_parts.py --split heldout --seed 0 --preset preview
+    python bench/experiments/coverage_parts.py --split heldout --seed 0    # the demo preset
+
+Per label of a ``bench/heldout.py`` model (the same cache entry: trained there first when
+missing), over ``--samples`` cleaned samples of twice the clip: coverage at eps 1 with
+mrlib's metric features (23 local rotations in 6D + the 6 contact labels), the same with
+the rotations only, and the share of contact labels that differ from the training clip's
+where the rotations match best (each clip window against its nearest sample window by
+rotations). Then, per clip, what the frame rate alone costs: the mean per-frame feature
+distance between the clip sampled at the model's rate and the same clip sampled half a
+frame later (both from the 30-fps capture, contact labels from the foot vertices), with
+all features and with the rotations only.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
+
+from common import describe, set_threads
+from heldout import DEV_STYLES, HELDOUT_STYLES
+
+ROT = slice(0, 23 * 6)  # metric_features: rotations first, then the 6 contact labels
+
+
+def half_frame_distance(clip, fps: float, body) -> tuple[float, float]:
+    """Mean per-frame distance, all features and rotations only, between ``clip`` at
+    ``fps`` and the same clip half a frame later."""
+    from mrlib.metrics.windows import metric_features
+    from mrlib.representation.contacts import foot_contacts
+
+    hi = clip.resample(2 * fps).replace(contacts=None)
+    n = len(hi) // 2
+    a, b = (hi.replace(poses=hi.poses[k : 2 * n : 2], trans=hi.trans[k : 2 * n : 2], fps=fps)
+            for k in (0, 1))  # fmt: skip
+    fa, fb = (metric_features(m.replace(contacts=foot_contacts(m, body))) for m in (a, b))
+    d = np.linalg.norm(fa - fb, axis=1).mean()
+    return float(d), float(np.linalg.norm(fa[:, ROT] - fb[:, ROT], axis=1).mean())
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--split", choices=["heldout", "dev"], default="heldout")
+    p.add_argument("--seed", type=int, default=0, help="training seed [0]")
+    p.add_argument("--preset", choices=["demo", "preview"], default="demo")
+    p.add_argument("--fps", type=float, default=None, help="the model's rate [the preset's]")
+    p.add_argument("--iterations", default=None, help="per block, as bench/heldout.py")
+    p.add_argument("--samples", type=int, default=10)
+    p.add_argument("--threads", type=int, default=None)
+    a = p.parse_args(argv)
+    set_threads(a.threads)
+    print(describe(), flush=True)
+
+    import mrlib
+    from mrlib.datasets.bandai import tutorial_clips
+    from mrlib.metrics.coverage import coverage_profile
+    from mrlib.metrics.windows import metric_features, window_nn
+    from mrlib.model.presets import get_preset, training_config
+    from mrlib.representation.features import features_to_motion
+    from mrlib.sampling.generation import generate
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train_cached
+
+    body = mrlib.load_body_model()
+    styles = HELDOUT_STYLES if a.split == "heldout" else DEV_STYLES
+    source = tutorial_clips([f"walk_{s}_001" for s in styles], fetch=True)
+    if source.synthetic:
+        raise SystemExit(f"the Bandai clips are needed: {source.note}")
+    its = None if a.iterations is None else [int(v) for v in a.iterations.split(",")]
+    base = get_preset(a.preset) if its is None else training_config(a.preset, its)
+    base = base if a.fps is None else base.replace(fps=a.fps)
+    captured = [mrlib.load_motion(q) for q in source.paths]
+    clips = [mrlib.load_motion(q, fps=base.fps) for q in source.paths]  # as bench/heldout.py
+    data = TrainingSet.from_motions(clips, body=body)
+    model, _ = train_cached(data, base.replace(seed=a.seed), body=body, progress=False)
+    print(f"\n`{a.preset}` at {base.fps:g} fps, iterations {list(base.block_iterations)}, training "
+          f"seed {a.seed}, {a.samples} cleaned samples per label, windows of 30 frames\n")  # fmt: skip
+    print("| clip | coverage eps 1 % | rotations only % | contacts differing % | "
+          "half-frame distance (rotations) |\n|---|---:|---:|---:|---|")  # fmt: skip
+    for k, x in enumerate(model.features):
+        ref = metric_features(features_to_motion(x, model.fps, betas=model.betas))
+        label = model.labels[model.clip_labels[k]]
+        full, rot, differ = [], [], []
+        for s in range(a.samples):
+            g = metric_features(generate(model, label, length=2 * len(ref), seed=s))
+            full.append(np.mean(coverage_profile(g, ref, 30) < 1.0))
+            rot.append(np.mean(coverage_profile(g[:, ROT], ref[:, ROT], 30) < 1.0))
+            _, start = window_nn(ref[:, ROT], g[:, ROT], 30, False)
+            c_ref, c_gen = ref[:, ROT.stop :], g[:, ROT.stop :]
+            differ += [np.mean(c_ref[i : i + 30] != c_gen[j : j + 30]) for i, j in enumerate(start)]
+        d, d_rot = half_frame_distance(captured[k], model.fps, body)
+        print(f"| {model.clip_names[k]} | {100 * np.mean(full):.1f} | {100 * np.mean(rot):.1f} | "
+              f"{100 * np.mean(differ):.1f} | {d:.2f} ({d_rot:.2f}) |")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
