@@ -1,7 +1,7 @@
-"""Named presets of ``TrainConfig`` (``PRESETS``): ``paper``, ``tutorial`` and ``demo``
-for labels, ``speech_paper``, ``speech_tutorial`` and ``speech_demo`` for speech, each
-next to the reasons for its values, so that a reader checks a preset against the paper
-in one place; and the command line's overrides of a preset (``training_config``).
+"""Named presets of ``TrainConfig`` (``PRESETS``): ``paper``, ``tutorial``, ``demo`` and
+``preview`` for labels, ``speech_paper``, ``speech_tutorial`` and ``speech_demo`` for
+speech, each next to the reasons for its values, so that a reader checks a preset against
+the paper in one place; and the command line's overrides of a preset (``training_config``).
 
 What the paper fixes (Moreno-Villamarin et al., CVMP 2024, Sec. 3-4): L = 8 levels for
 labels (10 for speech), F = 4/3, FiLM embedding of size 8, WGAN-GP, Adam with lr 1e-4,
@@ -129,10 +129,11 @@ def demo() -> TrainConfig:
     Why 30 fps: at 15 fps (``preview``) a fast walk moves so far between frames that two
     captures of it half a frame apart already differ by 0.56-0.76 in the metric
     features (the tight coverage threshold is 1), and a foot contact that starts one frame
-    late costs a whole unit; the fast walks were then covered in 2-65 % of windows at
-    eps 1. Why this budget: at 30 fps, 800 / 600 / 400 / 300 iterations left the happy
-    walk at 68-86 % fidelity and 84 % coverage on one seed, more coarse iterations kept
-    coverage at 94-100 % for every development walk on both seeds. Both were chosen on
+    late costs a whole unit; the fast walks lost coverage at eps 1 (the happy and angry
+    development walks 0-52 % of windows). Why this budget: at 30 fps, 800 / 600 / 400 /
+    300 iterations left the happy walk at 68-86 % fidelity and 84 % coverage on one seed;
+    more coarse iterations kept coverage at 93.6-100 % for every development walk on both
+    seeds. Both were chosen on
     the development walks; ``bench/heldout.py`` judges the preset on five styles it was
     not chosen on (``docs/results.md``, "Held-out styles")."""
     return tutorial().replace(
@@ -146,9 +147,9 @@ def demo() -> TrainConfig:
 
 def preview() -> TrainConfig:
     """``demo`` at 15 fps with 800 / 600 / 400 / 300 iterations per block: a first look in
-    about two thirds of the time, what ``mrlib demo`` and the notebooks train. Slow motion
-    comes out as well as with ``demo``; fast motion loses coverage at eps 1 (the angry and
-    happy Bandai walks 2-65 %: ``docs/results.md``)."""
+    about two thirds of the time, what ``mrlib demo`` and the notebooks train. Slow walks
+    are covered as with ``demo``; fast ones lose coverage at eps 1 (the angry and happy
+    Bandai walks 0-52 %: ``docs/results.md``)."""
     return demo().replace(fps=15.0, block_iterations=(800, 600, 400, 300))
 
 
