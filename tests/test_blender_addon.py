@@ -690,7 +690,7 @@ _BLENDER_SCRIPT = textwrap.dedent(
                        c.label] for c in s.clips]}
     s.clip_index = 2
     assert bpy.ops.mrlib.clip_remove() == {"FINISHED"}
-    s.preset, s.iterations, s.levels, s.overwrite = "demo", 2, 4, True
+    s.preset, s.iterations, s.levels, s.overwrite = "preview", 2, 4, True  # the scene's 15 fps
     s.out_dir = os.path.join(work, "run")
     res["clips"] = [[c.armature.name, c.action.name, c.label] for c in s.clips]
     res["train"] = sorted(bpy.ops.mrlib.train())
