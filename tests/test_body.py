@@ -175,6 +175,30 @@ def test_forward_is_differentiable(body):
         assert t.grad is not None and t.grad.abs().sum() > 0
 
 
+@pytest.mark.parametrize("shared_rest", [True, False])
+def test_rigid_transforms_match_smplx_and_their_gradients_too(body, shared_rest):
+    """The depth-by-depth forward kinematics gives smplx's posed joints and skinning
+    transforms, and the same gradients (float64, so rounding does not hide a slip)."""
+    from smplx.lbs import batch_rigid_transform
+
+    from mrlib.representation.chain import rigid_transforms
+
+    g = torch.Generator().manual_seed(4)
+    R = random_rotmats(6, seed=3).double().requires_grad_(True)
+    rest = body.rest_joints(torch.randn(1 if shared_rest else 6, 10, generator=g)).double()
+    w = torch.randn(6, 24, 3, 4, dtype=torch.float64, generator=g)  # a loss of everything
+
+    joints, G, t = rigid_transforms(R, rest, PARENTS)
+    (gr,) = torch.autograd.grad((torch.cat([G, t[..., None]], -1) * w).sum() + joints.sum(), R)
+    ref_j, A = batch_rigid_transform(R, rest.expand(6, 24, 3), torch.tensor(PARENTS))
+    (ref_gr,) = torch.autograd.grad((A[..., :3, :] * w).sum() + ref_j.sum(), R)
+    torch.testing.assert_close(joints, ref_j)
+    torch.testing.assert_close(torch.cat([G, t[..., None]], -1), A[..., :3, :])
+    torch.testing.assert_close(gr, ref_gr)
+    with pytest.raises(ValueError, match="parent"):
+        rigid_transforms(R[:, :3], rest[:, :3], (-1, 2, 0))  # a child before its parent
+
+
 def test_forward_in_float64(body):
     b64 = load_body_model().to(torch.float64)
     R = random_rotmats(3)

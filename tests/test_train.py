@@ -20,7 +20,9 @@ from mrlib.model.losses import (
     critic_loss,
     detail_statistics_loss,
     gradient_penalty,
+    mismatch_critic_loss,
     wgan_gp_critic_loss,
+    wgan_gp_mismatch_critic_loss,
 )
 from mrlib.model.presets import get_preset, paper, tutorial
 from mrlib.training.data import TrainingSet
@@ -170,6 +172,42 @@ def test_batched_critic_loss_equals_reference():
     ref_w = critic_loss(critic(real, pad), critic(fake, pad), w, w)
     ref_gp = gradient_penalty(lambda x: critic(x, pad), real, fake, w, alpha)
     assert torch.allclose(wl, ref_w, atol=1e-6) and torch.allclose(gp, ref_gp, atol=1e-6)
+
+
+@pytest.mark.parametrize("band", ["full", "detail"])
+def test_one_pass_mismatch_term_equals_its_reference(band):
+    """The critic losses with the mismatch term from one pass over [real, fake] have the
+    values and the critic gradients of the two-pass reference."""
+    from mrlib.model.critic import PatchCritic
+    from mrlib.model.pyramid import PackedLevels
+
+    torch.manual_seed(0)
+    model = dataclasses.replace(TINY_MODEL, critic_condition=True, critic_band=band)
+    critic = PatchCritic(model, cond_dim=3)
+    lengths = torch.tensor([[12], [9]])
+    lay = PackedLevels.from_table(lengths, 4)
+    pair = PackedLevels.from_table(lengths.repeat(2, 1), 4)
+    real = lay.pack([torch.randn(153, 12), torch.randn(153, 9)], 0)
+    fake = lay.pack([torch.randn(153, 12), torch.randn(153, 9)], 0)
+    w, S = lay.weights(0), real.shape[-1]
+    alpha = lay.per_sample(torch.rand(2), 0)[None, None]
+    own, other, wrong = (torch.rand(1, S, 3) for _ in range(3))
+    pads = lay.pad_index(0, 2), pair.pad_index(0, 2)
+
+    def grads(terms):
+        critic.zero_grad()
+        sum(terms).backward()
+        return [p.grad.clone() for p in critic.parameters()]
+
+    d, gp = wgan_gp_critic_loss(critic, real, fake, w, alpha, *pads, cond_real=own, cond_fake=other)
+    mis = mismatch_critic_loss(critic, real, own, wrong, w, pads[1])
+    ref = (d, gp, mis)
+    ref_grads = grads([d, gp, 2 * mis])
+    got = wgan_gp_mismatch_critic_loss(critic, real, fake, w, alpha, *pads, (own, other, wrong))
+    assert all(torch.allclose(a, b, atol=1e-6) for a, b in zip(got, ref, strict=True))
+    new_grads = grads([got[0], got[1], 2 * got[2]])
+    assert all(torch.allclose(a, b, atol=1e-5) for a, b in zip(new_grads, ref_grads, strict=True))
+    assert mis.abs() > 1e-4  # the conditions matter: the test compares something
 
 
 def test_train_writes_log_and_safe_checkpoint(data, body, tmp_path):
@@ -475,6 +513,27 @@ def test_conditional_critic_sees_reals_unlabelled_where_their_fakes_are(
     assert len(seen) == 2 * 2  # n_critic steps x two levels in block 1
     assert all(torch.equal(r, f) for r, f in seen)  # labelled on exactly the same frames
     assert any((f == 0).any() and (f == 1).any() for _, f in seen)  # some mixed, some not
+
+
+def test_generator_step_computes_no_critic_gradients(data, body, tmp_path, monkeypatch):
+    import mrlib.training.trainer as mtr
+
+    tr = Trainer(data, tiny(), tmp_path, body=body)
+    tr.start_block()
+    seen, real_step = [], mtr.generator_step
+
+    def spy(G, critics, a, *args):
+        seen.append([p.requires_grad for i in a.levels for p in critics[i].parameters()])
+        before = [p.grad.clone() for i in a.levels for p in critics[i].parameters()]
+        out = real_step(G, critics, a, *args)
+        after = [p.grad for i in a.levels for p in critics[i].parameters()]
+        assert all(torch.equal(x, y) for x, y in zip(before, after, strict=True))
+        return out
+
+    monkeypatch.setattr(mtr, "generator_step", spy)
+    tr.step()
+    assert seen and not any(seen[0])  # held still during the generator step
+    assert all(p.requires_grad for i in tr.active.levels for p in tr.critics[i].parameters())
 
 
 def test_mismatch_term_shows_real_clips_with_a_wrong_label(data, body, tmp_path):

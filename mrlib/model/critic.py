@@ -81,7 +81,12 @@ class PatchCritic(nn.Module):
                 f"conditional critic needs cond (B, {x.shape[-1]}, {self.cond_dim}), got {got}"
             )
         score, h = self.split(x, pad_index)
-        return score + (self.project(cond).transpose(1, 2) * h).sum(1)
+        return score + self.projection(h, cond)
+
+    def projection(self, h: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        """A conditional critic's condition term ``<P c_t, h_t>`` ``(B, T)`` of features
+        ``h (B, F, T)`` (from :meth:`split`) and conditions ``cond (B, T, D)``."""
+        return (self.project(cond).transpose(1, 2) * h).sum(1)
 
     def split(self, x: torch.Tensor, pad_index: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """A conditional critic's two terms before the condition: the realism score

@@ -32,6 +32,7 @@ __all__ = [
     "gradient_penalty",
     "wgan_gp_critic_loss",
     "mismatch_critic_loss",
+    "wgan_gp_mismatch_critic_loss",
     "detail_statistics_loss",
     "reconstruction_loss",
     "contact_consistency_loss",
@@ -147,6 +148,39 @@ def wgan_gp_critic_loss(
 
     gp = gradient_penalty(one, real, fake, weights, alpha)
     return critic_loss(scores[:, :S], scores[:, S:], weights, weights), gp
+
+
+def wgan_gp_mismatch_critic_loss(
+    critic,
+    real: torch.Tensor,
+    fake: torch.Tensor,
+    weights: torch.Tensor,
+    alpha: torch.Tensor,
+    pad_index: torch.Tensor,
+    pad_index_pair: torch.Tensor,
+    conds: tuple[torch.Tensor, torch.Tensor, torch.Tensor],
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """:func:`wgan_gp_critic_loss` and :func:`mismatch_critic_loss` of a conditional critic
+    from one critic forward on ``[real, fake]``: the two scores of a real clip in the
+    mismatch term differ only in the condition, so their realism parts cancel and the
+    mismatch term is ``E[<P c_wrong, h>] - E[<P c_own, h>]`` with the features ``h`` of the
+    real half (``PatchCritic.split``): the same value and gradient without the critic's
+    second pass over ``[real, real]``. Arguments as the two functions'; ``conds``: the
+    real clips' own, the fakes' and the wrong conditions, ``(1, S, D)`` each. Returns
+    ``(D, gp, mis)``."""
+    cond_real, cond_fake, cond_wrong = conds
+    S = real.shape[-1]
+    score, h = critic.split(torch.cat([real, fake], -1), pad_index_pair)
+    label = critic.projection(h, torch.cat([cond_real, cond_fake], 1))  # (1, 2S)
+    scores = score + label
+    wrong = critic.projection(h[..., :S], cond_wrong)  # (1, S)
+
+    def one(x: torch.Tensor) -> torch.Tensor:
+        return critic(x, pad_index, cond_fake)
+
+    gp = gradient_penalty(one, real, fake, weights, alpha)
+    d = critic_loss(scores[:, :S], scores[:, S:], weights, weights)
+    return d, gp, critic_loss(label[:, :S], wrong, weights, weights)
 
 
 def mismatch_critic_loss(

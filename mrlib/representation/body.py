@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 import smplx
 import torch
-from smplx.lbs import batch_rigid_transform
 
 from mrlib.errors import (
     ArgumentError,
@@ -42,6 +41,7 @@ from mrlib.errors import (
     check_text,
     shown,
 )
+from mrlib.representation.chain import rigid_transforms
 from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS, SMPL_FOOT_VERTEX_IDS
 from mrlib.representation.smpl_files import (
     OFFICIAL_NAMES,
@@ -139,7 +139,6 @@ class BodyModel(torch.nn.Module):
         )  # (J, 3, NB)
         # The default body has no pose correctives; skipping them saves a large matmul.
         self.has_pose_blendshapes = bool(smpl.posedirs.abs().max() > 0)
-        self.register_buffer("_parents_t", smpl.parents.clone(), persistent=False)
 
     # -- properties ---------------------------------------------------------------------
     @property
@@ -234,15 +233,15 @@ class BodyModel(torch.nn.Module):
         R = rotmat.to(self.dtype).reshape(N, NUM_JOINTS, 3, 3)
         b = self._betas(betas, lead)
 
-        # 1. Rest joints for the shape: (N, J, 3)
+        # 1. Rest joints for the shape: (N or 1, J, 3)
         if b.ndim == 1:
-            J = self.rest_joints(b).expand(N, NUM_JOINTS, 3)
+            J = self.rest_joints(b)[None]
             bN = b.expand(N, -1)
         else:
             bN = b.expand(*lead, b.shape[-1]).reshape(N, -1)
             J = self.rest_joints(bN)
-        # 2. Forward kinematics: posed joints and the skinning transforms A (N, J, 4, 4)
-        joints, A = batch_rigid_transform(R, J, self._parents_t, dtype=self.dtype)
+        # 2. Forward kinematics: posed joints and the skinning transforms x -> G x + g
+        joints, G, g = rigid_transforms(R, J, self.parents)  # (N, J, 3), (N, J, 3, 3), (N, J, 3)
         if trans is not None:
             t = torch.as_tensor(trans, device=self.device, dtype=self.dtype)
             if tuple(t.shape[-1:]) != (3,):
@@ -286,9 +285,12 @@ class BodyModel(torch.nn.Module):
                 cols = (ids[:, None] * 3 + torch.arange(3, device=self.device)).reshape(-1)
                 posedirs = smpl.posedirs[:, cols]
             v = v + (feat @ posedirs).reshape(N, -1, 3)
-        # 5. Linear blend skinning: T_k = sum_j W[k, j] A_j ; v' = T_k[:3, :3] v + T_k[:3, 3]
-        T = (W @ A.reshape(N, NUM_JOINTS, 16)).reshape(N, -1, 4, 4)  # (N, K, 4, 4)
-        verts = (T[..., :3, :3] @ v.unsqueeze(-1)).squeeze(-1) + T[..., :3, 3]
+        # 5. Linear blend skinning: v' = (sum_j W[k, j] G_j) v + sum_j W[k, j] g_j
+        # (as single matrix products over the joints: a batched W @ G loops over N here)
+        K = W.shape[0]
+        Gk = (W @ G.transpose(0, 1).reshape(NUM_JOINTS, -1)).reshape(K, N, 3, 3).transpose(0, 1)
+        gk = (W @ g.transpose(0, 1).reshape(NUM_JOINTS, -1)).reshape(K, N, 3).transpose(0, 1)
+        verts = (Gk * v.unsqueeze(-2)).sum(-1) + gk  # (N, K, 3)
         if trans is not None:
             verts = verts + t
         return BodyOutput(joints=out_joints, vertices=verts.reshape(*lead, -1, 3))

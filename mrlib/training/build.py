@@ -6,7 +6,7 @@
   generation b follows the pyramid of clip b, so reals and fakes line up sample by
   sample), with the frame weights of every loss term;
 * :func:`build_networks`: the generator and the critics;
-* :func:`make_adam`: a block's optimiser;
+* :func:`make_adam`: a block's optimiser; :func:`frozen`: networks held still for a step;
 * :class:`Kinematics`: the body-model pass of the contact and smoothness terms.
 
 The conditions (labels, or speech) are ``mrlib.training.signals``; the run itself is
@@ -15,6 +15,8 @@ The conditions (labels, or speech) are ``mrlib.training.signals``; the run itsel
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +32,7 @@ from mrlib.representation.features import FeatureNormalizer
 from mrlib.training.data import TrainingSet
 from mrlib.training.objective import LevelData
 
-__all__ = ["Batches", "build_batches", "build_networks", "make_adam", "Kinematics"]
+__all__ = ["Batches", "build_batches", "build_networks", "make_adam", "frozen", "Kinematics"]
 
 
 @dataclass
@@ -151,6 +153,22 @@ def build_networks(
     generator = build_generator(mc, cond_dim).to(device)
     critics = build_critics(mc, cond_dim if mc.critic_condition else 0).to(device)
     return generator, critics
+
+
+@contextlib.contextmanager
+def frozen(modules: Iterable[torch.nn.Module]):
+    """``modules`` with ``requires_grad`` off inside the block, on again after: the
+    generator step backpropagates through the critics without computing their weight
+    gradients, which the next critic step would discard (the generator's gradients are
+    the same; the step costs less)."""
+    modules = list(modules)
+    for m in modules:
+        m.requires_grad_(False)
+    try:
+        yield
+    finally:
+        for m in modules:
+            m.requires_grad_(True)
 
 
 def make_adam(params, lr: float, betas: tuple[float, float], device) -> torch.optim.Adam:

@@ -32,10 +32,10 @@ from mrlib.model.losses import (
     contact_consistency_loss,
     detail_statistics_loss,
     generator_adversarial_loss,
-    mismatch_critic_loss,
     reconstruction_loss,
     smoothness_loss,
     wgan_gp_critic_loss,
+    wgan_gp_mismatch_critic_loss,
 )
 
 __all__ = [
@@ -87,7 +87,8 @@ def critic_terms(
 ) -> Terms:
     """The terms of one level's critic loss: ``D = E[D(fake)] - E[D(real)]`` and ``gp``
     (Eq. 12-13, ``losses.wgan_gp_critic_loss``), and ``mis``
-    (``losses.mismatch_critic_loss``) when ``wrong`` is given.
+    (``losses.mismatch_critic_loss``) when ``wrong`` is given (then all three from one
+    critic pass, ``losses.wgan_gp_mismatch_critic_loss``).
 
     Args:
         critic: the level's ``PatchCritic``.
@@ -98,13 +99,15 @@ def critic_terms(
         wrong: ``(1, S, D)`` conditions that do not go with the real clips (mismatch term).
     """
     cond_real, cond_fake = (None, None) if conds is None else conds
+    if wrong is not None:
+        d, gp, mis = wgan_gp_mismatch_critic_loss(
+            critic, real, fake, weights, alpha, *pads, (cond_real, cond_fake, wrong)
+        )
+        return {"D": d, "gp": gp, "mis": mis}
     d, gp = wgan_gp_critic_loss(
         critic, real, fake, weights, alpha, *pads, cond_real=cond_real, cond_fake=cond_fake
     )
-    terms = {"D": d, "gp": gp}
-    if wrong is not None:
-        terms["mis"] = mismatch_critic_loss(critic, real, cond_real, wrong, weights, pads[1])
-    return terms
+    return {"D": d, "gp": gp}
 
 
 def critic_objective(t: Terms, w: LossWeights) -> torch.Tensor:

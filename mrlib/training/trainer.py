@@ -38,7 +38,7 @@ from mrlib.model.generator import MultiResGenerator
 from mrlib.model.trained import load_model
 from mrlib.representation.body import check_body
 from mrlib.threads import usable_cpus
-from mrlib.training import checkpoints, objective
+from mrlib.training import build, checkpoints, objective
 from mrlib.training.build import Batches, Kinematics, build_batches, build_networks, make_adam
 from mrlib.training.data import TrainingSet, check_training_fps, instance_or_none
 from mrlib.training.monitor import CtrlC, LossLog, block_bar, check_finite
@@ -233,8 +233,9 @@ class Trainer:
         losses: Losses = {i: {} for i in a.levels}
         if c.n_critic > 0:
             losses = critic_steps(G, self.critics, a, b, sig, c, self.rng)
-        for i, t in generator_step(G, self.critics, a, b, sig, c, self.kinematics).items():
-            losses[i].update(t)
+        with build.frozen(self.critics[i] for i in a.levels):  # their gradients would go unused
+            for i, t in generator_step(G, self.critics, a, b, sig, c, self.kinematics).items():
+                losses[i].update(t)
         return losses
 
     # -- checkpoints (mrlib.training.checkpoints) ------------------------------------------------
