@@ -3,7 +3,7 @@ five walking styles that no default of mrlib was chosen on, judged per label, an
 restyling judged on the second takes of those styles.
 
 Run from the repository root (the Bandai Namco clips in ``$MRLIB_DATA_DIR``, the shared
-mirror or the cache; ~18 min on two cores, one minute with the models in the cache)::
+mirror or the cache; ~14 min on two cores, one minute with the models in the cache)::
 
     python bench/heldout.py                    # seeds 0 and 1, 20 samples per label
     python bench/heldout.py --preset preview   # the 15-fps preset

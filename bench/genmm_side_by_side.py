@@ -1,0 +1,129 @@
+"""mrlib beside GenMM on the same walks, every row scored by the same scorer at the
+clips' own frame rate.
+
+Run from the repository root (the Bandai Namco clips where mrlib finds them; ~6 min on
+two cores to train, 20 s with the model in mrlib's cache)::
+
+    python bench/genmm_side_by_side.py                    # the four development walks
+    python bench/genmm_side_by_side.py --split heldout    # the five held-out styles
+    python bench/genmm_side_by_side.py --preset preview   # both at 15 fps
+
+mrlib: the ``demo`` preset (``--preset``) trained as ``bench/heldout.py`` trains it (the
+same cached model), its samples raw and cleaned. GenMM: ``bench/genmm.py`` (training-free
+patch matching, its public defaults) on each walk alone, at the preset's frame rate.
+Every row: ``--samples`` clips per walk of twice the walk's length, seeds 0.., scored by
+``mrlib.evaluation.evaluate`` against the walk (coverage at eps 2 and 1, global
+diversity, skating, jerk ratio, penetration, condition fidelity among the walks), with
+the walk played twice as the calibration row. Printed: one line per method (means over
+the walks) and per walk, and the seconds per sample of each method.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from common import describe, set_threads
+from genmm import GenMMSettings, genmm_sample_fn
+from heldout import DEV_STYLES, HELDOUT_STYLES
+
+KEYS = ("coverage_pct", "coverage_tight_pct", "global_div", "skate_pct", "jerk_ratio",
+        "penetration_cm", "cond_fidelity_pct")  # fmt: skip
+HEAD = ("| row | coverage eps 2 | coverage eps 1 | global div. | skating % | jerk ratio | "
+        "penetration cm | fidelity | s/sample |")  # fmt: skip
+
+
+def _fmt(k: str, v: float) -> str:
+    if not np.isfinite(v):
+        return "-"
+    return f"{v:.2f}" if k in ("global_div", "jerk_ratio", "penetration_cm") else f"{v:.1f}"
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--split", choices=["dev", "heldout"], default="dev",
+                   help="the development walks or the held-out styles [dev]")  # fmt: skip
+    p.add_argument("--seed", type=int, default=0, help="mrlib's training seed [0]")
+    p.add_argument("--preset", choices=["demo", "preview"], default="demo",
+                   help="mrlib's label preset, and the rate every row is scored at [demo]")  # fmt: skip
+    p.add_argument("--samples", type=int, default=10, help="samples per walk [10]")
+    p.add_argument("--threads", type=int, default=None, help="torch threads [mrlib's default]")
+    a = p.parse_args(argv)
+    set_threads(a.threads)
+    print(describe(), flush=True)
+
+    import mrlib
+    from mrlib.datasets.bandai import tutorial_clips
+    from mrlib.evaluation import EvaluationSettings
+    from mrlib.evaluation.calibration import PLAYED_TWICE
+    from mrlib.evaluation.evaluate import evaluate, model_references, model_sample_fn
+    from mrlib.evaluation.results import CALIB_PREFIX
+    from mrlib.model.presets import get_preset
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train_cached
+
+    body = mrlib.load_body_model()
+    styles = DEV_STYLES if a.split == "dev" else HELDOUT_STYLES
+    names = [f"walk_{s}_001" for s in styles]
+    source = tutorial_clips(names, fetch=True)
+    if source.synthetic:
+        raise SystemExit(f"the Bandai clips are needed: {source.note}")
+    cfg = get_preset(a.preset).replace(seed=a.seed)
+    clips = [mrlib.load_motion(p, fps=cfg.fps) for p in source.paths]
+    native = {round(float(mrlib.load_motion(p).fps), 3) for p in source.paths}
+    data = TrainingSet.from_motions(clips, body=body)
+    t = time.perf_counter()
+    model, rec = train_cached(data, cfg, body=body, progress=False)
+    how = "reused" if rec.reused else f"trained in {time.perf_counter() - t:.0f} s"
+    print(f"\nmrlib: {a.preset} preset at {cfg.fps:g} fps (the clips' own rate: {sorted(native)}), "
+          f"seed {a.seed}, on {', '.join(names)} ({how})", flush=True)  # fmt: skip
+
+    settings = EvaluationSettings(num_samples=a.samples, seed=0)
+    refs = model_references(model)
+    spent: dict[str, float] = {}
+
+    def timed(name, fn):
+        def sample(key, length, seed):
+            t = time.perf_counter()
+            out = fn(key, length, seed)
+            spent[name] = spent.get(name, 0.0) + time.perf_counter() - t
+            return out
+
+        return sample
+
+    sampler = {clean: mrlib.Sampler(settings.fine_noise, settings.guidance, fix_contacts=clean)
+               for clean in (False, True)}  # fmt: skip
+    methods = {
+        "GenMM": timed("GenMM", genmm_sample_fn(refs, GenMMSettings())),
+        "ours (raw)": timed("ours (raw)", model_sample_fn(model, sampler[False])),
+        "ours": timed("ours", model_sample_fn(model, sampler[True])),
+    }
+    result = evaluate(methods, refs, settings, body=body, progress=False)
+    rows = result.rows
+    n = a.samples * len(refs)
+    speed = {k: v / n for k, v in spent.items()}
+    order = [CALIB_PREFIX + PLAYED_TWICE, "GenMM", "ours (raw)", "ours"]
+    label = {CALIB_PREFIX + PLAYED_TWICE: "clip played twice", "ours (raw)": "mrlib raw",
+             "ours": "mrlib cleaned"}  # fmt: skip
+    print(f"\n{a.samples} samples per walk of twice its length, scored at {model.fps:g} fps; "
+          "means over the walks\n")  # fmt: skip
+    print(HEAD + "\n|---|" + "---:|" * 8)
+    for m in order:
+        rs = [r for r in rows if r["method"] == m]
+        mean = {k: float(np.nanmean([r[k] for r in rs])) for k in KEYS}
+        s = f"{speed[m]:.2f}" if m in speed else "-"
+        print(f"| {label.get(m, m)} | " + " | ".join(_fmt(k, mean[k]) for k in KEYS) + f" | {s} |")
+    print("\nper walk: coverage eps 1 % (GenMM / mrlib cleaned), global diversity (same)")
+    for key in refs:
+        g = next(r for r in rows if r["method"] == "GenMM" and r["sequence"] == key)
+        o = next(r for r in rows if r["method"] == "ours" and r["sequence"] == key)
+        print(f"  {key}: {g['coverage_tight_pct']:.1f} / {o['coverage_tight_pct']:.1f}, "
+              f"{g['global_div']:.2f} / {o['global_div']:.2f}")  # fmt: skip
+    print("(s/sample: drawing one sample, one thread as set above; mrlib cleaned includes "
+          "its raw draw)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
