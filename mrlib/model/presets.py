@@ -130,7 +130,7 @@ def demo() -> TrainConfig:
     captures of it half a frame apart already differ by 0.56-0.76 in the metric
     features (the tight coverage threshold is 1), and a foot contact that starts one frame
     late costs a whole unit; the fast walks lost coverage at eps 1 (the happy and angry
-    development walks 0-52 % of windows). Why this budget: at 30 fps, 800 / 600 / 400 /
+    development walks 0-51 % of windows). Why this budget: at 30 fps, 800 / 600 / 400 /
     300 iterations left the happy walk at 68-86 % fidelity and 84 % coverage on one seed;
     more coarse iterations kept coverage at 93.6-100 % for every development walk on both
     seeds. Both were chosen on
@@ -149,7 +149,7 @@ def preview() -> TrainConfig:
     """``demo`` at 15 fps with 800 / 600 / 400 / 300 iterations per block: a first look in
     about two thirds of the time, what ``mrlib demo`` and the notebooks train. Slow walks
     are covered as with ``demo``; fast ones lose coverage at eps 1 (the angry and happy
-    Bandai walks 0-52 %: ``docs/results.md``)."""
+    Bandai walks 0-51 %: ``docs/results.md``)."""
     return demo().replace(fps=15.0, block_iterations=(800, 600, 400, 300))
 
 
