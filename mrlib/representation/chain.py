@@ -18,9 +18,10 @@ __all__ = ["rigid_transforms"]
 
 
 @functools.lru_cache(maxsize=8)
-def _depth_plan(parents: tuple[int, ...]) -> tuple[list, list, list]:
-    """Per depth ``d >= 1``: its joints, and their parents' positions in depth ``d - 1``'s
-    joint list; and the order that puts the concatenated depths back in joint order."""
+def _depth_plan(parents: tuple[int, ...], device: torch.device) -> tuple:
+    """Index tensors on ``device``, built once per tree: every joint's parent; per depth
+    ``d >= 1``, its joints and their parents' positions in depth ``d - 1``'s joint list;
+    the order that puts the concatenated depths back in joint order."""
     depth = [0] * len(parents)
     for j, p in enumerate(parents):
         if j == 0:
@@ -30,11 +31,11 @@ def _depth_plan(parents: tuple[int, ...]) -> tuple[list, list, list]:
         depth[j] = depth[p] + 1
     levels = [[j for j in range(len(parents)) if depth[j] == d] for d in range(max(depth) + 1)]
     where = {j: i for lv in levels for i, j in enumerate(lv)}
-    joints = [torch.tensor(lv) for lv in levels[1:]]
-    parent_pos = [torch.tensor([where[parents[j]] for j in lv]) for lv in levels[1:]]
+    joints = [torch.tensor(lv, device=device) for lv in levels[1:]]
+    parent_pos = [torch.tensor([where[parents[j]] for j in lv], device=device) for lv in levels[1:]]
     flat = [j for lv in levels for j in lv]
-    order = torch.tensor([flat.index(j) for j in range(len(parents))])
-    return joints, parent_pos, [order]
+    order = torch.tensor([flat.index(j) for j in range(len(parents))], device=device)
+    return torch.tensor(parents[1:], device=device), joints, parent_pos, order
 
 
 def _matmul3(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
@@ -65,10 +66,8 @@ def rigid_transforms(
         (a rest-pose point moved as joint ``j`` moves it): ``R (N, J, 3, 3)`` (the global
         rotations) and ``t (N, J, 3)``.
     """
-    plan = _depth_plan(tuple(int(p) for p in parents))
-    joints_at, parent_pos, (order,) = ([i.to(rotmat.device) for i in x] for x in plan)
+    par, joints_at, parent_pos, order = _depth_plan(tuple(map(int, parents)), rotmat.device)
     N = rotmat.shape[0]
-    par = torch.as_tensor(parents[1:], device=rotmat.device)
     rest_n = rest.permute(1, 2, 0)  # (J, 3, N|1): the batch last from here on
     rot = rotmat.permute(1, 2, 3, 0)  # (J, 3, 3, N)
     offsets = torch.cat([rest_n[:1], rest_n[1:] - rest_n[par]], 0)  # (J, 3, N|1)
