@@ -166,8 +166,10 @@ def main(argv: list[str] | None = None) -> int:
     for label, ref in refs.items():
         n = round(2 * ref.num_frames)
         floor = training_floor(model, [model.labels.index(label)], body)
+        # the clean-ups compared on the same raw draws, one per sample (no critic ranking)
         raw = [generate(model, label, length=n, seed=s, body=body,
-                        sampler=Sampler(fix_contacts=False)) for s in range(a.samples)]  # fmt: skip
+                        sampler=Sampler(fix_contacts=False, candidates=1))
+               for s in range(a.samples)]  # fmt: skip
         for name in names:
             fn = table[name]
             t0 = time.perf_counter()

@@ -21,6 +21,7 @@ the walks) and per walk, and the seconds per sample of each method.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numpy as np
@@ -98,14 +99,19 @@ def main(argv=None) -> int:
         "GenMM": timed("GenMM", genmm_sample_fn(refs, GenMMSettings())),
         "ours (raw)": timed("ours (raw)", model_sample_fn(model, sampler[False])),
         "ours": timed("ours", model_sample_fn(model, sampler[True])),
+        "ours, one draw": timed(
+            "ours, one draw",
+            model_sample_fn(model, dataclasses.replace(sampler[True], candidates=1)),
+        ),
     }
     result = evaluate(methods, refs, settings, body=body, progress=False)
     rows = result.rows
     n = a.samples * len(refs)
     speed = {k: v / n for k, v in spent.items()}
-    order = [CALIB_PREFIX + PLAYED_TWICE, "GenMM", "ours (raw)", "ours"]
+    order = [CALIB_PREFIX + PLAYED_TWICE, "GenMM", "ours (raw)", "ours", "ours, one draw"]
     label = {CALIB_PREFIX + PLAYED_TWICE: "clip played twice", "ours (raw)": "mrlib raw",
-             "ours": "mrlib cleaned"}  # fmt: skip
+             "ours": "mrlib cleaned",
+             "ours, one draw": "mrlib cleaned, one draw per sample (`candidates=1`)"}  # fmt: skip
     print(f"\n{a.samples} samples per walk of twice its length, scored at {model.fps:g} fps; "
           "means over the walks\n")  # fmt: skip
     print(HEAD + "\n|---|" + "---:|" * 8)

@@ -14,6 +14,8 @@ tuned on): ``walk_{normal,happy,sad,angry}_001``. Held out, never looked at whil
 default was chosen: the walks of five other styles, ``HELDOUT_STYLES``. Their ``_001``
 takes train the model (``mrlib.training.trainer.train_cached``: reused from mrlib's model
 cache when there); their ``_002`` takes, captured separately, are restyled.
+``--split fresh``: a third set of five styles, ``FRESH_STYLES``, first run after the number
+of critic-ranked candidates was chosen on the other two (docs/notes/2026-12-07-critic-ranking.md).
 
 Printed per seed: per label, coverage at eps 2 and at the tight eps 1, condition fidelity,
 global diversity, and the cleaned output's skating, jerk ratio and penetration, beside the
@@ -33,6 +35,9 @@ from restyle_path import BOUNDS, holds, path_distances, summary
 
 DEV_STYLES = ("normal", "happy", "sad", "angry")
 HELDOUT_STYLES = ("active", "childish", "chimpira", "feminine", "giant")
+# a second held-out split, first used to judge the critic-ranked sampler of 2026-12-07
+# (the first five, alphabetically, of the six styles left)
+FRESH_STYLES = ("masculinity", "musical", "not-confident", "old", "proud")
 GOALS = {"coverage_tight_pct": 90.0, "cond_fidelity_pct": 90.0}  # #51's bar, per label
 
 
@@ -63,8 +68,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--seeds", default="0,1", help="training seeds [0,1]")
     p.add_argument("--samples", type=int, default=20, help="samples per label [20]")
-    p.add_argument("--split", choices=["heldout", "dev"], default="heldout",
-                   help="the held-out styles, or the development walks they are judged against")  # fmt: skip
+    p.add_argument("--split", choices=["heldout", "fresh", "dev"], default="heldout",
+                   help="the held-out styles, a second held-out set, or the development walks")  # fmt: skip
     p.add_argument("--preset", choices=["demo", "preview"], default="demo",
                    help="the label preset trained as the README says [demo]")  # fmt: skip
     p.add_argument("--fps", type=float, default=None, help="the model's frame rate [the preset's]")
@@ -76,6 +81,9 @@ def main(argv=None) -> int:
     p.add_argument("--window-s", type=float, default=None,
                    help="coverage window and PNN T_min in seconds, the local-diversity window "
                         "half of it [the frame counts of EvaluationSettings]")  # fmt: skip
+    p.add_argument("--candidates", type=int, default=None,
+                   help="draws per sample ranked by the critics, as mrlib evaluate "
+                        "--candidates [the sampler's default]")  # fmt: skip
     p.add_argument("--threads", type=int, default=None, help="torch threads [mrlib's default]")
     a = p.parse_args(argv)
     set_threads(a.threads)
@@ -92,7 +100,7 @@ def main(argv=None) -> int:
 
     t_all = time.perf_counter()
     body = mrlib.load_body_model()
-    styles = HELDOUT_STYLES if a.split == "heldout" else DEV_STYLES
+    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[a.split]
     train_names = [f"walk_{s}_001" for s in styles]
     take2_names = [f"walk_{s}_002" for s in styles]
     source = tutorial_clips(train_names + take2_names, fetch=True)
@@ -119,9 +127,12 @@ def main(argv=None) -> int:
         if a.window_s is not None:
             n = max(2, round(a.window_s * base.fps))
             windows = {"coverage_window": n, "tmin": n, "local_window": max(1, n // 2)}
+        if a.candidates is not None:
+            windows["candidates"] = a.candidates
         settings = EvaluationSettings(num_samples=a.samples, seed=seed, **windows)
         print(f"windows: coverage {settings.coverage_window} frames = "
-              f"{settings.coverage_window / base.fps:g} s at {base.fps:g} fps\n", flush=True)  # fmt: skip
+              f"{settings.coverage_window / base.fps:g} s at {base.fps:g} fps; best of "
+              f"{settings.candidates} draw(s) per sample\n", flush=True)  # fmt: skip
         result = evaluate_model(model, settings=settings, body=body, progress=False)
         text, rows = per_label_table(result)
         print(f"{text}\n\n(evaluation {time.perf_counter() - t:.0f} s)", flush=True)

@@ -125,7 +125,12 @@ def main(argv: list[str] | None = None) -> int:
             reps = args.repeats if n < 64 else max(1, args.repeats - 1)
             new = _best(
                 lambda n=n: generate(
-                    model, label, length=T, seed=0, num=n, sampler=Sampler(fix_contacts=False)
+                    model,
+                    label,
+                    length=T,
+                    seed=0,
+                    num=n,
+                    sampler=Sampler(fix_contacts=False, candidates=1),
                 ),
                 reps,
             )

@@ -247,6 +247,17 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
         "sample --seconds 0": (["sample", str(ckpt), "--seconds", "0"], 2, "--seconds"),
         "sample --fine-noise -1": (["sample", str(ckpt), "--fine-noise", "-1"], 2, "--fine-noise"),
         "sample --guidance nan": (["sample", str(ckpt), "--guidance", "nan"], 2, "--guidance"),
+        "sample --candidates 0": (["sample", str(ckpt), "--candidates", "0"], 2, "--candidates"),
+        "sample --candidates 2.5": (
+            ["sample", str(ckpt), "--candidates", "2.5"],
+            2,
+            "--candidates",
+        ),
+        "restyle --candidates 2": (  # a restyle draws once
+            ["restyle", str(ckpt), str(clip), "--label", "walk_sad", "--candidates", "2"],
+            2,
+            "--candidates",
+        ),
         "evaluate --fine-noise x": (
             ["evaluate", str(ckpt), "--fine-noise", "x"],
             2,
@@ -366,9 +377,10 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
     data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=6.5, fps=10.0)])
     checkpoint = train(data, TINY, tmp_path / "run", progress=False).checkpoint
     argv = ["evaluate", str(checkpoint), "--samples", "1", "--no-calibration",
-            "--fine-noise", "0.5", "--guidance", "0.25", "--out", str(tmp_path / "eval")]  # fmt: skip
+            "--fine-noise", "0.5", "--guidance", "0.25", "--candidates", "2",
+            "--out", str(tmp_path / "eval")]  # fmt: skip
     assert main(argv) == 0
-    assert "sampler: fine_noise=0.5, guidance=0.25" in capsys.readouterr().out
+    assert "sampler: fine_noise=0.5, guidance=0.25, candidates=2" in capsys.readouterr().out
     # a second evaluation into the same folder replaces nothing without --overwrite, and
     # is refused before it samples
     table = (tmp_path / "eval" / "evaluation.csv").read_bytes()
@@ -394,6 +406,22 @@ def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
     argv = ["sample", str(checkpoint), "--raw", "--guidance", "0.5", "--out", str(tmp_path / "b")]
     assert main(argv) == 0
     assert seen == [mrlib.sampling.sampler.GUIDANCE, 0.5]
+
+
+def test_cli_candidates_reach_the_sampler(checkpoint, tmp_path, monkeypatch):
+    import mrlib.sampling.generation
+
+    seen, plain = [], mrlib.sampling.generation.sample_ranked
+
+    def spy(*args):
+        seen.append(args[-1])
+        return plain(*args)
+
+    monkeypatch.setattr(mrlib.sampling.generation, "sample_ranked", spy)
+    assert main(["sample", str(checkpoint), "--raw", "--out", str(tmp_path / "a")]) == 0
+    argv = ["sample", str(checkpoint), "--raw", "--candidates", "3", "--out", str(tmp_path / "b")]
+    assert main(argv) == 0
+    assert seen == [mrlib.sampling.sampler.CANDIDATES, 3]
 
 
 API_CASES = {

@@ -25,7 +25,7 @@ from mrlib.sampling.generation import (
 )
 from mrlib.sampling.sampler import Sampler
 
-RAW = Sampler(fix_contacts=False)  # the generator's raw output
+RAW = Sampler(fix_contacts=False, candidates=1)  # the generator's raw output, one draw
 
 
 @pytest.fixture(scope="module")

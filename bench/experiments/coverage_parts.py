@@ -12,7 +12,11 @@ where the rotations match best (each clip window against its nearest sample wind
 rotations). Then, per clip, what the frame rate alone costs: the mean per-frame feature
 distance between the clip sampled at the model's rate and the same clip sampled half a
 frame later (both from the 30-fps capture, contact labels from the foot vertices), with
-all features and with the rotations only.
+all features and with the rotations only. Last, how much the clip repeats itself: the
+median over its windows of the distance to the nearest window of the same clip that starts
+30 frames or more away (a walk's next step cycle; under 1, a window another part of the
+clip covers at eps 1), and the coverage at eps 1 of the clip by the model's reconstruction
+of it (``mrlib.reconstruct``: its fixed noise, no sampling).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
 
 from common import describe, set_threads
-from heldout import DEV_STYLES, HELDOUT_STYLES
+from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES
 
 ROT = slice(0, 23 * 6)  # metric_features: rotations first, then the 6 contact labels
 
@@ -46,9 +50,23 @@ def half_frame_distance(clip, fps: float, body) -> tuple[float, float]:
     return float(d), float(np.linalg.norm(fa[:, ROT] - fb[:, ROT], axis=1).mean())
 
 
+def repeat_distance(x: np.ndarray, w: int) -> float:
+    """Median over the ``w``-frame windows of ``x (T, D)`` of the mean per-frame distance
+    to the nearest window of ``x`` starting ``w`` frames or more away (inf: none)."""
+    n = len(x) - w + 1
+    best = np.full(n, np.inf)
+    box = np.ones(w) / w
+    for off in range(w, n):
+        per_frame = np.linalg.norm(x[off:] - x[: len(x) - off], axis=1)
+        win = np.convolve(per_frame, box, mode="valid")  # windows starting at i and i + off
+        best[: n - off] = np.minimum(best[: n - off], win)
+        best[off:] = np.minimum(best[off:], win)
+    return float(np.median(best))
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--split", choices=["heldout", "dev"], default="heldout")
+    p.add_argument("--split", choices=["heldout", "fresh", "dev"], default="heldout")
     p.add_argument("--seed", type=int, default=0, help="training seed [0]")
     p.add_argument("--preset", choices=["demo", "preview"], default="demo")
     p.add_argument("--fps", type=float, default=None, help="the model's rate [the preset's]")
@@ -65,12 +83,12 @@ def main(argv=None) -> int:
     from mrlib.metrics.windows import metric_features, window_nn
     from mrlib.model.presets import get_preset, training_config
     from mrlib.representation.features import features_to_motion
-    from mrlib.sampling.generation import generate
+    from mrlib.sampling.generation import generate, reconstruct
     from mrlib.training.data import TrainingSet
     from mrlib.training.trainer import train_cached
 
     body = mrlib.load_body_model()
-    styles = HELDOUT_STYLES if a.split == "heldout" else DEV_STYLES
+    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[a.split]
     source = tutorial_clips([f"walk_{s}_001" for s in styles], fetch=True)
     if source.synthetic:
         raise SystemExit(f"the Bandai clips are needed: {source.note}")
@@ -84,7 +102,8 @@ def main(argv=None) -> int:
     print(f"\n`{a.preset}` at {base.fps:g} fps, iterations {list(base.block_iterations)}, training "
           f"seed {a.seed}, {a.samples} cleaned samples per label, windows of 30 frames\n")  # fmt: skip
     print("| clip | coverage eps 1 % | rotations only % | contacts differing % | "
-          "half-frame distance (rotations) |\n|---|---:|---:|---:|---|")  # fmt: skip
+          "half-frame distance (rotations) | repeat distance | reconstruction coverage eps 1 % |"
+          "\n|---|---:|---:|---:|---|---:|---:|")  # fmt: skip
     for k, x in enumerate(model.features):
         ref = metric_features(features_to_motion(x, model.fps, betas=model.betas))
         label = model.labels[model.clip_labels[k]]
@@ -97,8 +116,11 @@ def main(argv=None) -> int:
             c_ref, c_gen = ref[:, ROT.stop :], g[:, ROT.stop :]
             differ += [np.mean(c_ref[i : i + 30] != c_gen[j : j + 30]) for i, j in enumerate(start)]
         d, d_rot = half_frame_distance(captured[k], model.fps, body)
+        rec = metric_features(reconstruct(model, k))
+        rec_cov = 100 * np.mean(coverage_profile(rec, ref, 30) < 1.0)
         print(f"| {model.clip_names[k]} | {100 * np.mean(full):.1f} | {100 * np.mean(rot):.1f} | "
-              f"{100 * np.mean(differ):.1f} | {d:.2f} ({d_rot:.2f}) |")  # fmt: skip
+              f"{100 * np.mean(differ):.1f} | {d:.2f} ({d_rot:.2f}) | "
+              f"{repeat_distance(ref, 30):.2f} | {rec_cov:.1f} |")  # fmt: skip
     return 0
 
 

@@ -287,7 +287,7 @@ class CrossoverOptions:
         reference: what the bands are compared with: ``"samples"`` (pure-label samples
             of the model) or ``"clips"`` (its training clips).
         sampler: how the samples are drawn (a ``mrlib.Sampler``); None: the paper's
-            sampler without the foot-contact clean-up (``Sampler(fix_contacts=False)``).
+            sampler without the foot-contact clean-up (``raw_sampler()``: one draw, no clean-up).
     """
 
     cutoff: float | None = None

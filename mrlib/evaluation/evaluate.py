@@ -359,7 +359,7 @@ def model_references(model: Any) -> dict[str, Motion]:
 def model_sample_fn(model: Any, sampler: Any = None) -> SampleFn:
     """``sample_fn(key, length, seed)`` for :func:`evaluate` from a trained model; keys
     are those of :func:`model_references`. ``sampler``: a ``mrlib.Sampler``; default
-    the raw output (``Sampler(fix_contacts=False)``)."""
+    the raw output (``raw_sampler()``: one draw, no clean-up)."""
     from mrlib.sampling.generation import generate
     from mrlib.sampling.sampler import raw_sampler
 
@@ -430,8 +430,8 @@ def evaluate_model(
     the cleaned output under the method's name and the raw one beside it as
     ``"<method> (raw)"``, right after it. ``settings``, ``calibration``, ``body`` and
     ``progress`` are those of :func:`evaluate`; the model and the baselines sample with
-    the fine noise and guidance of ``settings`` (``EvaluationSettings.fine_noise``,
-    ``.guidance``).
+    the fine noise, guidance and candidates of ``settings``
+    (``EvaluationSettings.fine_noise``, ``.guidance``, ``.candidates``).
     """
     if contacts not in ("raw", "clean", "both"):
         raise MotionValueError(f"contacts must be 'raw', 'clean' or 'both', got {contacts!r}")
@@ -459,7 +459,7 @@ def evaluate_model(
     samplers, recons = {}, {}
     for mname, (per_key, recon) in methods.items():
         for clean, suffix in variants[contacts]:
-            sampler = Sampler(s.fine_noise, s.guidance, fix_contacts=clean)
+            sampler = Sampler(s.fine_noise, s.guidance, fix_contacts=clean, candidates=s.candidates)
             samplers[mname + suffix] = _per_key_sample_fn(per_key, sampler)
             recons[mname + suffix] = recon
     if len(samplers) != len(methods) * len(variants[contacts]):

@@ -192,7 +192,7 @@ def condition_fidelity_of_model(
         seed: noise seed (every label's samples use the same seed).
         window: window in frames (30, the paper's ``T_c``).
         sampler: a ``mrlib.Sampler``; default the paper's sampler without the
-            foot-contact clean-up (``Sampler(fix_contacts=False)``, the raw output).
+            foot-contact clean-up (``raw_sampler()``: one draw, no clean-up, the raw output).
     Returns:
         :class:`ConditionFidelity`. When several training clips share a label their
         frames are joined into one reference per label (``condition_fidelity`` takes
@@ -248,7 +248,8 @@ def coverage_per_sequence(
 
     Args:
         eps: one threshold, or several (the same samples serve every threshold).
-        sampler: a ``mrlib.Sampler``; default the raw output (``Sampler(fix_contacts=False)``).
+        sampler: a ``mrlib.Sampler``; default the raw output of one draw
+            (``raw_sampler()``).
     Returns:
         clip name -> coverage in [0, 1]; for several thresholds, eps -> that dict.
     """

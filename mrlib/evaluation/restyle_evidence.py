@@ -143,7 +143,7 @@ def restyle_references(
     """The references of :func:`restyle_evidence` for clips of ``length`` frames at the
     model's rate restyled at ``level``: per label, ``num_samples`` pure samples of that
     length (``reference="samples"``, as ``mrlib.evaluation.crossover.crossover_evidence``,
-    drawn with ``sampler``, default the raw output ``Sampler(fix_contacts=False)``) or its
+    drawn with ``sampler``, default the raw output of one draw, ``raw_sampler()``) or its
     training clips (``"clips"``)."""
     from mrlib.metrics.windows import model_references
     from mrlib.sampling.generation import generate
@@ -289,7 +289,7 @@ def restyle_shares(
     (``levels``, default ``1..L-1``): :class:`RestyleShares` of ``restyle(model, motion,
     label, k, keep=keep, seed=seed, sampler=sampler)`` against the label's own sample
     ``generate(model, label, length=T, seed=seed, sampler=sampler)`` (kept as
-    ``label_sample``); ``sampler`` default: the raw output (``Sampler(fix_contacts=False)``)."""
+    ``label_sample``); ``sampler`` default: the raw output (``raw_sampler()``: one draw, no clean-up)."""
     from mrlib.sampling.generation import generate
     from mrlib.sampling.sampler import raw_sampler
 

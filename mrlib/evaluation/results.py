@@ -18,7 +18,7 @@ import numpy as np
 
 from mrlib.errors import MotionValueError
 from mrlib.metrics import plausibility as pl
-from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
+from mrlib.sampling.sampler import CANDIDATES, FINE_NOISE, GUIDANCE, Sampler
 
 __all__ = [
     "CALIB_PREFIX",
@@ -67,9 +67,10 @@ class EvaluationSettings:
     # its foot-contact clean-up is evaluate_model's ``contacts``)
     fine_noise: float = FINE_NOISE
     guidance: float = GUIDANCE
+    candidates: int = CANDIDATES
 
     def __post_init__(self) -> None:
-        Sampler(self.fine_noise, self.guidance)  # their bounds
+        Sampler(self.fine_noise, self.guidance, candidates=self.candidates)  # their bounds
         for name in ("num_samples", "coverage_window", "tmin", "local_window"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -115,7 +116,8 @@ class EvaluationSettings:
             "W: 1-D Wasserstein distance to the training clip's per-frame root ground speed "
             "and joint angular speeds (legs, arms, spine/head). Means and standard deviations "
             "per method are over sequences (population std). Sampler of the trained model: "
-            f"fine noise {self.fine_noise:g}, guidance {self.guidance:g}."
+            f"fine noise {self.fine_noise:g}, guidance {self.guidance:g}, best of "
+            f"{self.candidates} candidate(s) by the critics."
         )
 
 

@@ -14,6 +14,7 @@ import torch
 from mrlib.errors import ArgumentError, MotionValueError, check_args, check_path, shown
 from mrlib.model.checkpoint import clip_rates, load_checkpoint, reading
 from mrlib.model.config import TrainConfig, config_from_json
+from mrlib.model.critic import build_critics
 from mrlib.model.generator import MultiResGenerator, build_generator
 from mrlib.representation.features import FeatureNormalizer
 
@@ -49,6 +50,9 @@ class GenerativeModel:
     trained_levels: int  # levels whose training finished (all of them for a done run)
     progress: dict | None = None  # the checkpoint's {"block", "iteration", "done"}
     clip_fps: list[float] | None = None  # the clips' own rates before training resampled them
+    # the patch critics, one per level (``mrlib.model.critic``), for critic-ranked sampling
+    # (``mrlib.Sampler.candidates``); None where a model comes without them
+    critics: torch.nn.ModuleList | None = None
 
     @property
     def source_fps(self) -> float | None:
@@ -107,6 +111,12 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
     gen = build_generator(config.model, int(state["cond_dim"]))
     gen.load_state_dict(state["generator"])
     gen.to(device).eval().requires_grad_(False)
+    critics = None
+    if state.get("critics"):
+        cond_dim = int(state["cond_dim"]) if config.model.critic_condition else 0
+        critics = build_critics(config.model, cond_dim)
+        critics.load_state_dict(state["critics"])
+        critics.to(device).eval().requires_grad_(False)
     p = state["progress"]
     done_levels = (
         config.model.num_levels if p["done"] else sum(len(b) for b in config.blocks[: p["block"]])
@@ -128,6 +138,7 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
         progress={"block": int(p["block"]), "iteration": int(p["iteration"]),
                   "done": bool(p["done"])},
         clip_fps=clip_rates(state),
+        critics=critics,
     )  # fmt: skip
 
 

@@ -26,6 +26,7 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 from mrlib.sampling.conditions import Condition, as_condition
+from mrlib.sampling.ranking import best_candidates, can_rank, critic_scores
 from mrlib.sampling.sampler import Sampler
 
 # one sample: a 10-minute walk stays within mrlib.representation.motion's 1000 m
@@ -41,6 +42,7 @@ __all__ = [
     "noise_amplitude",
     "label_inputs",
     "sample_features",
+    "sample_ranked",
     "MAX_SAMPLE_SECONDS",
     "MAX_SAMPLE_FRAMES",
 ]
@@ -108,6 +110,42 @@ def sample_features(
     with torch.inference_mode():
         outs = model.generator.run_batch(noises, cs, keep=True, circular=circular)
     return outs if keep else outs[-1]
+
+
+def sample_ranked(
+    model: GenerativeModel,
+    conds: list[torch.Tensor],
+    lengths: Sequence[int],
+    noise_amplitude: torch.Tensor,
+    seed: int | None,
+    num_samples: int,
+    candidates: int,
+) -> list[torch.Tensor]:
+    """:func:`sample_features` (every level's output) of the best of ``candidates`` draws
+    per sample by the model's critics (``mrlib.sampling.ranking``). Candidate ``j`` of
+    sample ``b`` is noise stream ``(seed, b K + j)``: one candidate is
+    :func:`sample_features` itself. A model without critics, or conditions split by
+    channel group, draw once. Batches of at most ``MAX_SAMPLE_FRAMES`` frames."""
+    K = check_count("candidates", candidates)
+    num_samples = check_count("num_samples", num_samples)
+    cs = check_conditions(model, conds, lengths, num_samples)
+    if K == 1 or not can_rank(model, cs):
+        return sample_features(model, conds, lengths, noise_amplitude, seed, num_samples, True)
+    seed = check_seed("seed", seed)
+    check_sample_length(model, int(lengths[-1]), num_samples)
+    seed = int(seed) if seed is not None else int(torch.seed() % 2**63)
+    noises = draw_noise(lengths, noise_amplitude, seed, num_samples * K, model.device)
+    per = max(1, MAX_SAMPLE_FRAMES // (int(lengths[-1]) * K))  # samples per batch
+    kept: list[list[torch.Tensor]] = []
+    for b0 in range(0, num_samples, per):
+        b1 = min(num_samples, b0 + per)
+        z = [n[b0 * K : b1 * K] for n in noises]
+        c = [x[b0:b1].repeat_interleave(K, 0) for x in cs]
+        with torch.inference_mode():
+            outs = model.generator.run_batch(z, c, keep=True)
+            best = best_candidates(critic_scores(model, outs, c), K)
+        kept.append([o[best] for o in outs])
+    return [torch.cat([k[i] for k in kept]) for i in range(len(lengths))]
 
 
 def check_sample_length(model: GenerativeModel, frames: int, num_samples: int = 1) -> None:
@@ -234,7 +272,8 @@ def sampler_record(
     batch, the sampler's fine_noise and guidance, the labels and per-level weights ``W``."""
     return {
         "seed": seed, "index": index, "fine_noise": sampler.fine_noise,
-        "guidance": sampler.guidance, "labels": list(model.labels),
+        "guidance": sampler.guidance, "candidates": sampler.candidates,
+        "labels": list(model.labels),
         "label_weights": W.tolist(), "fps": sampler.fps or model.fps,
     }  # fmt: skip
 
@@ -283,7 +322,7 @@ def _label_samples(
     W = condition.weights(model)  # (L, K)
     L = model.num_levels
     lengths, amp, conds = label_inputs(model, W, length, sampler)
-    outs = sample_features(model, conds, lengths, amp, seed=seed, num_samples=num, keep=True)
+    outs = sample_ranked(model, conds, lengths, amp, seed, num, sampler.candidates)
     label = condition.name(model)
     names = [f"{label}_seed{seed}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
@@ -345,7 +384,8 @@ def generate(
         num: None for one sample; a count ``k`` for a batch of ``k``.
         sampler: a ``mrlib.Sampler`` (fine noise, guidance, the foot-contact clean-up;
             ``Sampler(fix_contacts=False)`` gives the generator's raw output); default
-            ``Sampler()``, the paper's sampler with the feet planted by
+            ``Sampler()``: the paper's sampler, each sample the best of
+            ``Sampler.candidates`` draws by the model's critics, with the feet planted by
             :func:`cleanup_foot_contacts` (milliseconds per clip).
         levels: also return every level's output ``[level 1, ..., level L]`` as Motions
             at the level's frame rate (``fps * T_i / T_L``), always raw: the pyramid

@@ -426,7 +426,7 @@ def evaluate_speech_sync(
     Args:
         utterances: ``(wav (N,), sr)`` pairs, at least two.
         sampler: a ``mrlib.Sampler`` for the gestures; default the raw output
-            (``Sampler(fix_contacts=False)``).
+            (``raw_sampler()``: one draw, no clean-up).
     Returns:
         a :class:`SyncResult` (``.summary()``, ``.to_markdown()``).
     """

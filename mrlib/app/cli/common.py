@@ -196,8 +196,9 @@ def run_options(p, *, out: Path, out_help: str, overwrite_help: str) -> None:
     overwrite_option(p, overwrite_help)
 
 
-def sampler_options(p) -> None:
-    """``--fine-noise`` and ``--guidance`` (read by :func:`sampler_from_args`)."""
+def sampler_options(p, candidates: bool = True) -> None:
+    """``--fine-noise``, ``--guidance`` and (``candidates``) ``--candidates`` (read by
+    :func:`sampler_from_args`)."""
     p.add_argument(
         "--fine-noise",
         type=_sampler_setting("MAX_FINE_NOISE"),
@@ -217,14 +218,35 @@ def sampler_options(p) -> None:
         "0.25 sharpens the label at about the same coverage, 1 and more leave the training "
         "poses",
     )
+    if not candidates:
+        return
+    p.add_argument(
+        "--candidates",
+        type=_candidates,
+        default=None,
+        metavar="K",
+        help="label models: draw K candidates per sample and keep the one the model's "
+        "critics score highest [default: 8; 1: the paper's sampler, every draw kept]; "
+        "more: closer to the labels' clips, less varied",
+    )
+
+
+def _candidates(text: str) -> int:
+    from mrlib.sampling.sampler import MAX_CANDIDATES
+
+    value = read_number(text, _whole, f"wants a whole number, got {text!r}")
+    if not 1 <= value <= MAX_CANDIDATES:
+        raise argparse.ArgumentTypeError(f"must be in [1, {MAX_CANDIDATES}], got {text!r}")
+    return value
 
 
 def sample_output_options(
-    p, *, out: Path, render_help: str, glb_help: str, overwrite_help: str
+    p, *, out: Path, render_help: str, glb_help: str, overwrite_help: str, candidates: bool = True
 ) -> None:
-    """The sampler options, then ``--render --glb --device --out --overwrite
-    --no-progress`` of ``sample`` and ``restyle`` (written by :func:`write_samples`)."""
-    sampler_options(p)
+    """The sampler options (``--candidates`` where ``candidates``), then ``--render --glb
+    --device --out --overwrite --no-progress`` of ``sample`` and ``restyle`` (written by
+    :func:`write_samples`)."""
+    sampler_options(p, candidates)
     p.add_argument("--render", action="store_true", help=render_help)
     p.add_argument("--glb", action="store_true", help=glb_help)
     device_option(p)
@@ -235,18 +257,21 @@ def sample_output_options(
 
 # -- helpers of the commands ---------------------------------------------------------------
 def sampler_from_args(args, *, label_model: bool = True):
-    """The ``mrlib.Sampler`` of ``--fine-noise``, ``--guidance`` and ``--raw`` (the
-    sampler's defaults where one is not given); ``--guidance`` is refused for a speech
-    model (``label_model=False``)."""
-    from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
+    """The ``mrlib.Sampler`` of ``--fine-noise``, ``--guidance``, ``--candidates`` and
+    ``--raw`` (the sampler's defaults where one is not given); ``--guidance`` and
+    ``--candidates`` are refused for a speech model (``label_model=False``)."""
+    from mrlib.sampling.sampler import CANDIDATES, FINE_NOISE, GUIDANCE, Sampler
 
     guidance = getattr(args, "guidance", None)
-    if guidance is not None and not label_model:
-        raise MrlibError("--guidance applies to label models only")
+    candidates = getattr(args, "candidates", None)
+    for flag, value in (("--guidance", guidance), ("--candidates", candidates)):
+        if value is not None and not label_model:
+            raise MrlibError(f"{flag} applies to label models only")
     return Sampler(
         fine_noise=FINE_NOISE if args.fine_noise is None else args.fine_noise,
         guidance=GUIDANCE if guidance is None else guidance,
         fix_contacts=not getattr(args, "raw", False),
+        candidates=CANDIDATES if candidates is None else candidates,
     )
 
 

@@ -125,6 +125,7 @@ def cmd_evaluate(args) -> int:
             seed=args.seed,
             fine_noise=sampler.fine_noise,
             guidance=sampler.guidance,
+            candidates=sampler.candidates,
         ),  # fmt: skip
         calibration=CalibrationOptions(enabled=not args.no_calibration),
         contacts="raw" if args.raw else "both",
@@ -134,6 +135,9 @@ def cmd_evaluate(args) -> int:
         result.save(args.out, overwrite=args.overwrite)
         plot_evaluation(result, Path(args.out) / "evaluation.png", overwrite=args.overwrite)
         when_written(lambda: print(f"\nwrote {args.out}/"))
-    print(f"sampler: fine_noise={sampler.fine_noise:g}, guidance={sampler.guidance:g}\n")
+    print(
+        f"sampler: fine_noise={sampler.fine_noise:g}, guidance={sampler.guidance:g}, "
+        f"candidates={sampler.candidates}\n"
+    )
     print(result.to_markdown())
     return 0

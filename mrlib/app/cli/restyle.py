@@ -73,6 +73,7 @@ def add_restyle(sub) -> argparse.ArgumentParser:
         render_help="also write a mesh render (PNG)",
         glb_help="also write a .glb (skinned body mesh)",
         overwrite_help="replace files already in --out (refused otherwise)",
+        candidates=False,  # a restyle draws once
     )
     return p
 

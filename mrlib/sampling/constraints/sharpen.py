@@ -222,7 +222,7 @@ def generate_sharpened(
     ``sampler``; the same samples when ``fit.steps`` is 0) after the noise fit ``fit``
     (:class:`Sharpening`: ``SHARPEN_STEPS`` Adam steps by default) towards ``condition``
     on each of ``parts`` (module docstring). ``sampler``: a ``mrlib.Sampler``; default
-    the raw output with the generator's contact labels (``Sampler(fix_contacts=False)``).
+    the raw output with the generator's contact labels (``raw_sampler()``: one draw, no clean-up).
     Returns a ``Motion``, or with ``num=k`` a list of k, as ``mrlib.generate``."""
     from mrlib.representation.features import features_to_motions
     from mrlib.sampling.cleanup import cleanup_foot_contacts
