@@ -94,3 +94,16 @@ def sad_wave_model(plumbing_model, sad_wave_clips):
     """A plumbing model of ``sad_wave_clips`` (two iterations per block): its samples
     mean nothing."""
     return plumbing_model(sad_wave_clips, "walk_sad_wave")
+
+
+@pytest.fixture(scope="session")
+def normal_sad_model(plumbing_model):
+    """A plumbing model of a normal (3 s) and a sad (3.6 s) synthetic walk at 10 fps (two
+    iterations per block): its samples mean nothing."""
+    from mrlib.datasets.synthetic import synthetic_walk
+
+    clips = [
+        synthetic_walk(s, seconds=sec, fps=10.0)
+        for s, sec in [("walk_normal", 3.0), ("walk_sad", 3.6)]
+    ]
+    return plumbing_model(clips, "walk_normal_sad")

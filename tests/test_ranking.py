@@ -9,7 +9,6 @@ import torch
 import torch.nn.functional as F
 
 import mrlib.sampling.generation as generation
-from mrlib.datasets.synthetic import synthetic_walk
 from mrlib.errors import MotionValueError
 from mrlib.sampling.conditions import Condition
 from mrlib.sampling.generation import generate, label_inputs, sample_features, sample_ranked
@@ -18,13 +17,9 @@ from mrlib.sampling.sampler import CANDIDATES, Sampler
 
 
 @pytest.fixture(scope="module")
-def model(plumbing_model):
+def model(normal_sad_model):
     """A plumbing model (two iterations per block): its samples mean nothing."""
-    clips = [
-        synthetic_walk(s, seconds=sec, fps=10.0)
-        for s, sec in [("walk_normal", 3.0), ("walk_sad", 3.6)]
-    ]
-    return plumbing_model(clips, "walk_normal_sad")
+    return normal_sad_model
 
 
 def _inputs(model, label="walk_sad", length=40):

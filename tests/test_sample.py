@@ -23,13 +23,9 @@ from mrlib.sampling.sampler import FINE_NOISE, GUIDANCE, Sampler
 
 
 @pytest.fixture(scope="module")
-def model(plumbing_model):
+def model(normal_sad_model):
     """A plumbing model (two iterations per block): its samples mean nothing."""
-    clips = [
-        synthetic_walk(s, seconds=sec, fps=10.0)
-        for s, sec in [("walk_normal", 3.0), ("walk_sad", 3.6)]
-    ]
-    return plumbing_model(clips, "walk_normal_sad")
+    return normal_sad_model
 
 
 def test_loaded_model_metadata(model):
