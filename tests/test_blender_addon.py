@@ -113,6 +113,14 @@ def test_the_arguments_parse_with_mrlibs_own_parser(tmp_path):
     assert (str(args.prefix), args.seconds) == ("a.npz", 1.0)
     args = parser.parse_args(core.restyle_args("c.pt", "clip.bvh", "a", tmp_path, level=2, keep="detail"))  # fmt: skip
     assert (args.label, args.level, args.keep, str(args.clip)) == ("a", 2, "detail", "clip.bvh")
+    assert args.up_axis is None  # mrlib's detection unless the rig's axis is given
+    args = parser.parse_args(core.restyle_args("c.pt", "clip.bvh", "a", tmp_path, up_axis="z"))
+    assert args.up_axis == "z"
+    (tmp_path / "axes.json").write_text('{"up_axis": "-y"}')
+    assert core.read_up_axis(tmp_path / "axes.json") == "-y"
+    (tmp_path / "axes.json").write_text('{"up_axis": "up"}')
+    with pytest.raises(core.SetupError, match="no up axis"):
+        core.read_up_axis(tmp_path / "axes.json")
 
 
 def test_conditions_are_checked_before_anything_runs():
@@ -828,6 +836,12 @@ def test_the_addon_trains_and_generates_onto_armatures_headless(walks, tmp_path)
 
     ckpt = res["checkpoint"]
     restyle_clip = next((work / "run" / "restyled").glob("*/clip.bvh"))
+    # the action is read in the up axis of the rig's calibration clip, as the transfer is
+    from mrlib.io.bvh import read_bvh
+    from mrlib.io.retarget import retarget_bvh
+
+    rig_up = retarget_bvh(read_bvh(restyle_clip.parent / "rig.bvh"), None, warn=False).up_axis
+    assert core.read_up_axis(restyle_clip.parent / "rig_axes.json") == rig_up
     cases = {
         "crossover": [
             "sample",
@@ -897,6 +911,8 @@ def test_the_addon_trains_and_generates_onto_armatures_headless(walks, tmp_path)
             "2",
             "--seed",
             "0",
+            "--up-axis",
+            rig_up,
         ],  # fmt: skip
     }
     body = resolve_body(None, shared=True)

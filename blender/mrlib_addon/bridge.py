@@ -230,6 +230,15 @@ def onto_rig(rig_bvh: str | Path, motion_path: str | Path, joint_map: str | None
     return {"json": data, "bvh": out_bvh}
 
 
+def rig_axes(rig_bvh: str | Path, joint_map: str | None = None) -> dict:
+    """``{"up_axis": ...}``: the up axis mrlib detects reading ``rig_bvh`` (the clip that
+    calibrates the transfer), so that another clip of the same rig is read alike."""
+    from mrlib.io.bvh import read_bvh
+    from mrlib.io.retarget import retarget_bvh
+
+    return {"up_axis": retarget_bvh(read_bvh(rig_bvh), joint_map, warn=False).up_axis}
+
+
 def read_rig(rig_bvh: str | Path, out: str | Path, joint_map: str | None = None):
     from mrlib.io import load_motion, save_motion
 
@@ -326,6 +335,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--times", required=True, type=_floats)
     p.add_argument("--out", required=True)
     p.add_argument("--joint-map")
+    p = sub.add_parser("axes", help="the up axis mrlib reads a clip of a rig in")
+    p.add_argument("rig")
+    p.add_argument("--out", required=True)
+    p.add_argument("--joint-map")
     p = sub.add_parser("labels", help="a checkpoint's labels and levels")
     p.add_argument("checkpoint")
     p.add_argument("--out", required=True)
@@ -347,6 +360,9 @@ def main(argv: list[str] | None = None) -> int:
             keys = rig_keyframes(args.rig, args.checkpoint, args.frames, args.times, args.out,
                                  args.joint_map)  # fmt: skip
             print(f"wrote {args.out}: {len(keys)} keyframes")
+        elif args.command == "axes":
+            _write_json(args.out, rig_axes(args.rig, args.joint_map))
+            print(f"wrote {args.out}")
         else:
             _write_json(args.out, checkpoint_labels(args.checkpoint))
             print(f"wrote {args.out}")

@@ -241,8 +241,10 @@ def restyle_args(
     joint_map: str | Path | None = None,
     overwrite: bool = True,
     threads: int | None = None,
+    up_axis: str | None = None,
 ) -> list[str]:
-    """``mrlib restyle`` arguments: ``clip`` (a BVH of the rig) towards ``label``."""
+    """``mrlib restyle`` arguments: ``clip`` (a BVH of the rig) towards ``label``, read with
+    ``up_axis`` when given (the rig's, :func:`axes_args`), else mrlib's detection."""
     if not label:
         raise SetupError("restyle needs a label")
     if keep not in ("coarse", "detail"):
@@ -253,6 +255,8 @@ def restyle_args(
     args += ["--seed", str(int(seed)), "--out", str(out)]
     if joint_map:
         args += ["--joint-map", str(joint_map)]
+    if up_axis:
+        args += ["--up-axis", str(up_axis)]
     if overwrite:
         args.append("--overwrite")
     return args + _threads(threads)
@@ -280,6 +284,25 @@ def onto_rig_args(
     if joint_map:
         args += ["--joint-map", joint_map]
     return bridge_args(python, "onto-rig", *args)
+
+
+def axes_args(
+    python: str, rig_bvh: str | Path, out: str | Path, *, joint_map: str | Path | None = None
+) -> list[str]:
+    """The bridge's ``axes``: the up axis mrlib reads ``rig_bvh`` in, as JSON ``{"up_axis"}``
+    (read back by :func:`read_up_axis`)."""
+    args = [rig_bvh, "--out", out]
+    if joint_map:
+        args += ["--joint-map", joint_map]
+    return bridge_args(python, "axes", *args)
+
+
+def read_up_axis(path: str | Path) -> str:
+    """The ``up_axis`` the bridge's ``axes`` wrote to ``path``."""
+    axis = json.loads(Path(path).read_text(encoding="utf-8")).get("up_axis")
+    if axis not in ("x", "y", "z", "-x", "-y", "-z"):
+        raise SetupError(f"{path}: no up axis in it")
+    return axis
 
 
 def read_args(

@@ -352,7 +352,8 @@ def _onto_rig_steps(
     jm = abs_file(s.joint_map)
     arm_name, start, body = arm.name, s.start_frame, s.body_mesh
     if body:
-        produce.argv = [*produce.argv, "--glb"]
+        argv = produce.argv
+        produce.argv = (lambda: [*argv(), "--glb"]) if callable(argv) else [*argv, "--glb"]
     sample_dir = run / "sample"
     found: dict = {}
 
@@ -473,12 +474,21 @@ class MRLIB_OT_restyle(_Command, bpy.types.Operator):
         ckpt = _checkpoint(context)
         run = new_run_folder(abs_dir(s.out_dir) / "restyled", core.safe_file_stem(arm.name))
         clip = scene_io.export_bvh(context.scene, arm, run / "clip.bvh")
-        argv = core.mrlib_command(python(context), *core.restyle_args(
-            ckpt, clip, s.restyle_label.strip(), run / "sample", level=s.restyle_level or None,
-            keep=s.restyle_keep, seed=s.seed, joint_map=abs_file(s.joint_map),
-            threads=threads(context),
-        ))  # fmt: skip
-        return _onto_rig_steps(context, arm, run, core.Step("restyle", argv), self.action_name)
+        py, jm, axes = python(context), abs_file(s.joint_map), run / "rig_axes.json"
+        label, level, keep, seed = s.restyle_label.strip(), s.restyle_level, s.restyle_keep, s.seed
+        n_threads = threads(context)
+        core.restyle_args(ckpt, clip, label, run / "sample", keep=keep)  # its checks, now
+
+        def restyle_argv():  # the action read in the axes of the clip the transfer uses
+            return core.mrlib_command(py, *core.restyle_args(
+                ckpt, clip, label, run / "sample", level=level or None, keep=keep, seed=seed,
+                joint_map=jm, threads=n_threads, up_axis=core.read_up_axis(axes),
+            ))  # fmt: skip
+
+        # run / "rig.bvh": written by _onto_rig_steps before any step runs
+        before = [core.Step("rig axes", core.axes_args(py, run / "rig.bvh", axes, joint_map=jm), 0.1)]  # fmt: skip
+        restyle = core.Step("restyle", restyle_argv)
+        return _onto_rig_steps(context, arm, run, restyle, self.action_name, before=before)
 
 
 class MRLIB_OT_write_joint_map(_Command, bpy.types.Operator):
