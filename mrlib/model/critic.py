@@ -66,11 +66,12 @@ class PatchCritic(nn.Module):
     def forward(
         self,
         x: torch.Tensor,
-        pad_index: torch.Tensor,
+        pad_index: torch.Tensor | None,
         cond: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """``x (B, C, T)``, ``cond (B, T, D)`` (conditional critics only) -> per-frame
-        patch scores ``(B, T)``."""
+        patch scores ``(B, T)``. ``pad_index``: the packed layout's reflect padding
+        (``PackedLevels.pad_index``); None: every row is one sample."""
         if self.project is None:
             if cond is not None:
                 raise ValueError("this critic is unconditional; do not pass a condition")
@@ -88,7 +89,9 @@ class PatchCritic(nn.Module):
         ``h (B, F, T)`` (from :meth:`split`) and conditions ``cond (B, T, D)``."""
         return (self.project(cond).transpose(1, 2) * h).sum(1)
 
-    def split(self, x: torch.Tensor, pad_index: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def split(
+        self, x: torch.Tensor, pad_index: torch.Tensor | None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """A conditional critic's two terms before the condition: the realism score
         ``w * h(x)`` ``(B, T)`` and the features ``(B, F, T)`` the projection reads (of the
         detail band or ``h(x)`` itself, per ``critic_band``); ``forward`` is
@@ -101,7 +104,10 @@ class PatchCritic(nn.Module):
         score = layers[-1](h, pad_index)[:, 0]  # (B, T)
         if self.detail is not None:
             B, C, _ = x.shape
-            xp = x.gather(2, pad_index.expand(B, C, -1))  # reflect-padded per sample
+            if pad_index is None:  # every row one sample, as the layers take it
+                xp = F.pad(x, (self.body.pad, self.body.pad), mode="reflect")
+            else:
+                xp = x.gather(2, pad_index.expand(B, C, -1))  # reflect-padded per sample
             band = x - F.avg_pool1d(xp, self.body.pad * 2 + 1, stride=1)
             h = F.leaky_relu(self.detail(band, pad_index), self.body.slope)
         return score, h

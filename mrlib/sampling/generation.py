@@ -128,8 +128,8 @@ def sample_ranked(
     channel group, draw once. Batches of at most ``MAX_SAMPLE_FRAMES`` frames."""
     K = check_count("candidates", candidates)
     num_samples = check_count("num_samples", num_samples)
-    cs = check_conditions(model, conds, lengths, num_samples)
-    if K == 1 or not can_rank(model, cs):
+    cs = check_conditions(model, conds, lengths, num_samples) if K > 1 else None
+    if cs is None or not can_rank(model, cs):
         return sample_features(model, conds, lengths, noise_amplitude, seed, num_samples, True)
     seed = check_seed("seed", seed)
     check_sample_length(model, int(lengths[-1]), num_samples)

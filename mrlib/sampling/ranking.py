@@ -36,13 +36,6 @@ def can_rank(model, conds: list) -> bool:
     return all(isinstance(c, torch.Tensor) for c in conds)
 
 
-def _reflect_index(frames: int, pad: int, device) -> torch.Tensor:
-    """``(1, 1, T + 2 pad)`` gather index of a reflect-padded sequence of ``T`` frames."""
-    t = torch.arange(-pad, frames + pad, device=device).abs()
-    t = torch.where(t >= frames, 2 * (frames - 1) - t, t)
-    return t.clamp(0, frames - 1)[None, None]
-
-
 def critic_scores(model, outs: list[torch.Tensor], conds: list[torch.Tensor]) -> torch.Tensor:
     """``(L', N)`` mean patch score of every level's critic on that level's output
     ``outs[i] (N, C, T_i)`` under its condition ``conds[i] (N, T_i | 1, D)``, for the
@@ -51,11 +44,8 @@ def critic_scores(model, outs: list[torch.Tensor], conds: list[torch.Tensor]) ->
     levels = min(len(outs), int(getattr(model, "trained_levels", len(outs))))
     for i in range(levels):
         critic, x = model.critics[i], outs[i]
-        index = _reflect_index(x.shape[-1], critic.body.pad, x.device)
-        cond = None
-        if critic.cond_dim > 0:
-            cond = conds[i].expand(x.shape[0], x.shape[-1], -1)
-        rows.append(critic(x, index, cond).mean(1))
+        cond = conds[i].expand(x.shape[0], x.shape[-1], -1) if critic.cond_dim > 0 else None
+        rows.append(critic(x, None, cond).mean(1))  # every row one sample
     return torch.stack(rows)
 
 
