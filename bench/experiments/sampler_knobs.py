@@ -8,10 +8,13 @@ Run from the repository root::
     python bench/experiments/sampler_knobs.py --split dev --seed 0 \\
         --configs 1,8,1:coarse=0.5,8:coarse=0.5,1:guide=0.5@1-1
 
-A config is ``K[:coarse=S][:guide=G@A-B]``: K candidates per sample, the coarsest level's
-noise times S, guidance G on levels A..B (1-based). Printed per config: mean and lowest
-coverage at eps 1, lowest condition fidelity, mean global diversity, cleaned skating and
-jerk, and per label ``coverage / fidelity / diversity``.
+A config is ``K[:coarse=S][:guide=G@A-B][:anchor=A@STYLE]``: K candidates per sample, the
+coarsest level's noise times S, guidance G on levels A..B (1-based), and for the label of
+``STYLE`` the coarsest noise ``A z* + sqrt(1 - A^2) z``: anchored to the clip's own
+reconstruction noise z* (tiled to the sample's length; A = 1 with the finer levels' noise
+at 0 is the reconstruction). Printed per config: mean and lowest coverage at eps 1,
+lowest condition fidelity, mean global diversity, cleaned skating and jerk, and per label
+``coverage eps 1 / coverage eps 2 / fidelity / diversity``.
 """
 
 from __future__ import annotations
@@ -30,10 +33,13 @@ from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES  # noqa: E402
 
 def parse(config: str) -> dict:
     head, *rest = config.split(":")
-    out = {"candidates": int(head), "coarse": 1.0, "guide": 0.0, "levels": None}
+    out = {"candidates": int(head), "coarse": 1.0, "guide": 0.0, "levels": None, "anchor": None}
     for part in rest:
         key, value = part.split("=")
-        if key == "coarse":
+        if key == "anchor":
+            a, style = value.split("@")
+            out["anchor"] = (float(a), style)
+        elif key == "coarse":
             out["coarse"] = float(value)
         elif key == "guide":
             g, lv = value.split("@")
@@ -76,6 +82,25 @@ def main(argv=None) -> int:
           f"({'reused' if rec.reused else 'trained'})\n", flush=True)  # fmt: skip
 
     plain_amp, plain_guided = generation.noise_amplitude, generation.guided_weights
+    plain_inputs, plain_noise = generation.label_inputs, generation.draw_noise
+    drawing: dict = {}  # the label being drawn (label_inputs sees it, draw_noise does not)
+
+    def inputs(model, W, length, sampler):
+        drawing["label"] = int(W[0].argmax())
+        return plain_inputs(model, W, length, sampler)
+
+    def noise(lengths, amp, seed, num, device="cpu"):
+        z = plain_noise(lengths, amp, seed, num, device)
+        a, style = drawing.get("anchor") or (0.0, "")
+        label = drawing.get("label", -1)
+        if a > 0 and model.labels[label] == f"walk_{style}":
+            clips = [k for k, c in enumerate(model.clip_labels) if c == label]
+            for r in range(num):  # candidate r: clip r mod (the label's clips)
+                zs = model.zstar[clips[r % len(clips)]][0]
+                tiled = zs.repeat(-(-lengths[0] // len(zs)))[: lengths[0]]
+                z[0][r, 0] = a * tiled + (1 - a * a) ** 0.5 * z[0][r, 0]
+        return z
+
     for text in a.configs.split(","):
         c = parse(text)
 
@@ -93,6 +118,8 @@ def main(argv=None) -> int:
             return out
 
         generation.noise_amplitude, generation.guided_weights = amp, guided
+        generation.label_inputs, generation.draw_noise = inputs, noise
+        drawing["anchor"] = c["anchor"]
         try:
             t = time.perf_counter()
             settings = EvaluationSettings(
@@ -101,6 +128,7 @@ def main(argv=None) -> int:
             result = evaluate_model(model, settings=settings, body=body, progress=False)
         finally:
             generation.noise_amplitude, generation.guided_weights = plain_amp, plain_guided
+            generation.label_inputs, generation.draw_noise = plain_inputs, plain_noise
         rows = [r for r in result.rows if r["method"] == "ours"]
 
         def mean(k, rows=rows):
@@ -108,6 +136,7 @@ def main(argv=None) -> int:
 
         cells = " ".join(
             f"{r['sequence'].removeprefix('walk_')}:{r['coverage_tight_pct']:.0f}/"
+            f"{r['coverage_pct']:.0f}/"
             f"{r['cond_fidelity_pct']:.0f}/{r['global_div']:.2f}"
             for r in rows
         )

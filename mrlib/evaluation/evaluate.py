@@ -458,9 +458,10 @@ def evaluate_model(
     }
     samplers, recons = {}, {}
     for mname, (per_key, recon) in methods.items():
+        sampler = Sampler(s.fine_noise, s.guidance, fix_contacts=False, candidates=s.candidates)
+        fns = _per_key_sample_fns(per_key, sampler)  # one draw for the cleaned and raw rows
         for clean, suffix in variants[contacts]:
-            sampler = Sampler(s.fine_noise, s.guidance, fix_contacts=clean, candidates=s.candidates)
-            samplers[mname + suffix] = _per_key_sample_fn(per_key, sampler)
+            samplers[mname + suffix] = fns[clean]
             recons[mname + suffix] = recon
     if len(samplers) != len(methods) * len(variants[contacts]):
         raise MotionValueError(f"method names clash with the ' (raw)' rows: {sorted(methods)}")
@@ -475,14 +476,25 @@ def evaluate_model(
     )
 
 
-def _per_key_sample_fn(per_key: Mapping[str, Any], sampler: Any) -> SampleFn:
-    """``sample_fn(key, length, seed)`` drawing from ``per_key[key]`` (a model trained on
-    that sequence, or the one model for all) with its label for that sequence."""
-    from mrlib.sampling.generation import generate
+def _per_key_sample_fns(per_key: Mapping[str, Any], sampler: Any) -> dict[bool, SampleFn]:
+    """``{False: raw, True: cleaned}`` ``sample_fn(key, length, seed)`` drawing from
+    ``per_key[key]`` (a model trained on that sequence, or the one model for all) with its
+    label for that sequence. One (ranked) draw serves both: the cleaned sample is the raw
+    one with its feet planted, as ``mrlib.generate`` returns it."""
+    from mrlib.sampling.generation import generate, plant_feet
 
-    def fn(key: str, length: int, seed: int) -> Motion:
+    draws: dict[tuple[str, int, int], Motion] = {}
+
+    def raw(key: str, length: int, seed: int) -> Motion:
+        if (key, length, seed) not in draws:
+            m = per_key[key]
+            label = m.labels[m.clip_labels[_clip_index(m, key)]]
+            draws[key, length, seed] = generate(m, label, length=length, seed=seed, sampler=sampler)
+        return draws[key, length, seed]
+
+    def clean(key: str, length: int, seed: int) -> Motion:
         m = per_key[key]
-        label = m.labels[m.clip_labels[_clip_index(m, key)]]
-        return generate(m, label, length=length, seed=seed, sampler=sampler)
+        label_index = m.clip_labels[_clip_index(m, key)]
+        return plant_feet(m, [raw(key, length, seed)], [int(label_index)], sampler)[0]
 
-    return fn
+    return {False: raw, True: clean}

@@ -38,6 +38,7 @@ __all__ = [
     "reconstruct",
     "reconstruction_error",
     "training_floor",
+    "plant_feet",
     "guided_weights",
     "noise_amplitude",
     "label_inputs",
@@ -307,6 +308,23 @@ def training_floor(model: GenerativeModel, labels: Sequence[int] | None = None, 
     return cache[key]
 
 
+def plant_feet(
+    model: GenerativeModel,
+    motions: list[Motion],
+    labels: Sequence[int],
+    sampler: Sampler,
+    body=None,
+) -> list[Motion]:
+    """The sampler's foot-contact clean-up of raw samples of ``labels`` (indices) drawn
+    with ``sampler`` at ``fix_contacts=False``: what :func:`generate` returns with the
+    clean-up on, from the same draws."""
+    floor = training_floor(model, labels, body)
+    # the generator's frame-to-frame jitter spans fps / model.fps frames once raised:
+    # filtered over the same time (bench/output_rate.py)
+    jitter = JITTER_SIGMA * (sampler.fps or model.fps) / model.fps
+    return [cleanup_foot_contacts(m, body, floor=floor, jitter=jitter) for m in motions]
+
+
 def _label_samples(
     model: GenerativeModel,
     condition: Condition,
@@ -331,11 +349,7 @@ def _label_samples(
     for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)
         m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
     if sampler.fix_contacts:
-        floor = training_floor(model, [int(k) for k in W.argmax(1).unique()], body)
-        # the generator's frame-to-frame jitter spans fps / model.fps frames once raised:
-        # filtered over the same time (bench/output_rate.py)
-        jitter = JITTER_SIGMA * (sampler.fps or model.fps) / model.fps
-        motions = [cleanup_foot_contacts(m, body, floor=floor, jitter=jitter) for m in motions]
+        motions = plant_feet(model, motions, [int(k) for k in W.argmax(1).unique()], sampler, body)
     if not levels:
         return motions, None
     fps_i = level_fps(model.fps, lengths)
