@@ -17,6 +17,11 @@ samples (the default sampler), ``--samples`` per label of twice the clip's lengt
 the raised output was chosen on.
 
     python bench/output_rate.py [--samples 10] [--seed 0] [--split dev|heldout] [--seeds 0,1]
+
+``--preset demo --clip-fps 24``: the other direction, clips at a lower rate than the model's
+(the 30-fps captures resampled to 24 fps by splines stand in for 24-fps captures; the
+``demo`` model trains at 30 fps on them, development walks only), its samples lowered to
+the clips' 24 fps the same three ways.
 """
 
 from __future__ import annotations
@@ -45,7 +50,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--split", choices=("dev", "heldout"), default="dev")
     ap.add_argument("--seeds", default="0", help="--split heldout: training seeds")
+    ap.add_argument("--preset", choices=("preview", "demo"), default="preview")
+    ap.add_argument("--clip-fps", type=float, default=None,
+                    help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)
+    if args.split == "heldout" and (args.preset != "preview" or args.clip_fps):
+        ap.error("--split heldout uses the preview models of bench/heldout.py at the clips' rate")
     mrlib.threads.use()
     body = mrlib.load_body_model()
     names = CLIPS if args.split == "dev" else [f"walk_{s}_001" for s in HELDOUT_STYLES]
@@ -53,11 +63,13 @@ def main(argv: list[str] | None = None) -> int:
     if source.synthetic:
         print("the Bandai clips are not available here (MRLIB_DATA_DIR, cache or network)")
         return 1
-    config = mrlib.get_preset("preview")
+    config = mrlib.get_preset(args.preset)
     full = {m.label: m for m in (mrlib.load_motion(p, body=body) for p in source.paths)}
+    if args.clip_fps:
+        full = {k: m.resample(args.clip_fps, smooth=True) for k, m in full.items()}
     for m in full.values():
         m.contacts = mrlib.representation.foot_contacts(m, body)
-    low = {k: m.resample(config.fps) for k, m in full.items()}
+    low = {k: m.resample(config.fps, smooth=bool(args.clip_fps)) for k, m in full.items()}
     if args.split == "dev":
         data, seeds = TrainingSet.from_motions(list(low.values()), body=body), [None]
     else:  # built as bench/heldout.py builds it, so its cached models are the ones used

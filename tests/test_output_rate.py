@@ -57,6 +57,24 @@ def test_samples_come_at_the_clips_rate_unless_asked(run, tmp_path, capsys):
     assert load_motion(next((tmp_path / "b").glob("*.npz"))).fps == 15.0
 
 
+def test_a_model_at_a_higher_rate_than_its_clips_samples_at_theirs(tmp_path, capsys):
+    """24-fps captures trained at 30 fps (the ``demo`` preset's rate) come back at 24 fps."""
+    clips = [
+        save_motion(synthetic_walk(style, seconds=2.4, fps=24.0, seed=k), tmp_path / f"{style}.npz")
+        for k, style in enumerate(("walk_sad", "walk_happy"))
+    ]
+    argv = ["train", *map(str, clips), *TRAIN[:-1], "30", "--out", str(tmp_path / "run")]
+    assert main(argv) == 0
+    ckpt = tmp_path / "run" / "checkpoint.pt"
+    model = load_model(ckpt)
+    assert model.fps == 30 and model.clip_fps == [24.0, 24.0] and model.source_fps == 24.0
+    argv = ["sample", str(ckpt), "--seconds", "2", "--out", str(tmp_path / "s"), "--no-progress"]
+    assert main(argv) == 0
+    assert "samples at 24 fps, the training clips' rate" in capsys.readouterr().out
+    m = load_motion(next((tmp_path / "s").glob("*.npz")))
+    assert m.fps == 24.0 and m.num_frames == 48  # 60 model frames (2 s) lowered to 24 fps
+
+
 def test_a_checkpoint_without_the_record_samples_at_the_models_rate(run, tmp_path):
     state = load_checkpoint(run / "checkpoint.pt")
     del state["clip_fps"]

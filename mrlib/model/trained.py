@@ -57,12 +57,13 @@ class GenerativeModel:
     @property
     def source_fps(self) -> float | None:
         """The frame rate the training clips were captured at (the highest, if they
-        differ) when the checkpoint records it and it is above the model's own rate:
-        the rate ``mrlib sample`` writes by default. None otherwise."""
+        differ) when the checkpoint records it and it is not the model's own rate (a
+        ``demo`` model at 30 fps of 24-fps captures, a ``preview`` model at 15 fps of
+        30-fps ones): the rate ``mrlib sample`` writes by default. None otherwise."""
         if not self.clip_fps:
             return None
         r = max(self.clip_fps)
-        return r if r > self.fps + 1e-6 else None
+        return r if abs(r - self.fps) > 1e-6 else None
 
     @property
     def num_levels(self) -> int:

@@ -65,9 +65,9 @@ class Sampler:
             (``mrlib.sampling.cleanup.cleanup_foot_contacts``, on the floor of the
             training clips); False for the generator's raw output (clean it yourself
             with other options: ``cleanup_foot_contacts(m, body, ...)``).
-        fps: the frame rate of the output; None: the model's. A model trained at a lower
-            rate than its clips (the ``preview`` preset: 15 fps) draws at its own rate, and
-            the raw draw is raised to ``fps`` by cubic splines
+        fps: the frame rate of the output; None: the model's. The model draws at its own
+            rate (the ``preview`` preset: 15 fps), and the raw draw is resampled to ``fps``
+            (raised, or lowered for a model trained above its clips' rate) by cubic splines
             (``Motion.resample(fps, smooth=True)``) before the clean-up plants the feet at
             that rate (its jitter filter spans the same time as at the model's rate:
             ``JITTER_SIGMA`` model frames). ``length`` still counts the model's frames. Used by

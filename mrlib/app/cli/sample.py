@@ -183,11 +183,11 @@ def add_sample(sub) -> argparse.ArgumentParser:
         "--fps",
         type=float,
         default=None,
-        help="frame rate of the samples (label, crossover and blend samples): a model trained "
-        "at a lower rate than its clips (the preview preset: 15 fps) draws at its own, raised "
-        "by cubic splines before the feet are planted at this rate [default: the rate of "
-        "the clips it was trained on, recorded in checkpoints since 2026-12-06; else the "
-        "model's]",
+        help="frame rate of the samples (label, crossover and blend samples): the model draws "
+        "at its own rate (the preview preset: 15 fps; demo: 30), resampled by cubic splines "
+        "before the feet are planted at this rate [default: the rate of the clips it was "
+        "trained on (24-fps captures come back at 24 fps), recorded in checkpoints since "
+        "2026-12-06; else the model's]",
     )
     p.add_argument(
         "--fit-steps",
