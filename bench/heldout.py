@@ -19,7 +19,9 @@ of critic-ranked candidates was chosen on the other two (docs/notes/2026-12-07-c
 
 Printed per seed: per label, coverage at eps 2 and at the tight eps 1, condition fidelity,
 global diversity, and the cleaned output's skating, jerk ratio and penetration, beside the
-clip played twice (``mrlib.evaluate_model``'s calibration row) for the skating; then the
+clip played twice (``mrlib.evaluate_model``'s calibration row) for the skating and, for the
+fidelity, the label's ``_002`` take: the same measure on a real walk of the style that the
+model never saw (the share of its windows nearest the label's training clip); then the
 restyle of every ``_002`` take towards every label at the default level, raw and cleaned:
 root path against the input's by time (``bench/restyle_path.py``'s measure, cm).
 """
@@ -27,6 +29,7 @@ root path against the input's by time (``bench/restyle_path.py``'s measure, cm).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 
 import numpy as np
@@ -41,8 +44,31 @@ FRESH_STYLES = ("masculinity", "musical", "not-confident", "old", "proud")
 GOALS = {"coverage_tight_pct": 90.0, "cond_fidelity_pct": 90.0}  # #51's bar, per label
 
 
-def per_label_table(result) -> tuple[str, list[dict]]:
-    """Markdown: one line per label of the cleaned output (``ours``), and the rows."""
+def take_fidelity(references, takes, fps: float, window: int, body) -> dict[str, float]:
+    """Condition fidelity (%) of real takes a model never saw, per label: the share of each
+    take's ``window``-frame windows at ``fps`` whose nearest training window has the take's
+    label, the measure of ``mrlib.evaluate_model``'s fidelity column. ``references``: a
+    model (its training clips) or name -> ``Motion`` with contacts. Takes shorter than a
+    window, or of another label, are left out."""
+    from mrlib.evaluation.fidelity import nearest_sequence_strip, reference_features
+    from mrlib.representation.contacts import foot_contacts
+
+    refs = reference_features(references)
+    out = {}
+    for take in takes:
+        if take.label not in refs[1]:
+            continue
+        m = take.resample(fps) if abs(take.fps - fps) > 1e-6 else take
+        if len(m) < window:  # a take shorter than one window has no fidelity
+            continue
+        strip = nearest_sequence_strip(m.replace(contacts=foot_contacts(m, body)), refs, window)
+        out[take.label] = 100.0 * strip.label_shares().get(take.label, 0.0)
+    return out
+
+
+def per_label_table(result, takes: dict | None = None) -> tuple[str, list[dict]]:
+    """Markdown: one line per label of the cleaned output (``ours``), and the rows;
+    ``takes``: label -> fidelity of its unseen take (:func:`take_fidelity`), in brackets."""
     from mrlib.evaluation.calibration import PLAYED_TWICE
     from mrlib.evaluation.results import CALIB_PREFIX
 
@@ -50,12 +76,15 @@ def per_label_table(result) -> tuple[str, list[dict]]:
             "skate_pct", "jerk_ratio", "penetration_cm")  # fmt: skip
     clip = {r["sequence"]: r for r in result.rows if r["method"] == CALIB_PREFIX + PLAYED_TWICE}
     rows = [r for r in result.rows if r["method"] == "ours"]
-    out = ["| label | coverage eps 2 | coverage eps 1 | fidelity | global div. | skating % "
-           "(clip twice) | jerk ratio | penetration cm |", "|---|" + "---:|" * 7]  # fmt: skip
+    takes = takes or {}
+    out = ["| label | coverage eps 2 | coverage eps 1 | fidelity (unseen take) | global div. | "
+           "skating % (clip twice) | jerk ratio | penetration cm |", "|---|" + "---:|" * 7]  # fmt: skip
     for r in rows:
         c = clip.get(r["sequence"], {}).get("skate_pct", float("nan"))
+        t = takes.get(r["sequence"])
+        t = "" if t is None else f" ({t:.1f})"
         out.append(f"| {r['sequence']} | {r['coverage_pct']:.1f} | {r['coverage_tight_pct']:.1f} | "
-                   f"{r['cond_fidelity_pct']:.1f} | {r['global_div']:.2f} | {r['skate_pct']:.1f} "
+                   f"{r['cond_fidelity_pct']:.1f}{t} | {r['global_div']:.2f} | {r['skate_pct']:.1f} "
                    f"({c:.1f}) | {r['jerk_ratio']:.2f} | {r['penetration_cm']:.2f} |")  # fmt: skip
     mean = {k: float(np.mean([r[k] for r in rows])) for k in keys}
     out.append("| mean | " + " | ".join(
@@ -78,6 +107,8 @@ def main(argv=None) -> int:
     p.add_argument("--iterations", default=None,
                    help="iterations per block, one value or one per block, as mrlib train "
                         "--iterations [the preset's]")  # fmt: skip
+    p.add_argument("--mismatch", type=float, default=None,
+                   help="the critics' mismatch weight (LossWeights.mismatch) [the preset's]")  # fmt: skip
     p.add_argument("--window-s", type=float, default=None,
                    help="coverage window and PNN T_min in seconds, the local-diversity window "
                         "half of it [the frame counts of EvaluationSettings]")  # fmt: skip
@@ -111,6 +142,8 @@ def main(argv=None) -> int:
     plain = a.levels is None and its is None
     base = get_preset(a.preset) if plain else training_config(a.preset, its, levels=a.levels)
     base = base if a.fps is None else base.replace(fps=a.fps)
+    if a.mismatch is not None:
+        base = base.replace(loss=dataclasses.replace(base.loss, mismatch=a.mismatch))
     clips = [mrlib.load_motion(paths[n], fps=base.fps) for n in train_names]
     data = TrainingSet.from_motions(clips, body=body)
     takes = {n: mrlib.load_motion(paths[n]) for n in take2_names}
@@ -134,13 +167,17 @@ def main(argv=None) -> int:
               f"{settings.coverage_window / base.fps:g} s at {base.fps:g} fps; best of "
               f"{settings.candidates} draw(s) per sample\n", flush=True)  # fmt: skip
         result = evaluate_model(model, settings=settings, body=body, progress=False)
-        text, rows = per_label_table(result)
+        real = take_fidelity(model, takes.values(), model.fps, settings.coverage_window, body)
+        text, rows = per_label_table(result, real)
         print(f"{text}\n\n(evaluation {time.perf_counter() - t:.0f} s)", flush=True)
         short = [
             f"{r['sequence']} {k} {r[k]:.1f}" for r in rows for k, g in GOALS.items() if r[k] < g
         ]
         failing += len(short)
         print("labels under the bar (90 % coverage at eps 1 and fidelity):", short or "none")
+        low = [f"{k} {v:.1f}" for k, v in real.items() if v < GOALS["cond_fidelity_pct"]]
+        print("unseen takes under the fidelity bar (the measure on real walks of the style):",
+              low or "none")  # fmt: skip
         k = restyle_level(model, None)
         res = {"raw": [], "clean": []}
         for take in takes.values():

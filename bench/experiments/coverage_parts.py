@@ -9,7 +9,8 @@ missing), over ``--samples`` cleaned samples of twice the clip: coverage at eps 
 mrlib's metric features (23 local rotations in 6D + the 6 contact labels), the same with
 the rotations only, and the share of contact labels that differ from the training clip's
 where the rotations match best (each clip window against its nearest sample window by
-rotations). Then, per clip, what the frame rate alone costs: the mean per-frame feature
+rotations), and the condition fidelity with all features and with the rotations only (the
+share of the samples' windows nearest the label's clip). Then, per clip, what the frame rate alone costs: the mean per-frame feature
 distance between the clip sampled at the model's rate and the same clip sampled half a
 frame later (both from the 30-fps capture, contact labels from the foot vertices), with
 all features and with the rotations only. Last, how much the clip repeats itself: the
@@ -79,7 +80,7 @@ def main(argv=None) -> int:
 
     import mrlib
     from mrlib.datasets.bandai import tutorial_clips
-    from mrlib.metrics.coverage import coverage_profile
+    from mrlib.metrics.coverage import condition_fidelity, coverage_profile
     from mrlib.metrics.windows import metric_features, window_nn
     from mrlib.model.presets import get_preset, training_config
     from mrlib.representation.features import features_to_motion
@@ -102,24 +103,31 @@ def main(argv=None) -> int:
     print(f"\n`{a.preset}` at {base.fps:g} fps, iterations {list(base.block_iterations)}, training "
           f"seed {a.seed}, {a.samples} cleaned samples per label, windows of 30 frames\n")  # fmt: skip
     print("| clip | coverage eps 1 % | rotations only % | contacts differing % | "
-          "half-frame distance (rotations) | repeat distance | reconstruction coverage eps 1 % |"
-          "\n|---|---:|---:|---:|---|---:|---:|")  # fmt: skip
-    for k, x in enumerate(model.features):
-        ref = metric_features(features_to_motion(x, model.fps, betas=model.betas))
+          "fidelity % (rotations only) | half-frame distance (rotations) | repeat distance | "
+          "reconstruction coverage eps 1 % |\n|---|---:|---:|---:|---|---|---:|---:|")  # fmt: skip
+    refs = {model.labels[model.clip_labels[k]]: metric_features(
+        features_to_motion(x, model.fps, betas=model.betas)) for k, x in enumerate(model.features)}  # fmt: skip
+    refs_rot = {lab: r[:, ROT] for lab, r in refs.items()}
+    for k in range(len(model.features)):
         label = model.labels[model.clip_labels[k]]
-        full, rot, differ = [], [], []
+        ref = refs[label]
+        full, rot, differ, gens = [], [], [], []
         for s in range(a.samples):
             g = metric_features(generate(model, label, length=2 * len(ref), seed=s))
+            gens.append(g)
             full.append(np.mean(coverage_profile(g, ref, 30) < 1.0))
             rot.append(np.mean(coverage_profile(g[:, ROT], ref[:, ROT], 30) < 1.0))
             _, start = window_nn(ref[:, ROT], g[:, ROT], 30, False)
             c_ref, c_gen = ref[:, ROT.stop :], g[:, ROT.stop :]
             differ += [np.mean(c_ref[i : i + 30] != c_gen[j : j + 30]) for i, j in enumerate(start)]
+        fid = condition_fidelity([(g, label) for g in gens], refs)
+        fid_rot = condition_fidelity([(g[:, ROT], label) for g in gens], refs_rot)
         d, d_rot = half_frame_distance(captured[k], model.fps, body)
         rec = metric_features(reconstruct(model, k))
         rec_cov = 100 * np.mean(coverage_profile(rec, ref, 30) < 1.0)
         print(f"| {model.clip_names[k]} | {100 * np.mean(full):.1f} | {100 * np.mean(rot):.1f} | "
-              f"{100 * np.mean(differ):.1f} | {d:.2f} ({d_rot:.2f}) | "
+              f"{100 * np.mean(differ):.1f} | {100 * fid:.1f} ({100 * fid_rot:.1f}) | "
+              f"{d:.2f} ({d_rot:.2f}) | "
               f"{repeat_distance(ref, 30):.2f} | {rec_cov:.1f} |")  # fmt: skip
     return 0
 

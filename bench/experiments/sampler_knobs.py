@@ -8,7 +8,7 @@ Run from the repository root::
     python bench/experiments/sampler_knobs.py --split dev --seed 0 \\
         --configs 1,8,1:coarse=0.5,8:coarse=0.5,1:guide=0.5@1-1
 
-A config is ``K[:coarse=S][:guide=G@A-B][:anchor=A@STYLE]``: K candidates per sample, the
+A config is ``K[:coarse=S][:guide=G@A-B][:anchor=A@STYLE][:margin=M]``: K candidates per sample, the
 coarsest level's noise times S, guidance G on levels A..B (1-based), and for the label of
 ``STYLE`` the coarsest noise ``A z* + sqrt(1 - A^2) z``: anchored to the clip's own
 reconstruction noise z* (tiled to the sample's length; A = 1 with the finer levels' noise
@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from common import describe, set_threads  # noqa: E402
@@ -33,10 +34,13 @@ from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES  # noqa: E402
 
 def parse(config: str) -> dict:
     head, *rest = config.split(":")
-    out = {"candidates": int(head), "coarse": 1.0, "guide": 0.0, "levels": None, "anchor": None}
+    out = {"candidates": int(head), "coarse": 1.0, "guide": 0.0, "levels": None, "anchor": None,
+           "margin": 0.0}  # fmt: skip
     for part in rest:
         key, value = part.split("=")
-        if key == "anchor":
+        if key == "margin":
+            out["margin"] = float(value)
+        elif key == "anchor":
             a, style = value.split("@")
             out["anchor"] = (float(a), style)
         elif key == "coarse":
@@ -83,6 +87,7 @@ def main(argv=None) -> int:
 
     plain_amp, plain_guided = generation.noise_amplitude, generation.guided_weights
     plain_inputs, plain_noise = generation.label_inputs, generation.draw_noise
+    plain_scores, plain_best = generation.critic_scores, generation.best_candidates
     drawing: dict = {}  # the label being drawn (label_inputs sees it, draw_noise does not)
 
     def inputs(model, W, length, sampler):
@@ -117,6 +122,36 @@ def main(argv=None) -> int:
             out[i:j] = W[i:j] + c["guide"] * (W[i:j] - 1.0 / W.shape[-1])
             return out
 
+        def scores(model, outs, conds, c=c):
+            rows = plain_scores(model, outs, conds)
+            if c["margin"] == 0:
+                return rows
+            margins = []
+            for i in range(len(rows)):
+                critic, x = model.critics[i], outs[i]
+                cond = conds[i].expand(x.shape[0], x.shape[-1], -1)
+                want = cond.mean(1).argmax(-1)  # (N,) the requested label
+                per = []
+                for k in range(cond.shape[-1]):
+                    e = torch.zeros_like(cond)
+                    e[..., k] = 1.0
+                    per.append(critic(x, None, e).mean(1))
+                per = torch.stack(per, -1)  # (N, labels)
+                own = per.gather(1, want[:, None])[:, 0]
+                other = per.scatter(1, want[:, None], float("-inf")).max(1).values
+                margins.append(own - other)
+            return torch.cat([rows, torch.stack(margins)])
+
+        def best(s, K, c=c):
+            if c["margin"] == 0:
+                return plain_best(s, K)
+            L, n = s.shape[0] // 2, s.shape[1]
+            s = s.reshape(2 * L, n // K, K)
+            z = (s - s.mean(-1, keepdim=True)) / (s.std(-1, keepdim=True) + 1e-6)
+            total = z[:L].sum(0) + c["margin"] * z[L:].sum(0)
+            return total.argmax(-1) + torch.arange(n // K) * K
+
+        generation.critic_scores, generation.best_candidates = scores, best
         generation.noise_amplitude, generation.guided_weights = amp, guided
         generation.label_inputs, generation.draw_noise = inputs, noise
         drawing["anchor"] = c["anchor"]
@@ -129,6 +164,7 @@ def main(argv=None) -> int:
         finally:
             generation.noise_amplitude, generation.guided_weights = plain_amp, plain_guided
             generation.label_inputs, generation.draw_noise = plain_inputs, plain_noise
+            generation.critic_scores, generation.best_candidates = plain_scores, plain_best
         rows = [r for r in result.rows if r["method"] == "ours"]
 
         def mean(k, rows=rows):
