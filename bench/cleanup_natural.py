@@ -11,6 +11,10 @@ clip's ground, condition fidelity: the share of windows whose nearest training w
 is the label's). The training clip played twice is the last row, the real-capture level.
 
     python bench/cleanup_natural.py [--seed 0] [--samples 5] [--method old,new,'smooth_s=0.2;pin_weight=100']
+    python bench/cleanup_natural.py --split heldout --seed 1 --method reweight=1,new --per-walk
+
+``--split``: the ``demo`` model of ``bench/heldout.py --split SPLIT`` instead (30 fps, from
+mrlib's model cache; trained there when missing); ``--checkpoint``: any model.
 
 Methods (``methods()``): ``raw``, ``old`` (the previous default clean-up, pinned runs
 blended over ``BLEND_S``, the root low-passed over ``ROOT_SMOOTH_S``:
@@ -73,6 +77,9 @@ def methods():
         "new, solved once (reweight=0)": lambda m, body, floor: clean(
             m, body, floor=floor, options=PlantOptions(reweight=0)
         ),
+        "new, one re-solve (reweight=1)": lambda m, body, floor: clean(
+            m, body, floor=floor, options=PlantOptions(reweight=1)
+        ),
     }
 
 
@@ -119,6 +126,30 @@ def train_model(seed: int, body):
     return model
 
 
+def split_model(split: str, seed: int, body):
+    """The cached ``demo`` model of ``bench/heldout.py --split SPLIT`` (its clips, its
+    training seed; trained here when missing, as there)."""
+    from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES
+
+    import mrlib
+    from mrlib.datasets.bandai import tutorial_clips
+    from mrlib.model.presets import get_preset
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train_cached
+
+    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[split]
+    source = tutorial_clips([f"walk_{s}_001" for s in styles], fetch=True)
+    if source.synthetic:
+        raise SystemExit(f"the Bandai clips are needed: {source.note}")
+    base = get_preset("demo")
+    clips = [mrlib.load_motion(q, fps=base.fps) for q in source.paths]
+    data = TrainingSet.from_motions(clips, body=body)
+    model, rec = train_cached(data, base.replace(seed=seed), body=body, progress=False)
+    print(f"model: the demo model of bench/heldout.py --split {split}, seed {seed} "
+          f"({'reused' if rec.reused else 'trained'})", flush=True)  # fmt: skip
+    return model
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seed", type=int, default=0, help="training seed [0]")
@@ -133,6 +164,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--train-only", action="store_true")
     ap.add_argument("--checkpoint", default=None, help="score this model instead of the preset's")
+    ap.add_argument("--split", choices=["dev", "heldout", "fresh"], default=None,
+                    help="score the demo model of bench/heldout.py --split SPLIT instead")  # fmt: skip
     ap.add_argument("--per-walk", action="store_true", help="also print every walk's row")
     a = ap.parse_args(argv)
     set_threads(a.threads)
@@ -146,7 +179,12 @@ def main(argv: list[str] | None = None) -> int:
     from mrlib.sampling.sampler import Sampler
 
     body = mrlib.load_body_model()
-    model = train_model(a.seed, body) if a.checkpoint is None else mrlib.load_model(a.checkpoint)
+    if a.split is not None:
+        model = split_model(a.split, a.seed, body)
+    elif a.checkpoint is not None:
+        model = mrlib.load_model(a.checkpoint)
+    else:
+        model = train_model(a.seed, body)
     if a.train_only:
         return 0
     table = methods()
@@ -160,7 +198,8 @@ def main(argv: list[str] | None = None) -> int:
     cache = _ReferenceCache(body, settings.feature_kind)
     refs = model_references(model)
     print(describe())
-    print(f"training seed {a.seed}, {a.samples} samples per walk, 2x the clip's length, "
+    which = a.checkpoint or f"training seed {a.seed}"
+    print(f"{which}, {a.samples} samples per walk, 2x the clip's length, "
           f"{model.fps:g} fps, coverage eps {a.eps:g}\n", flush=True)  # fmt: skip
     rows: dict[str, dict[str, dict]] = {n: {} for n in names + ["training clip x2"]}
     for label, ref in refs.items():
