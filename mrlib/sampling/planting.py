@@ -57,8 +57,8 @@ SLIDE = 0.1  # m/s: contact vertices still faster than this are pinned harder (r
 # synthetic demo clips, whose raw feet slide at 0.28 m/s. Three, chosen on the `demo`
 # models of the development walks (the fast walks kept 6.5-8.3 % after one) and judged on
 # bench/heldout.py's other two splits: a quarter of the skating of one re-solve, the same
-# coverage, jerk and fidelity, ~10 ms more per sample (bench/cleanup_natural.py
-# --checkpoint; docs/results.md, "The clean-up's re-solves").
+# coverage, jerk and fidelity, ~10 ms more per sample (bench/cleanup_natural.py;
+# docs/results.md, "The clean-up's re-solves").
 REWEIGHT = 3
 PIN_WEIGHT = 200.0  # weight of the contact vertices' speed against the other terms
 FLOOR_WEIGHT = 100.0  # 1/s^2: pull of a planted foot's lowest vertex onto the floor
