@@ -390,6 +390,10 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1
     assert (tmp_path / "eval" / "evaluation.csv").read_bytes() == table
     assert main([*argv, "--overwrite"]) == 0
+    # the paper's distance: rotation matrices, no contact labels
+    assert main([*argv[:-1], str(tmp_path / "paper"), "--features", "paper"]) == 0
+    saved = json.loads((tmp_path / "paper" / "evaluation_settings.json").read_text())
+    assert (saved["feature_kind"], saved["contact_features"]) == ("rotmat", False), saved
 
 
 def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):

@@ -53,6 +53,36 @@ def test_settings_validate_and_describe_the_protocol():
         ev.EvaluationSettings(eps=-1.0)
     with pytest.raises(MotionValueError, match="feature_kind"):
         ev.EvaluationSettings(feature_kind="quat")
+    with pytest.raises(MotionValueError, match="contact_features"):
+        ev.EvaluationSettings(contact_features="no")
+    paper = ev.EvaluationSettings(feature_kind="rotmat", contact_features=False).describe()
+    assert "rotation matrices" in paper and "no contact labels" in paper
+
+
+def test_the_papers_distance_leaves_the_contact_labels_out(body):
+    """The same poses with every contact label flipped: no window within eps 2 with mrlib's
+    features (each frame differs by sqrt(6) in its labels), every window with the paper's
+    (rotation matrices only), whose figures match the metric computed by hand."""
+    from mrlib.metrics import coverage
+    from mrlib.metrics.windows import metric_features
+    from mrlib.representation.contacts import foot_contacts
+
+    ref = turning_walk(70)
+    ref = ref.replace(contacts=foot_contacts(ref, body))
+    flipped = ref.replace(contacts=1.0 - ref.contacts)
+    kw = dict(
+        body=body, label="a", all_references={"a": ref, "b": ref.replace(poses=ref.poses * 0.5)}
+    )
+    ours = ev.score_motions([flipped], ref, settings=ev.EvaluationSettings(num_samples=1), **kw)
+    paper = ev.EvaluationSettings(num_samples=1, feature_kind="rotmat", contact_features=False)
+    theirs = ev.score_motions([flipped], ref, settings=paper, **kw)
+    assert ours["coverage_pct"] == 0.0
+    assert theirs["coverage_pct"] == theirs["coverage_tight_pct"] == 100.0
+    assert theirs["cond_fidelity_pct"] == 100.0
+    by_hand = coverage(
+        metric_features(flipped, "rotmat", False), metric_features(ref, "rotmat", False)
+    )
+    assert theirs["coverage_pct"] == pytest.approx(100.0 * by_hand)
 
 
 # -- the protocol on constructed motion ---------------------------------------------------------

@@ -100,8 +100,8 @@ class _ReferenceCache:
     """Contact labels, features and kinematics of training clips, computed once per
     evaluation (keyed by object identity; the clips are kept alive here)."""
 
-    def __init__(self, body: Any, kind: str) -> None:
-        self.body, self.kind = body, kind
+    def __init__(self, body: Any, kind: str, contacts: bool = True) -> None:
+        self.body, self.kind, self.contacts = body, kind, contacts
         self._store: dict[int, tuple[Motion, _Reference]] = {}
 
     def __call__(self, motion: Motion) -> _Reference:
@@ -111,7 +111,7 @@ class _ReferenceCache:
         kin = pl.motion_kinematics(motion, self.body)
         labels, _ = pl.motion_contacts(motion, kin[1])
         m = motion.replace(contacts=labels)
-        ref = _Reference(m, mt.metric_features(m, kind=self.kind), kin)
+        ref = _Reference(m, mt.metric_features(m, kind=self.kind, contacts=self.contacts), kin)
         self._store[id(motion)] = (motion, ref)
         return ref
 
@@ -162,8 +162,8 @@ def score_motions(
     kin = [pl.motion_kinematics(m, body) for m in motions]
     labelled = [pl.motion_contacts(m, feet) for m, (_, feet) in zip(motions, kin, strict=True)]
     gens = [m.replace(contacts=c) for m, (c, _) in zip(motions, labelled, strict=True)]
-    g_feats = [mt.metric_features(m, kind=s.feature_kind) for m in gens]
-    cache = _cache if _cache is not None else _ReferenceCache(body, s.feature_kind)
+    g_feats = [mt.metric_features(m, s.feature_kind, s.contact_features) for m in gens]
+    cache = _cache or _ReferenceCache(body, s.feature_kind, s.contact_features)
     ref = cache(reference)
     r_feats = ref.features
 
@@ -290,7 +290,7 @@ def evaluate(
     recons = reconstructions or {}
     body = resolve_body(body)
 
-    cache = _ReferenceCache(body, settings.feature_kind)
+    cache = _ReferenceCache(body, settings.feature_kind, settings.contact_features)
     multi = dict(references) if len(references) > 1 else None
     seeds = range(settings.seed, settings.seed + settings.num_samples)
     rows: list[dict[str, Any]] = []

@@ -60,6 +60,10 @@ class EvaluationSettings:
     tmin: int = 30  # T_min, shortest PNN segment, frames
     local_window: int = 15  # T_d, frames
     feature_kind: str = "6d"  # mrlib.metrics.windows.metric_features(kind=...)
+    # the 6 foot-contact labels appended to the features; False with "rotmat": the paper's
+    # distance (Sec. 5: the Frobenius norm on the local joint rotation matrices), whose
+    # scale differs from mrlib's, so eps and tight_eps are to be chosen for it
+    contact_features: bool = True
     skate_threshold: float = pl.SKATE_SPEED_THRESHOLD  # m/s
     penetration_threshold: float = pl.PENETRATION_THRESHOLD  # m
     ground_percentile: float = pl.GROUND_PERCENTILE  # of the reference's foot heights
@@ -90,6 +94,10 @@ class EvaluationSettings:
                 f"length_factor: {self.length_factor:g} x the training length is more than "
                 f"the {MAX_LENGTH_FACTOR:g} mrlib evaluates (GANimator's is 2)"
             )
+        if not isinstance(self.contact_features, bool):
+            raise MotionValueError(
+                f"contact_features must be True or False, got {self.contact_features!r}"
+            )
         if self.feature_kind not in ("6d", "rotmat"):
             raise MotionValueError(
                 f"feature_kind must be '6d' or 'rotmat', got {self.feature_kind!r}"
@@ -98,10 +106,10 @@ class EvaluationSettings:
     def describe(self) -> str:
         """One paragraph stating the settings, for reports."""
         feats = (
-            "local rotations of the 23 non-root SMPL joints in 6D + 6 foot-contact labels"
+            "local rotations of the 23 non-root SMPL joints in 6D"
             if self.feature_kind == "6d"
-            else "local rotation matrices of the 23 non-root SMPL joints + 6 foot-contact labels"
-        )
+            else "local rotation matrices of the 23 non-root SMPL joints"
+        ) + (" + 6 foot-contact labels" if self.contact_features else " (no contact labels)")
         return (
             f"{self.num_samples} samples per sequence, {self.length_factor:g}x the training "
             f"length, seeds {self.seed}..{self.seed + self.num_samples - 1}. Coverage: "

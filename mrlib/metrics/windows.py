@@ -13,7 +13,8 @@ the tests check these against, are in ``mrlib.metrics.oracles``.
 :func:`metric_features`: the local rotations of joints 1..23 (the root's global
 orientation and translation are left out) in 6D, ``D = 23 * 6``, plus the 6 foot-contact
 labels when the clip has them (``D = 144``); ``kind="rotmat"`` uses flattened rotation
-matrices instead (the paper's "Frobenius norm on local joint rotation matrices").
+matrices instead, and ``kind="rotmat", contacts=False`` is the paper's distance ("the
+Frobenius norm on the local joint rotation matrices"; ``mrlib evaluate --features paper``).
 Metric functions also accept a ``Motion`` directly (converted with the default features)
 and numpy arrays or torch tensors of features.
 

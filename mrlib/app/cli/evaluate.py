@@ -46,6 +46,15 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("--seed", type=parse_seed, default=0)
     p.add_argument(
+        "--features",
+        choices=["mrlib", "paper"],
+        default="mrlib",
+        help="the frame features every window distance uses: mrlib's (23 local rotations in "
+        "6D + the 6 foot-contact labels) or the paper's (23 local rotation matrices, no "
+        "contact labels; its distances have another scale, so choose --eps and --tight-eps "
+        "for it) [default: mrlib]",
+    )
+    p.add_argument(
         "--baseline",
         type=Path,
         default=None,
@@ -123,6 +132,8 @@ def cmd_evaluate(args) -> int:
             eps=args.eps,
             tight_eps=args.tight_eps,
             seed=args.seed,
+            feature_kind="rotmat" if args.features == "paper" else "6d",
+            contact_features=args.features != "paper",
             fine_noise=sampler.fine_noise,
             guidance=sampler.guidance,
             candidates=sampler.candidates,
