@@ -17,6 +17,9 @@ cache when there); their ``_002`` takes, captured separately, are restyled.
 ``--split fresh``: a third set of five styles, ``FRESH_STYLES``, first run after the number
 of critic-ranked candidates was chosen on the other two (docs/notes/2026-12-07-critic-ranking.md).
 
+``--match-contact-rate``: the samples' contact labels at each label's contact rate
+(``mrlib.sampling.contact_labels``) instead of the paper's cut at 0.5.
+
 ``--features paper``: every window distance on the paper's features (local rotation
 matrices, no contact labels); coverage thresholds are then on another scale, and only the
 fidelity is held to the bar.
@@ -112,6 +115,9 @@ def main(argv=None) -> int:
                    help="window distances on mrlib's features or the paper's (rotation "
                         "matrices, no contact labels; its coverage eps has another scale, "
                         "the fidelity none) [mrlib]")  # fmt: skip
+    p.add_argument("--match-contact-rate", action="store_true",
+                   help="contact labels at each label's contact rate, as mrlib evaluate "
+                        "--match-contact-rate [the paper's cut at 0.5]")  # fmt: skip
     p.add_argument("--threads", type=int, default=None, help="torch threads [mrlib's default]")
     a = p.parse_args(argv)
     set_threads(a.threads)
@@ -161,10 +167,14 @@ def main(argv=None) -> int:
             windows["candidates"] = a.candidates
         if a.features == "paper":
             windows.update(feature_kind="rotmat", contact_features=False)
+        if a.match_contact_rate:
+            windows["match_contact_rate"] = True
         settings = EvaluationSettings(num_samples=a.samples, seed=seed, **windows)
+        labels_at = "each label's rate" if settings.match_contact_rate else "0.5"
         print(f"windows: coverage {settings.coverage_window} frames = "
               f"{settings.coverage_window / base.fps:g} s at {base.fps:g} fps; best of "
-              f"{settings.candidates} draw(s) per sample\n", flush=True)  # fmt: skip
+              f"{settings.candidates} draw(s) per sample; contact labels at {labels_at}\n",
+              flush=True)  # fmt: skip
         result = evaluate_model(model, settings=settings, body=body, progress=False)
         real = unseen_take_fidelity(result)
         text, rows = per_label_table(result)

@@ -304,6 +304,10 @@ CLASS_CASES = {
     "Sampler(fine_noise='0.5')": (lambda m: mrlib.Sampler(fine_noise="0.5"), "fine_noise"),
     "Sampler(guidance=None)": (lambda m: mrlib.Sampler(guidance=None), "guidance"),
     "Sampler(fix_contacts='ik')": (lambda m: mrlib.Sampler(fix_contacts="ik"), "fix_contacts"),
+    "Sampler(match_contact_rate=1)": (
+        lambda m: mrlib.Sampler(match_contact_rate=1),
+        "match_contact_rate",
+    ),
     "Condition.label(None)": (lambda m: mrlib.Condition.label(None), "label"),
     "Condition.crossover(level='2')": (
         lambda m: mrlib.Condition.crossover("a", "b", "2"),

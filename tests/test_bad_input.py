@@ -378,9 +378,10 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
     checkpoint = train(data, TINY, tmp_path / "run", progress=False).checkpoint
     argv = ["evaluate", str(checkpoint), "--samples", "1", "--no-calibration",
             "--fine-noise", "0.5", "--guidance", "0.25", "--candidates", "2",
-            "--out", str(tmp_path / "eval")]  # fmt: skip
+            "--match-contact-rate", "--out", str(tmp_path / "eval")]  # fmt: skip
     assert main(argv) == 0
-    assert "sampler: fine_noise=0.5, guidance=0.25, candidates=2" in capsys.readouterr().out
+    said = "sampler: fine_noise=0.5, guidance=0.25, candidates=2, match_contact_rate=True"
+    assert said in capsys.readouterr().out
     # a second evaluation into the same folder replaces nothing without --overwrite, and
     # is refused before it samples
     table = (tmp_path / "eval" / "evaluation.csv").read_bytes()
@@ -394,6 +395,7 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
     assert main([*argv[:-1], str(tmp_path / "paper"), "--features", "paper"]) == 0
     saved = json.loads((tmp_path / "paper" / "evaluation_settings.json").read_text())
     assert (saved["feature_kind"], saved["contact_features"]) == ("rotmat", False), saved
+    assert saved["match_contact_rate"] is True, saved
 
 
 def test_cli_guidance_reaches_the_sampler(checkpoint, tmp_path, monkeypatch):
@@ -426,6 +428,17 @@ def test_cli_candidates_reach_the_sampler(checkpoint, tmp_path, monkeypatch):
     argv = ["sample", str(checkpoint), "--raw", "--candidates", "3", "--out", str(tmp_path / "b")]
     assert main(argv) == 0
     assert seen == [mrlib.sampling.sampler.CANDIDATES, 3]
+
+
+def test_cli_match_contact_rate_reaches_the_sampler(checkpoint, tmp_path):
+    out = {}
+    for name, extra in (("a", []), ("b", ["--match-contact-rate"])):
+        argv = ["sample", str(checkpoint), "--raw", "--seed", "2", *extra]
+        assert main([*argv, "--out", str(tmp_path / name)]) == 0
+        out[name] = load_motion(sorted((tmp_path / name).glob("*.npz"))[0])
+    assert out["a"].meta["sampler"]["match_contact_rate"] is False
+    assert out["b"].meta["sampler"]["match_contact_rate"] is True
+    np.testing.assert_array_equal(out["a"].poses, out["b"].poses)  # the same draw
 
 
 API_CASES = {

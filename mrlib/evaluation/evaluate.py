@@ -71,7 +71,6 @@ from mrlib.model.trained import check_label_model
 from mrlib.progress import bar as progress_bar
 from mrlib.representation.body import check_body, resolve_body
 from mrlib.representation.motion import Motion
-from mrlib.sampling.sampler import Sampler
 from mrlib.training.data import instance_or_none
 
 __all__ = [
@@ -458,7 +457,7 @@ def evaluate_model(
     }
     samplers, recons = {}, {}
     for mname, (per_key, recon) in methods.items():
-        sampler = Sampler(s.fine_noise, s.guidance, fix_contacts=False, candidates=s.candidates)
+        sampler = s.raw_sampler()
         fns = _per_key_sample_fns(per_key, sampler)  # one draw for the cleaned and raw rows
         for clean, suffix in variants[contacts]:
             samplers[mname + suffix] = fns[clean]

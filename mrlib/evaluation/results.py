@@ -72,9 +72,10 @@ class EvaluationSettings:
     fine_noise: float = FINE_NOISE
     guidance: float = GUIDANCE
     candidates: int = CANDIDATES
+    match_contact_rate: bool = False  # contact labels at each label's rate, not at 0.5
 
     def __post_init__(self) -> None:
-        Sampler(self.fine_noise, self.guidance, candidates=self.candidates)  # their bounds
+        self.raw_sampler()  # the sampler's settings within their bounds
         for name in ("num_samples", "coverage_window", "tmin", "local_window"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -103,6 +104,14 @@ class EvaluationSettings:
                 f"feature_kind must be '6d' or 'rotmat', got {self.feature_kind!r}"
             )
 
+    def raw_sampler(self) -> Sampler:
+        """The ``mrlib.Sampler`` of these settings without the foot-contact clean-up
+        (evaluate_model plants the feet of the same draws for the cleaned rows)."""
+        return Sampler(
+            self.fine_noise, self.guidance, fix_contacts=False, candidates=self.candidates,
+            match_contact_rate=self.match_contact_rate,
+        )  # fmt: skip
+
     def describe(self) -> str:
         """One paragraph stating the settings, for reports."""
         feats = (
@@ -125,7 +134,8 @@ class EvaluationSettings:
             "and joint angular speeds (legs, arms, spine/head). Means and standard deviations "
             "per method are over sequences (population std). Sampler of the trained model: "
             f"fine noise {self.fine_noise:g}, guidance {self.guidance:g}, best of "
-            f"{self.candidates} candidate(s) by the critics."
+            f"{self.candidates} candidate(s) by the critics"
+            + (", contact labels at each label's contact rate." if self.match_contact_rate else ".")
         )
 
 

@@ -26,6 +26,7 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 from mrlib.sampling.conditions import Condition, as_condition
+from mrlib.sampling.contact_labels import condition_contact_rates, rate_matched_contacts
 from mrlib.sampling.ranking import best_candidates, can_rank, critic_scores
 from mrlib.sampling.sampler import Sampler
 
@@ -274,6 +275,7 @@ def sampler_record(
     return {
         "seed": seed, "index": index, "fine_noise": sampler.fine_noise,
         "guidance": sampler.guidance, "candidates": sampler.candidates,
+        "match_contact_rate": sampler.match_contact_rate,
         "labels": list(model.labels),
         "label_weights": W.tolist(), "fps": sampler.fps or model.fps,
     }  # fmt: skip
@@ -344,6 +346,11 @@ def _label_samples(
     label = condition.name(model)
     names = [f"{label}_seed{seed}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
+    if sampler.match_contact_rate:
+        x = outs[-1].detach().cpu().transpose(1, 2)
+        x = x if model.normalizer is None else model.normalizer.denormalize(x)
+        c = rate_matched_contacts(x[..., -6:], condition_contact_rates(model, W))
+        motions = [m.replace(contacts=c[b]) for b, m in enumerate(motions)]
     if sampler.fps is not None and sampler.fps != model.fps:  # raised before the feet are planted
         motions = [m.resample(sampler.fps, smooth=True) for m in motions]
     for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)

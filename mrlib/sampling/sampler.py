@@ -76,6 +76,12 @@ class Sampler:
             highest is kept (``mrlib.sampling.ranking``; 1: the paper's sampler, every
             draw kept), in [1, ``MAX_CANDIDATES``]. Label samples of a model with critics
             (every checkpoint mrlib writes) only; speech samples and restyling draw once.
+        match_contact_rate: label each foot vertex in contact on as many frames as the
+            condition's training clips are (``mrlib.sampling.contact_labels``: the frames
+            of highest contact output) instead of where the output exceeds 0.5 (False,
+            the paper's sampler). Label samples of ``mrlib.generate`` only. It raised the
+            lowest label's fidelity of the 30-fps ``demo`` models and lowered the happy
+            walk's of the 15-fps ``preview`` models (docs/notes/2026-12-07-contact-rate.md).
     """
 
     fine_noise: float = FINE_NOISE
@@ -83,6 +89,7 @@ class Sampler:
     fix_contacts: bool = True
     fps: float | None = None
     candidates: int = CANDIDATES
+    match_contact_rate: bool = False
 
     def __post_init__(self):
         for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
@@ -102,8 +109,9 @@ class Sampler:
                 f"candidates must be a whole number in [1, {MAX_CANDIDATES}], got {c!r}"
             )
         object.__setattr__(self, "candidates", int(c))
-        if not isinstance(self.fix_contacts, bool):
-            raise MotionValueError(f"fix_contacts must be True or False, got {self.fix_contacts!r}")
+        for name in ("fix_contacts", "match_contact_rate"):
+            if not isinstance(getattr(self, name), bool):
+                raise MotionValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
         if self.fps is not None:
             v = self.fps
             if (

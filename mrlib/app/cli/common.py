@@ -197,8 +197,8 @@ def run_options(p, *, out: Path, out_help: str, overwrite_help: str) -> None:
 
 
 def sampler_options(p, candidates: bool = True) -> None:
-    """``--fine-noise``, ``--guidance`` and (``candidates``) ``--candidates`` (read by
-    :func:`sampler_from_args`)."""
+    """``--fine-noise``, ``--guidance`` and (``candidates``) ``--candidates`` and
+    ``--match-contact-rate`` (read by :func:`sampler_from_args`)."""
     p.add_argument(
         "--fine-noise",
         type=_sampler_setting("MAX_FINE_NOISE"),
@@ -229,6 +229,13 @@ def sampler_options(p, candidates: bool = True) -> None:
         "critics score highest [default: 8; 1: the paper's sampler, every draw kept]; "
         "more: closer to the labels' clips, less varied",
     )
+    p.add_argument(
+        "--match-contact-rate",
+        action="store_true",
+        help="label models: each foot vertex in contact on as many frames as the label's "
+        "training clips, those of highest contact output [default: where the output "
+        "exceeds 0.5, the paper's sampler]; plants slow walks' feet longer",
+    )
 
 
 def _candidates(text: str) -> int:
@@ -257,14 +264,18 @@ def sample_output_options(
 
 # -- helpers of the commands ---------------------------------------------------------------
 def sampler_from_args(args, *, label_model: bool = True):
-    """The ``mrlib.Sampler`` of ``--fine-noise``, ``--guidance``, ``--candidates`` and
-    ``--raw`` (the sampler's defaults where one is not given); ``--guidance`` and
-    ``--candidates`` are refused for a speech model (``label_model=False``)."""
+    """The ``mrlib.Sampler`` of ``--fine-noise``, ``--guidance``, ``--candidates``,
+    ``--match-contact-rate`` and ``--raw`` (the sampler's defaults where one is not given);
+    the label models' options are refused for a speech model (``label_model=False``)."""
     from mrlib.sampling.sampler import CANDIDATES, FINE_NOISE, GUIDANCE, Sampler
 
     guidance = getattr(args, "guidance", None)
     candidates = getattr(args, "candidates", None)
-    for flag, value in (("--guidance", guidance), ("--candidates", candidates)):
+    matched = getattr(args, "match_contact_rate", False)
+    for flag, value in (
+        ("--guidance", guidance), ("--candidates", candidates),
+        ("--match-contact-rate", matched or None),
+    ):  # fmt: skip
         if value is not None and not label_model:
             raise MrlibError(f"{flag} applies to label models only")
     return Sampler(
@@ -272,6 +283,7 @@ def sampler_from_args(args, *, label_model: bool = True):
         guidance=GUIDANCE if guidance is None else guidance,
         fix_contacts=not getattr(args, "raw", False),
         candidates=CANDIDATES if candidates is None else candidates,
+        match_contact_rate=matched,
     )
 
 

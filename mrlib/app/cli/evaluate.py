@@ -137,6 +137,7 @@ def cmd_evaluate(args) -> int:
             fine_noise=sampler.fine_noise,
             guidance=sampler.guidance,
             candidates=sampler.candidates,
+            match_contact_rate=sampler.match_contact_rate,
         ),  # fmt: skip
         calibration=CalibrationOptions(enabled=not args.no_calibration),
         contacts="raw" if args.raw else "both",
@@ -148,7 +149,7 @@ def cmd_evaluate(args) -> int:
         when_written(lambda: print(f"\nwrote {args.out}/"))
     print(
         f"sampler: fine_noise={sampler.fine_noise:g}, guidance={sampler.guidance:g}, "
-        f"candidates={sampler.candidates}\n"
+        f"candidates={sampler.candidates}, match_contact_rate={sampler.match_contact_rate}\n"
     )
     print(result.to_markdown())
     return 0

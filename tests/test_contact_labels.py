@@ -1,0 +1,88 @@
+"""Contact labels at the label's contact rate (``mrlib.sampling.contact_labels``,
+``Sampler.match_contact_rate``): how many frames are labelled, that confident outputs
+are kept, and that generation uses them on the same draw."""
+
+import numpy as np
+import pytest
+import torch
+
+from mrlib.errors import MotionValueError
+from mrlib.sampling.conditions import Condition
+from mrlib.sampling.contact_labels import (
+    CONTACT_BAND,
+    condition_contact_rates,
+    label_contact_rates,
+    rate_matched_contacts,
+)
+from mrlib.sampling.generation import generate, label_inputs, sample_ranked
+from mrlib.sampling.sampler import Sampler, raw_sampler
+
+
+@pytest.fixture(scope="module")
+def model(normal_sad_model):
+    """A plumbing model (two iterations per block): its samples mean nothing."""
+    return normal_sad_model
+
+
+def test_each_vertex_is_in_contact_on_its_rate_of_frames():
+    rng = np.random.default_rng(0)
+    raw = rng.uniform(0.2, 0.8, size=(3, 200, 6))  # unsure everywhere: the rate decides
+    rates = np.array([0.1, 0.25, 0.4, 0.5, 0.6, 0.75])
+    c = rate_matched_contacts(raw, rates)
+    assert c.shape == raw.shape and set(np.unique(c)) <= {0.0, 1.0}
+    np.testing.assert_allclose(c.mean(1), np.broadcast_to(rates, (3, 6)), atol=1 / 200)
+    # the frames of highest output are the ones labelled
+    for b in range(3):
+        for j in range(6):
+            on, off = raw[b, c[b, :, j] == 1, j], raw[b, c[b, :, j] == 0, j]
+            assert on.min() > off.max()
+
+
+def test_confident_outputs_are_not_overruled_to_reach_a_rate():
+    lo, hi = CONTACT_BAND
+    raw = np.full((1, 100, 6), hi + 0.05)
+    raw[0, :50, 3:] = lo - 0.05  # half the frames surely not in contact on three vertices
+    c = rate_matched_contacts(raw, np.full(6, 0.2))
+    assert c[0, :, :3].all()  # all sure contacts, though the rate asks for 20 %
+    np.testing.assert_array_equal(c[0, :50, 3:], 0)
+    c = rate_matched_contacts(raw, np.full(6, 0.9))
+    np.testing.assert_array_equal(c[0, :50, 3:], 0)  # the rate asks for 90 %: still none
+
+
+def test_bad_shapes_are_refused():
+    with pytest.raises(MotionValueError, match="rates"):
+        rate_matched_contacts(np.zeros((2, 10, 6)), np.zeros(5))
+    with pytest.raises(MotionValueError, match="outputs"):
+        rate_matched_contacts(np.zeros((10, 6)), np.zeros(6))
+
+
+def test_a_labels_rate_is_its_training_clips_share_of_contact_frames(model):
+    rates = label_contact_rates(model)
+    assert rates.shape == (len(model.labels), 6)
+    for k in range(len(model.labels)):
+        clips = [x for x, lab in zip(model.features, model.clip_labels, strict=True) if lab == k]
+        want = np.concatenate([np.asarray(x[:, -6:]) > 0.5 for x in clips]).mean(0)
+        np.testing.assert_allclose(rates[k], want)
+    W = Condition.blend("walk_normal", "walk_sad", 0.25).weights(model)
+    mixed = condition_contact_rates(model, W)
+    i, j = model.labels.index("walk_normal"), model.labels.index("walk_sad")
+    np.testing.assert_allclose(mixed, 0.75 * rates[i] + 0.25 * rates[j], atol=1e-6)
+
+
+def test_generate_labels_the_same_draw_at_the_rate(model):
+    kw = dict(length=60, seed=4, num=2)
+    plain = generate(model, "walk_sad", sampler=raw_sampler(), **kw)
+    rate = Sampler(fix_contacts=False, candidates=1, match_contact_rate=True)
+    matched = generate(model, "walk_sad", sampler=rate, **kw)
+    W = Condition.label("walk_sad").weights(model)
+    lengths, amp, conds = label_inputs(model, W, 60, raw_sampler())
+    out = sample_ranked(model, conds, lengths, amp, 4, 2, 1)[-1].transpose(1, 2)
+    raw = model.normalizer.denormalize(out)[..., -6:]
+    want = rate_matched_contacts(raw, condition_contact_rates(model, W))
+    for b in range(2):
+        np.testing.assert_array_equal(plain[b].poses, matched[b].poses)
+        np.testing.assert_array_equal(plain[b].contacts, (raw[b] > 0.5).float().numpy())
+        np.testing.assert_array_equal(matched[b].contacts, want[b])
+        assert matched[b].meta["sampler"]["match_contact_rate"] is True
+    assert plain[0].meta["sampler"]["match_contact_rate"] is False
+    assert torch.is_tensor(raw)
