@@ -7,6 +7,7 @@ two cores to train, 20 s with the model in mrlib's cache)::
     python bench/genmm_side_by_side.py                    # the four development walks
     python bench/genmm_side_by_side.py --split heldout    # the five held-out styles
     python bench/genmm_side_by_side.py --preset preview   # both at 15 fps
+    python bench/genmm_side_by_side.py --features paper   # the paper's distance
 
 mrlib: the ``demo`` preset (``--preset``) trained as ``bench/heldout.py`` trains it (the
 same cached model), its samples raw and cleaned. GenMM: ``bench/genmm.py`` (training-free
@@ -14,7 +15,10 @@ patch matching, its public defaults) on each walk alone, at the preset's frame r
 Every row: ``--samples`` clips per walk of twice the walk's length, seeds 0.., scored by
 ``mrlib.evaluation.evaluate`` against the walk (coverage at eps 2 and 1, global
 diversity, skating, jerk ratio, penetration, condition fidelity among the walks), with
-the walk played twice as the calibration row. Printed: one line per method (means over
+the walk played twice as the calibration row. ``--features paper``: every window and PNN
+distance on the paper's features (local rotation matrices, no contact labels: the scale of
+the paper's diversity figures; the eps of coverage then sit on another scale, the same
+for every row). Printed: one line per method (means over
 the walks) and per walk, and the seconds per sample of each method.
 """
 
@@ -49,6 +53,9 @@ def main(argv=None) -> int:
     p.add_argument("--preset", choices=["demo", "preview"], default="demo",
                    help="mrlib's label preset, and the rate every row is scored at [demo]")  # fmt: skip
     p.add_argument("--samples", type=int, default=10, help="samples per walk [10]")
+    p.add_argument("--features", choices=["mrlib", "paper"], default="mrlib",
+                   help="distances on mrlib's features or the paper's (rotation matrices, "
+                        "no contact labels) [mrlib]")  # fmt: skip
     p.add_argument("--threads", type=int, default=None, help="torch threads [mrlib's default]")
     a = p.parse_args(argv)
     set_threads(a.threads)
@@ -80,7 +87,9 @@ def main(argv=None) -> int:
     print(f"\nmrlib: {a.preset} preset at {cfg.fps:g} fps (the clips' own rate: {sorted(native)}), "
           f"seed {a.seed}, on {', '.join(names)} ({how})", flush=True)  # fmt: skip
 
-    settings = EvaluationSettings(num_samples=a.samples, seed=0)
+    paper = {"feature_kind": "rotmat", "contact_features": False} if a.features == "paper" else {}
+    settings = EvaluationSettings(num_samples=a.samples, seed=0, **paper)
+    print(f"features: {a.features}'s", flush=True)
     refs = model_references(model)
     spent: dict[str, float] = {}
 
