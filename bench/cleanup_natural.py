@@ -129,24 +129,11 @@ def train_model(seed: int, body):
 def split_model(split: str, seed: int, body):
     """The cached ``demo`` model of ``bench/heldout.py --split SPLIT`` (its clips, its
     training seed; trained here when missing, as there)."""
-    from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES
+    from heldout import split_model as heldout_model
 
-    import mrlib
-    from mrlib.datasets.bandai import tutorial_clips
-    from mrlib.model.presets import get_preset
-    from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import train_cached
-
-    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[split]
-    source = tutorial_clips([f"walk_{s}_001" for s in styles], fetch=True)
-    if source.synthetic:
-        raise SystemExit(f"the Bandai clips are needed: {source.note}")
-    base = get_preset("demo")
-    clips = [mrlib.load_motion(q, fps=base.fps) for q in source.paths]
-    data = TrainingSet.from_motions(clips, body=body)
-    model, rec = train_cached(data, base.replace(seed=seed), body=body, progress=False)
+    model, reused, _ = heldout_model(split, seed, body)
     print(f"model: the demo model of bench/heldout.py --split {split}, seed {seed} "
-          f"({'reused' if rec.reused else 'trained'})", flush=True)  # fmt: skip
+          f"({'reused' if reused else 'trained'})", flush=True)  # fmt: skip
     return model
 
 

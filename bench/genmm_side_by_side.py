@@ -31,7 +31,7 @@ import time
 import numpy as np
 from common import describe, set_threads
 from genmm import GenMMSettings, genmm_sample_fn
-from heldout import DEV_STYLES, HELDOUT_STYLES
+from heldout import split_model
 
 KEYS = ("coverage_pct", "coverage_tight_pct", "global_div", "skate_pct", "jerk_ratio",
         "penetration_cm", "cond_fidelity_pct")  # fmt: skip
@@ -62,30 +62,20 @@ def main(argv=None) -> int:
     print(describe(), flush=True)
 
     import mrlib
-    from mrlib.datasets.bandai import tutorial_clips
     from mrlib.evaluation import EvaluationSettings
     from mrlib.evaluation.calibration import PLAYED_TWICE
     from mrlib.evaluation.evaluate import evaluate, model_references, model_sample_fn
     from mrlib.evaluation.results import CALIB_PREFIX
     from mrlib.model.presets import get_preset
-    from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import train_cached
 
     body = mrlib.load_body_model()
-    styles = DEV_STYLES if a.split == "dev" else HELDOUT_STYLES
-    names = [f"walk_{s}_001" for s in styles]
-    source = tutorial_clips(names, fetch=True)
-    if source.synthetic:
-        raise SystemExit(f"the Bandai clips are needed: {source.note}")
-    cfg = get_preset(a.preset).replace(seed=a.seed)
-    clips = [mrlib.load_motion(p, fps=cfg.fps) for p in source.paths]
-    native = {round(float(mrlib.load_motion(p).fps), 3) for p in source.paths}
-    data = TrainingSet.from_motions(clips, body=body)
+    cfg = get_preset(a.preset)
     t = time.perf_counter()
-    model, rec = train_cached(data, cfg, body=body, progress=False)
-    how = "reused" if rec.reused else f"trained in {time.perf_counter() - t:.0f} s"
+    model, reused, paths = split_model(a.split, a.seed, body, cfg)
+    native = {round(float(mrlib.load_motion(p).fps), 3) for p in paths}
+    how = "reused" if reused else f"trained in {time.perf_counter() - t:.0f} s"
     print(f"\nmrlib: {a.preset} preset at {cfg.fps:g} fps (the clips' own rate: {sorted(native)}), "
-          f"seed {a.seed}, on {', '.join(names)} ({how})", flush=True)  # fmt: skip
+          f"seed {a.seed}, on {', '.join(model.clip_names)} ({how})", flush=True)  # fmt: skip
 
     paper = {"feature_kind": "rotmat", "contact_features": False} if a.features == "paper" else {}
     settings = EvaluationSettings(num_samples=a.samples, seed=0, **paper)

@@ -49,6 +49,28 @@ HELDOUT_STYLES = ("active", "childish", "chimpira", "feminine", "giant")
 # (the first five, alphabetically, of the six styles left)
 FRESH_STYLES = ("masculinity", "musical", "not-confident", "old", "proud")
 GOALS = {"coverage_tight_pct": 90.0, "cond_fidelity_pct": 90.0}  # #51's bar, per label
+SPLITS = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}
+
+
+def split_model(split: str, seed: int, body, base=None):
+    """The cached model of ``bench/heldout.py --split SPLIT`` trained with ``seed`` (its
+    ``_001`` clips at ``base``'s rate; ``base``: a TrainConfig, the ``demo`` preset when
+    None), trained here when missing, as there. Returns ``(model, reused, paths)``, the
+    paths of the captured clips."""
+    import mrlib
+    from mrlib.datasets.bandai import tutorial_clips
+    from mrlib.model.presets import get_preset
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train_cached
+
+    source = tutorial_clips([f"walk_{s}_001" for s in SPLITS[split]], fetch=True)
+    if source.synthetic:
+        raise SystemExit(f"the Bandai clips are needed: {source.note}")
+    base = get_preset("demo") if base is None else base
+    clips = [mrlib.load_motion(q, fps=base.fps) for q in source.paths]
+    data = TrainingSet.from_motions(clips, body=body)
+    model, rec = train_cached(data, base.replace(seed=seed), body=body, progress=False)
+    return model, rec.reused, list(source.paths)
 
 
 def unseen_take_fidelity(result) -> dict[str, float]:
@@ -134,7 +156,7 @@ def main(argv=None) -> int:
 
     t_all = time.perf_counter()
     body = mrlib.load_body_model()
-    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[a.split]
+    styles = SPLITS[a.split]
     train_names = [f"walk_{s}_001" for s in styles]
     take2_names = [f"walk_{s}_002" for s in styles]
     source = tutorial_clips(train_names + take2_names, fetch=True)

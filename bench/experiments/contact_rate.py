@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
 
 from common import describe, set_threads
-from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES
+from heldout import split_model
 
 
 def shares(c: np.ndarray) -> str:
@@ -44,7 +44,6 @@ def main(argv=None) -> int:
     print(describe(), flush=True)
 
     import mrlib
-    from mrlib.datasets.bandai import tutorial_clips
     from mrlib.model.presets import get_preset
     from mrlib.sampling.conditions import Condition
     from mrlib.sampling.contact_labels import (
@@ -55,18 +54,9 @@ def main(argv=None) -> int:
     )
     from mrlib.sampling.generation import label_inputs, sample_ranked
     from mrlib.sampling.sampler import Sampler
-    from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import train_cached
 
     body = mrlib.load_body_model()
-    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[a.split]
-    source = tutorial_clips([f"walk_{s}_001" for s in styles], fetch=True)
-    if source.synthetic:
-        raise SystemExit(f"the Bandai clips are needed: {source.note}")
-    base = get_preset(a.preset)
-    clips = [mrlib.load_motion(q, fps=base.fps) for q in source.paths]  # as bench/heldout.py
-    data = TrainingSet.from_motions(clips, body=body)
-    model, _ = train_cached(data, base.replace(seed=a.seed), body=body, progress=False)
+    model, _, _ = split_model(a.split, a.seed, body, get_preset(a.preset))
     rates = label_contact_rates(model)
     sampler = Sampler()
     lo, hi = CONTACT_BAND

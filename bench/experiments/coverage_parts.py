@@ -31,7 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # bench/: common.py
 
 from common import describe, set_threads
-from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES
+from heldout import split_model
 
 ROT = slice(0, 23 * 6)  # metric_features: rotations first, then the 6 contact labels
 
@@ -79,27 +79,18 @@ def main(argv=None) -> int:
     print(describe(), flush=True)
 
     import mrlib
-    from mrlib.datasets.bandai import tutorial_clips
     from mrlib.metrics.coverage import condition_fidelity, coverage_profile
     from mrlib.metrics.windows import metric_features, window_nn
     from mrlib.model.presets import get_preset, training_config
     from mrlib.representation.features import features_to_motion
     from mrlib.sampling.generation import generate, reconstruct
-    from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import train_cached
 
     body = mrlib.load_body_model()
-    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[a.split]
-    source = tutorial_clips([f"walk_{s}_001" for s in styles], fetch=True)
-    if source.synthetic:
-        raise SystemExit(f"the Bandai clips are needed: {source.note}")
     its = None if a.iterations is None else [int(v) for v in a.iterations.split(",")]
     base = get_preset(a.preset) if its is None else training_config(a.preset, its)
     base = base if a.fps is None else base.replace(fps=a.fps)
-    captured = [mrlib.load_motion(q) for q in source.paths]
-    clips = [mrlib.load_motion(q, fps=base.fps) for q in source.paths]  # as bench/heldout.py
-    data = TrainingSet.from_motions(clips, body=body)
-    model, _ = train_cached(data, base.replace(seed=a.seed), body=body, progress=False)
+    model, _, paths = split_model(a.split, a.seed, body, base)
+    captured = [mrlib.load_motion(q) for q in paths]
     print(f"\n`{a.preset}` at {base.fps:g} fps, iterations {list(base.block_iterations)}, training "
           f"seed {a.seed}, {a.samples} cleaned samples per label, windows of 30 frames\n")  # fmt: skip
     print("| clip | coverage eps 1 % | rotations only % | contacts differing % | "

@@ -29,7 +29,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from common import describe, set_threads  # noqa: E402
-from heldout import DEV_STYLES, FRESH_STYLES, HELDOUT_STYLES  # noqa: E402
+from heldout import split_model  # noqa: E402
 
 
 def parse(config: str) -> dict:
@@ -67,23 +67,12 @@ def main(argv=None) -> int:
 
     import mrlib
     import mrlib.sampling.generation as generation
-    from mrlib.datasets.bandai import tutorial_clips
     from mrlib.evaluation import EvaluationSettings, evaluate_model
-    from mrlib.model.presets import get_preset
-    from mrlib.training.data import TrainingSet
-    from mrlib.training.trainer import train_cached
 
-    styles = {"heldout": HELDOUT_STYLES, "fresh": FRESH_STYLES, "dev": DEV_STYLES}[a.split]
-    names = [f"walk_{s}_001" for s in styles]
-    source = tutorial_clips(names, fetch=True)
-    if source.synthetic:
-        raise SystemExit(f"the Bandai clips are needed: {source.note}")
-    base, body = get_preset("demo"), mrlib.load_body_model()
-    clips = [mrlib.load_motion(p, fps=base.fps) for p in source.paths]
-    data = TrainingSet.from_motions(clips, body=body)
-    model, rec = train_cached(data, base.replace(seed=a.seed), body=body, progress=False)
-    print(f"demo model, seed {a.seed}, on {', '.join(names)} "
-          f"({'reused' if rec.reused else 'trained'})\n", flush=True)  # fmt: skip
+    body = mrlib.load_body_model()
+    model, reused, _ = split_model(a.split, a.seed, body)
+    print(f"demo model, seed {a.seed}, on {', '.join(model.clip_names)} "
+          f"({'reused' if reused else 'trained'})\n", flush=True)  # fmt: skip
 
     plain_amp, plain_guided = generation.noise_amplitude, generation.guided_weights
     plain_inputs, plain_noise = generation.label_inputs, generation.draw_noise
