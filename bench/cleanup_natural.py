@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     if "raw" not in names:
         names.insert(0, "raw")
     settings = EvaluationSettings(num_samples=a.samples, eps=a.eps)
-    cache = _ReferenceCache(body, settings.feature_kind)
+    cache = _ReferenceCache(body, settings.feature_kind, settings.contact_features)
     refs = model_references(model)
     print(describe())
     which = a.checkpoint or f"training seed {a.seed}"

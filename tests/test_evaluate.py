@@ -83,6 +83,11 @@ def test_the_papers_distance_leaves_the_contact_labels_out(body):
         metric_features(flipped, "rotmat", False), metric_features(ref, "rotmat", False)
     )
     assert theirs["coverage_pct"] == pytest.approx(100.0 * by_hand)
+    # a reference cache built for other features is not used for these settings
+    cached = ev.score_motions(
+        [flipped], ref, settings=paper, _cache=ev._ReferenceCache(body, "6d", True), **kw
+    )
+    assert cached["coverage_pct"] == theirs["coverage_pct"]
 
 
 # -- the protocol on constructed motion ---------------------------------------------------------

@@ -73,13 +73,7 @@ from mrlib.representation.body import check_body, resolve_body
 from mrlib.representation.motion import Motion
 from mrlib.training.data import instance_or_none
 
-__all__ = [
-    "SampleFn",
-    "score_motions",
-    "evaluate",
-    "CalibrationOptions",
-    "EvaluationSettings",
-]
+__all__ = ["SampleFn", "score_motions", "evaluate", "CalibrationOptions", "EvaluationSettings"]
 
 SampleFn = Callable[[str, int, int], Motion]
 """``sample_fn(label, length, seed) -> Motion``: one generated clip of ``length`` frames."""
@@ -162,7 +156,9 @@ def score_motions(
     labelled = [pl.motion_contacts(m, feet) for m, (_, feet) in zip(motions, kin, strict=True)]
     gens = [m.replace(contacts=c) for m, (c, _) in zip(motions, labelled, strict=True)]
     g_feats = [mt.metric_features(m, s.feature_kind, s.contact_features) for m in gens]
-    cache = _cache or _ReferenceCache(body, s.feature_kind, s.contact_features)
+    cache = _cache
+    if cache is None or (cache.kind, cache.contacts) != (s.feature_kind, s.contact_features):
+        cache = _ReferenceCache(body, s.feature_kind, s.contact_features)  # none, or other features
     ref = cache(reference)
     r_feats = ref.features
 
