@@ -127,6 +127,8 @@ def main(argv=None) -> int:
                         "--iterations [the preset's]")  # fmt: skip
     p.add_argument("--mismatch", type=float, default=None,
                    help="the critics' mismatch weight (LossWeights.mismatch) [the preset's]")  # fmt: skip
+    p.add_argument("--contact-weight", type=float, default=None,
+                   help="the contact consistency weight (LossWeights.con) [the preset's]")  # fmt: skip
     p.add_argument("--window-s", type=float, default=None,
                    help="coverage window and PNN T_min in seconds, the local-diversity window "
                         "half of it [the frame counts of EvaluationSettings]")  # fmt: skip
@@ -169,6 +171,8 @@ def main(argv=None) -> int:
     base = base if a.fps is None else base.replace(fps=a.fps)
     if a.mismatch is not None:
         base = base.replace(loss=dataclasses.replace(base.loss, mismatch=a.mismatch))
+    if a.contact_weight is not None:
+        base = base.replace(loss=dataclasses.replace(base.loss, con=a.contact_weight))
     clips = [mrlib.load_motion(paths[n], fps=base.fps) for n in train_names]
     data = TrainingSet.from_motions(clips, body=body)
     takes = {n: mrlib.load_motion(paths[n]) for n in take2_names}

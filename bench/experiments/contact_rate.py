@@ -15,6 +15,7 @@ contact outputs inside ``CONTACT_BAND``, where the generator is unsure.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -37,6 +38,8 @@ def main(argv=None) -> int:
     p.add_argument("--split", choices=["heldout", "fresh", "dev"], default="heldout")
     p.add_argument("--seed", type=int, default=0, help="training seed [0]")
     p.add_argument("--preset", choices=["demo", "preview"], default="demo")
+    p.add_argument("--contact-weight", type=float, default=None,
+                   help="the contact consistency weight, as bench/heldout.py [the preset's]")  # fmt: skip
     p.add_argument("--samples", type=int, default=20)
     p.add_argument("--threads", type=int, default=None)
     a = p.parse_args(argv)
@@ -56,7 +59,10 @@ def main(argv=None) -> int:
     from mrlib.sampling.sampler import Sampler
 
     body = mrlib.load_body_model()
-    model, _, _ = split_model(a.split, a.seed, body, get_preset(a.preset))
+    base = get_preset(a.preset)
+    if a.contact_weight is not None:
+        base = base.replace(loss=dataclasses.replace(base.loss, con=a.contact_weight))
+    model, _, _ = split_model(a.split, a.seed, body, base)
     rates = label_contact_rates(model)
     sampler = Sampler()
     lo, hi = CONTACT_BAND
