@@ -86,3 +86,46 @@ def test_generate_labels_the_same_draw_at_the_rate(model):
         assert matched[b].meta["sampler"]["match_contact_rate"] is True
     assert plain[0].meta["sampler"]["match_contact_rate"] is False
     assert torch.is_tensor(raw)
+
+
+def test_constrained_samples_read_their_labels_at_the_rate(model, monkeypatch, body):
+    """Paths, keyframes, continuations and loops label their contacts at the condition's
+    rate when the sampler asks, and cut at 0.5 when it does not."""
+    import mrlib.sampling.contact_labels as cl
+    import mrlib.sampling.generation as gen
+    from mrlib.sampling import constraints as C
+
+    calls, real = [], cl.output_contacts
+
+    def spy(m, x, W):
+        calls.append((W.clone(), real(m, x, W)))
+        return calls[-1][1]
+
+    monkeypatch.setattr(cl, "output_contacts", spy)
+    monkeypatch.setattr(gen, "output_contacts", spy)
+    walk = generate(model, "walk_sad", length=30, seed=1, sampler=raw_sampler())
+    kfs = [C.Keyframe.from_motion(walk, 0, 0)]
+
+    def draw(sampler):
+        return {
+            "keyframes": C.generate_with_keyframes(
+                model, kfs, 30, "walk_sad", seed=0, sampler=sampler,
+                fit=C.KeyframeFit(steps=1), body=body,
+            ),
+            "continuation": C.continue_motion(
+                model, walk.slice(0, 10), 20, "walk_sad", seed=0, sampler=sampler,
+                fit=C.NoiseFit(steps=1), body=body,
+            ),
+            "loop": C.generate_loop(model, "walk_sad", 40, seed=1, start="sample",
+                                    sampler=sampler, body=body),
+            "path": C.generate_on_path(model, "circle:2", "walk_sad", seconds=3.0, seed=0,
+                                       sampler=sampler, body=body),
+        }  # fmt: skip
+
+    draw(raw_sampler())
+    assert calls == []  # the paper's cut
+    made = draw(Sampler(fix_contacts=False, candidates=1, match_contact_rate=True))
+    W = Condition.label("walk_sad").weights(model)
+    assert len(calls) == len(made)
+    assert all(torch.equal(w, W) for w, _ in calls)
+    np.testing.assert_array_equal(made["loop"].contacts, calls[2][1][0])

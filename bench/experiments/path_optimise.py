@@ -42,7 +42,7 @@ def generate_on_path_optimised(
         seconds, pace = path_seconds(model, path, condition, sampler=sampler)
     length = max(2, round(seconds * model.fps))
     body = resolve_body(body, shared=True)
-    noises, conds, label = label_setup(model, condition, length, seed, sampler)
+    noises, conds, label, _ = label_setup(model, condition, length, seed, sampler)
     t = np.arange(length) / model.fps
     if path.times is not None:
         s = path.arc_at_time(t)

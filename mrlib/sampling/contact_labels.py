@@ -13,7 +13,8 @@ their frames, per vertex: :func:`label_contact_rates`; mixed conditions weigh th
 rates by the condition's mean weights over levels). The cut this needs is kept within
 ``CONTACT_BAND``: an output above its upper end is always a contact, one below its lower
 end never, so that a confident output is not overruled to reach a rate. This is what
-``Sampler(match_contact_rate=True)`` does to the label samples of ``mrlib.generate``; the
+``Sampler(match_contact_rate=True)`` does to label samples (``mrlib.generate``, and the
+paths, keyframes, continuations and loops of ``mrlib.sampling.constraints``); the
 default is the paper's cut, because on the 15-fps ``preview`` models the happy walk's
 fidelity fell with it (the same note).
 
@@ -35,6 +36,7 @@ __all__ = [
     "label_contact_rates",
     "condition_contact_rates",
     "rate_matched_contacts",
+    "output_contacts",
 ]
 
 # Outputs within 0.1 of a label are that label whatever the rate asks.
@@ -90,3 +92,11 @@ def rate_matched_contacts(
     cut = np.quantile(x, 1.0 - np.clip(rates, 0.0, 1.0), axis=1)  # (6, B, 6)
     cut = np.clip(cut[np.arange(_NC), :, np.arange(_NC)].T, lo, hi)  # (B, 6)
     return (x > cut[:, None, :]).astype(np.float32)
+
+
+def output_contacts(model, x: torch.Tensor, W: torch.Tensor) -> np.ndarray:
+    """Contact labels ``(B, T, 6)`` at the rate of condition ``W`` (``(L, K)``) for the
+    generator's normalised output ``x (B, C, T)``."""
+    y = x.detach().cpu().transpose(1, 2)
+    y = y if model.normalizer is None else model.normalizer.denormalize(y)
+    return rate_matched_contacts(y[..., -_NC:], condition_contact_rates(model, W))

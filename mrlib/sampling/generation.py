@@ -26,7 +26,7 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 from mrlib.sampling.conditions import Condition, as_condition
-from mrlib.sampling.contact_labels import condition_contact_rates, rate_matched_contacts
+from mrlib.sampling.contact_labels import output_contacts
 from mrlib.sampling.ranking import best_candidates, can_rank, critic_scores
 from mrlib.sampling.sampler import Sampler
 
@@ -347,9 +347,7 @@ def _label_samples(
     names = [f"{label}_seed{seed}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
     if sampler.match_contact_rate:
-        x = outs[-1].detach().cpu().transpose(1, 2)
-        x = x if model.normalizer is None else model.normalizer.denormalize(x)
-        c = rate_matched_contacts(x[..., -6:], condition_contact_rates(model, W))
+        c = output_contacts(model, outs[-1], W)
         motions = [m.replace(contacts=c[b]) for b, m in enumerate(motions)]
     if sampler.fps is not None and sampler.fps != model.fps:  # raised before the feet are planted
         motions = [m.resample(sampler.fps, smooth=True) for m in motions]

@@ -79,7 +79,8 @@ class Sampler:
         match_contact_rate: label each foot vertex in contact on as many frames as the
             condition's training clips are (``mrlib.sampling.contact_labels``: the frames
             of highest contact output) instead of where the output exceeds 0.5 (False,
-            the paper's sampler). Label samples of ``mrlib.generate`` only. It raised the
+            the paper's sampler). Label samples only (``mrlib.generate`` and the paths,
+            keyframes, continuations and loops of ``mrlib.sampling.constraints``). It raised the
             lowest label's fidelity of the 30-fps ``demo`` models and lowered the happy
             walk's of the 15-fps ``preview`` models (docs/notes/2026-12-07-contact-rate.md).
     """

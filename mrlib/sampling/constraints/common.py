@@ -92,8 +92,9 @@ def parse_parts(spec: str) -> dict[str, str]:
 
 def label_setup(model, condition, length: int, seed: int | None, sampler):
     """Noise maps ``[(1, 1, T_i)]`` (the draw ``generate`` makes for ``seed``), checked
-    per-level conditions and the finest level's main label, for a label condition (a
-    label or a ``mrlib.Condition``; None: the first label) under ``sampler``."""
+    per-level conditions, the finest level's main label, and the condition's weights
+    ``W (L, K)`` where the sampler matches the contact rate (else None), for a label
+    condition (a label or a ``mrlib.Condition``; None: the first label) under ``sampler``."""
     from mrlib.sampling.conditions import as_condition
     from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs
 
@@ -101,7 +102,8 @@ def label_setup(model, condition, length: int, seed: int | None, sampler):
     lengths, amp, conds = label_inputs(model, W, length, sampler)
     noises = draw_noise(lengths, amp, seed, 1, model.device)
     label = model.labels[int(W[-1].argmax())]
-    return noises, check_conditions(model, conds, lengths), label
+    rate_of = W if sampler.match_contact_rate else None
+    return noises, check_conditions(model, conds, lengths), label, rate_of
 
 
 def planted(motion: Motion, sampler, body=None) -> Motion:
@@ -114,14 +116,21 @@ def planted(motion: Motion, sampler, body=None) -> Motion:
     return cleanup_foot_contacts(motion, body)
 
 
-def features_motion(model, x: torch.Tensor, label: str | None, name: str) -> Motion:
-    """Generator output ``(1, C, T)`` (normalised) -> Motion at the model's rate."""
+def features_motion(model, x: torch.Tensor, label: str | None, name: str, rate_of=None) -> Motion:
+    """Generator output ``(1, C, T)`` (normalised) -> Motion at the model's rate; its
+    contact labels at the rate of the condition ``rate_of`` (``W``) when given
+    (``mrlib.sampling.contact_labels``), else cut at 0.5."""
     from mrlib.representation.features import features_to_motion
 
-    return features_to_motion(
+    m = features_to_motion(
         x[0].T.detach().cpu(), model.fps, betas=model.betas, normalizer=model.normalizer,
         label=label, name=name,
     )  # fmt: skip
+    if rate_of is None:
+        return m
+    from mrlib.sampling.contact_labels import output_contacts
+
+    return m.replace(contacts=output_contacts(model, x, rate_of)[0])
 
 
 def pelvis_rest(motion: Motion, body) -> np.ndarray:
@@ -131,10 +140,13 @@ def pelvis_rest(motion: Motion, body) -> np.ndarray:
     return rest_pelvis(body, motion.betas)
 
 
-def fitted_motion(model, noises, conds, label: str | None, name: str, loss_fn, fit) -> Motion:
+def fitted_motion(
+    model, noises, conds, label: str | None, name: str, loss_fn, fit, rate_of=None
+) -> Motion:
     """The model's (raw) motion for ``noises`` after ``fit.steps`` of noise optimisation
     against ``loss_fn`` (``mrlib.sampling.constraints.optimise``; none when the steps are
-    0 or ``loss_fn`` is None; ``fit``: a ``NoiseFit``)."""
+    0 or ``loss_fn`` is None; ``fit``: a ``NoiseFit``); ``rate_of``: as
+    :func:`features_motion`."""
     if fit.steps > 0 and loss_fn is not None:
         from mrlib.sampling.constraints.optimise import optimise_noise
 
@@ -143,4 +155,4 @@ def fitted_motion(model, noises, conds, label: str | None, name: str, loss_fn, f
         )
     with torch.no_grad():
         x = model.generator.run_batch(noises, conds)
-    return features_motion(model, x, label, name)
+    return features_motion(model, x, label, name, rate_of)

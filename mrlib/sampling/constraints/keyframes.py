@@ -337,10 +337,11 @@ def generate_with_keyframes(
         raise MotionValueError(f"length must be >= 2 frames, got {length}")
     probe = Motion(np.zeros((length, NUM_JOINTS, 3)), np.zeros((length, 3)), model.fps)
     _check_frames(probe, keyframes)
-    noises, conds, label = label_setup(model, condition, length, seed, sampler)
+    noises, conds, label, rate_of = label_setup(model, condition, length, seed, sampler)
     loss_fn = keyframe_objective(model, keyframes, length, still, body)
     name = f"{label}_keyframes_seed{seed}"
-    m = planted(fitted_motion(model, noises, conds, label, name, loss_fn, fit), sampler, body)
+    m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
+    m = planted(m, sampler, body)
     m = align_to_keyframes(m, keyframes, body)
     return apply_keyframes(m, keyframes, blend_s=BLEND_S)
 
@@ -389,7 +390,7 @@ def continue_motion(
         raise MotionValueError(f"need a prefix of >= 2 frames and frames >= 1, got {K}, {frames}")
     T = K + int(frames)
     sampler = Sampler() if sampler is None else sampler
-    noises, conds, label = label_setup(model, condition, T, seed, sampler)
+    noises, conds, label, rate_of = label_setup(model, condition, T, seed, sampler)
     six = _sixd(axis_angle_to_matrix(torch.from_numpy(prefix.poses[:, 1:].astype(np.float64))))
     six = six.float().to(model.device)  # (K, 23, 6)
     height = torch.from_numpy(prefix.trans[:, 1].astype(np.float32)).to(model.device)
@@ -406,7 +407,8 @@ def continue_motion(
         return rot + root
 
     name = f"{prefix.name or 'prefix'}_continued"
-    m = planted(fitted_motion(model, noises, conds, label, name, loss_fn, fit), sampler, body)
+    m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
+    m = planted(m, sampler, body)
     anchors = [Keyframe(f, prefix.poses[f], (0,), prefix.trans[f]) for f in range(K)]
     m = align_to_keyframes(m, anchors, body)
     # keep the prefix; ease the rest from the prefix's last pose and velocity
