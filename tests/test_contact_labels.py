@@ -89,8 +89,8 @@ def test_generate_labels_the_same_draw_at_the_rate(model):
 
 
 def test_constrained_samples_read_their_labels_at_the_rate(model, monkeypatch, body):
-    """Paths, keyframes, continuations and loops label their contacts at the condition's
-    rate when the sampler asks, and cut at 0.5 when it does not."""
+    """Paths, keyframes, continuations, loops and sharpened body parts label their
+    contacts at the condition's rate when the sampler asks, and cut at 0.5 when not."""
     import mrlib.sampling.contact_labels as cl
     import mrlib.sampling.generation as gen
     from mrlib.sampling import constraints as C
@@ -120,6 +120,8 @@ def test_constrained_samples_read_their_labels_at_the_rate(model, monkeypatch, b
                                     sampler=sampler, body=body),
             "path": C.generate_on_path(model, "circle:2", "walk_sad", seconds=3.0, seed=0,
                                        sampler=sampler, body=body),
+            "sharpened": C.generate_sharpened(model, "walk_sad", ("upper",), 30, seed=0,
+                                              sampler=sampler, fit=C.Sharpening(1)),
         }  # fmt: skip
 
     draw(raw_sampler())
@@ -129,3 +131,5 @@ def test_constrained_samples_read_their_labels_at_the_rate(model, monkeypatch, b
     assert len(calls) == len(made)
     assert all(torch.equal(w, W) for w, _ in calls)
     np.testing.assert_array_equal(made["loop"].contacts, calls[2][1][0])
+    np.testing.assert_array_equal(made["sharpened"].contacts, calls[4][1][0])
+    assert made["sharpened"].meta["sampler"]["match_contact_rate"] is True

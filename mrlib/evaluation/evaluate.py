@@ -453,7 +453,7 @@ def evaluate_model(
     }
     samplers, recons = {}, {}
     for mname, (per_key, recon) in methods.items():
-        sampler = s.raw_sampler()
+        sampler = s.sampler()
         fns = _per_key_sample_fns(per_key, sampler)  # one draw for the cleaned and raw rows
         for clean, suffix in variants[contacts]:
             samplers[mname + suffix] = fns[clean]

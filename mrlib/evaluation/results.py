@@ -75,7 +75,7 @@ class EvaluationSettings:
     match_contact_rate: bool = False  # contact labels at each label's rate, not at 0.5
 
     def __post_init__(self) -> None:
-        self.raw_sampler()  # the sampler's settings within their bounds
+        self.sampler()  # the sampler's settings within their bounds
         for name in ("num_samples", "coverage_window", "tmin", "local_window"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -104,9 +104,10 @@ class EvaluationSettings:
                 f"feature_kind must be '6d' or 'rotmat', got {self.feature_kind!r}"
             )
 
-    def raw_sampler(self) -> Sampler:
-        """The ``mrlib.Sampler`` of these settings without the foot-contact clean-up
-        (evaluate_model plants the feet of the same draws for the cleaned rows)."""
+    def sampler(self) -> Sampler:
+        """The ``mrlib.Sampler`` the model's samples are drawn with: these settings, no
+        foot-contact clean-up (evaluate_model plants the feet of the same draws for the
+        cleaned rows)."""
         return Sampler(
             self.fine_noise, self.guidance, fix_contacts=False, candidates=self.candidates,
             match_contact_rate=self.match_contact_rate,

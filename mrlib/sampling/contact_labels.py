@@ -14,7 +14,7 @@ rates by the condition's mean weights over levels). The cut this needs is kept w
 ``CONTACT_BAND``: an output above its upper end is always a contact, one below its lower
 end never, so that a confident output is not overruled to reach a rate. This is what
 ``Sampler(match_contact_rate=True)`` does to label samples (``mrlib.generate``, and the
-paths, keyframes, continuations and loops of ``mrlib.sampling.constraints``); the
+paths, keyframes, continuations, loops and body parts of ``mrlib.sampling.constraints``); the
 default is the paper's cut, because on the 15-fps ``preview`` models the happy walk's
 fidelity fell with it (the same note).
 

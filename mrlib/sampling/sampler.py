@@ -80,7 +80,8 @@ class Sampler:
             condition's training clips are (``mrlib.sampling.contact_labels``: the frames
             of highest contact output) instead of where the output exceeds 0.5 (False,
             the paper's sampler). Label samples only (``mrlib.generate`` and the paths,
-            keyframes, continuations and loops of ``mrlib.sampling.constraints``). It raised the
+            keyframes, continuations, loops and body parts of
+            ``mrlib.sampling.constraints``). It raised the
             lowest label's fidelity of the 30-fps ``demo`` models and lowered the happy
             walk's of the 15-fps ``preview`` models (docs/notes/2026-12-07-contact-rate.md).
     """

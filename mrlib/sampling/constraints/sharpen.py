@@ -252,6 +252,11 @@ def generate_sharpened(
     names = [f"{label}_sharp_seed{seed}_{b}" for b in range(num_samples)]
     motions = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
                                   normalizer=model.normalizer, label=label, names=names)  # fmt: skip
+    if sampler.match_contact_rate:  # as generate reads them
+        from mrlib.sampling.contact_labels import output_contacts
+
+        c = output_contacts(model, x, W)
+        motions = [m.replace(contacts=c[b]) for b, m in enumerate(motions)]
     for b, m in enumerate(motions):  # as generate records it, and the fit
         m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
         m.meta["sampler"]["sharpen"] = {
