@@ -65,7 +65,7 @@ def main(argv=None) -> int:
     from mrlib.evaluation import EvaluationSettings
     from mrlib.evaluation.calibration import PLAYED_TWICE
     from mrlib.evaluation.evaluate import evaluate, model_references, model_sample_fn
-    from mrlib.evaluation.results import CALIB_PREFIX
+    from mrlib.evaluation.results import CALIB_PREFIX, FEATURE_SETS
     from mrlib.model.presets import get_preset
 
     body = mrlib.load_body_model()
@@ -77,8 +77,7 @@ def main(argv=None) -> int:
     print(f"\nmrlib: {a.preset} preset at {cfg.fps:g} fps (the clips' own rate: {sorted(native)}), "
           f"seed {a.seed}, on {', '.join(model.clip_names)} ({how})", flush=True)  # fmt: skip
 
-    paper = {"feature_kind": "rotmat", "contact_features": False} if a.features == "paper" else {}
-    settings = EvaluationSettings(num_samples=a.samples, seed=0, **paper)
+    settings = EvaluationSettings(num_samples=a.samples, seed=0, **FEATURE_SETS[a.features])
     print(f"features: {a.features}'s", flush=True)
     refs = model_references(model)
     spent: dict[str, float] = {}

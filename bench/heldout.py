@@ -151,6 +151,7 @@ def main(argv=None) -> int:
     from mrlib.datasets.bandai import tutorial_clips
     from mrlib.errors import ClipTooShortError
     from mrlib.evaluation import EvaluationSettings, evaluate_model
+    from mrlib.evaluation.results import FEATURE_SETS
     from mrlib.model.presets import get_preset, training_config
     from mrlib.sampling.restyling import restyle, restyle_lengths, restyle_level
     from mrlib.training.data import TrainingSet
@@ -192,7 +193,7 @@ def main(argv=None) -> int:
         if a.candidates is not None:
             windows["candidates"] = a.candidates
         if a.features == "paper":
-            windows.update(feature_kind="rotmat", contact_features=False)
+            windows.update(FEATURE_SETS["paper"])
         if a.match_contact_rate:
             windows["match_contact_rate"] = True
         settings = EvaluationSettings(num_samples=a.samples, seed=seed, **windows)

@@ -45,6 +45,13 @@ CALIB_PREFIX = "calib: "  # method name of a calibration row: CALIB_PREFIX + row
 # ---------------------------------------------------------------------------------------
 # Settings
 # ---------------------------------------------------------------------------------------
+# The frame features of ``mrlib evaluate --features``, as EvaluationSettings fields.
+FEATURE_SETS = {
+    "mrlib": {"feature_kind": "6d", "contact_features": True},
+    "paper": {"feature_kind": "rotmat", "contact_features": False},
+}
+
+
 @dataclass(frozen=True)
 class EvaluationSettings:
     """Everything that determines the numbers of an evaluation."""

@@ -93,6 +93,7 @@ def cmd_evaluate(args) -> int:
         evaluate_model,
         model_references,
     )
+    from mrlib.evaluation.results import FEATURE_SETS
     from mrlib.io.outputs import check_writable
     from mrlib.io.transaction import output_transaction, when_written
     from mrlib.model.trained import load_model
@@ -132,8 +133,7 @@ def cmd_evaluate(args) -> int:
             eps=args.eps,
             tight_eps=args.tight_eps,
             seed=args.seed,
-            feature_kind="rotmat" if args.features == "paper" else "6d",
-            contact_features=args.features != "paper",
+            **FEATURE_SETS[args.features],
             fine_noise=sampler.fine_noise,
             guidance=sampler.guidance,
             candidates=sampler.candidates,
