@@ -1,5 +1,7 @@
 """Tests for mrlib.io.bvh: parser, Euler angles, forward kinematics, writer."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -142,8 +144,8 @@ def _lines(text):
         # truncated frame data
         (
             lambda t: "\n".join(_lines(t)[:-1]),
-            24,
-            r"'Frames: 2' but the file has 1 frame lines \(truncated",
+            22,  # the line that declares the frames; where the file ends is said after
+            r"'Frames: 2' but the file ends at line 24 after 1 frame lines \(truncated",
         ),
         # more frame lines than declared
         (lambda t: t + "0 0 0 0 0 0 0 0 0 0\n", 26, "more frame lines than declared"),
@@ -214,3 +216,34 @@ def test_writer_reorders_joints_depth_first():
     _, p = bvh_forward_kinematics(b)
     _, p2 = bvh_forward_kinematics(b2)
     np.testing.assert_allclose(p2[:, [0, 1, 3, 2, 4]], p, atol=1e-5)
+
+
+def test_a_reference_pose_before_the_motion_is_left_out(tmp_path):
+    """Exporters such as Axis Neuron write a zero pose at the origin as frame 1; the
+    motion starts at frame 2. That frame is left out, with a warning; a clip that leaves
+    the zero pose smoothly keeps it."""
+    import warnings
+
+    from mrlib.io import load_bvh, load_motion, save_motion
+    from mrlib.io.bvh import BVH, ReferenceFrameWarning
+
+    walk = load_motion(Path(__file__).resolve().parents[1] / "data_samples" / "walk_sad.npz")
+    plain = save_motion(walk, tmp_path / "walk.bvh")
+    b = read_bvh(plain)
+    ref = BVH(b.skeleton, np.concatenate([np.zeros_like(b.motion[:1]), b.motion]), b.frame_time)
+    write_bvh(tmp_path / "ref.bvh", ref)
+    with pytest.warns(ReferenceFrameWarning, match="frame 1 is a reference pose"):
+        got = load_bvh(tmp_path / "ref.bvh")
+    want = load_bvh(plain)
+    assert got.num_frames == want.num_frames == walk.num_frames
+    assert got.meta["bvh_reference_frame_left_out"] is True
+    np.testing.assert_allclose(got.poses, want.poses, atol=1e-5)
+    # the same zero pose easing into the motion over a second is motion: kept
+    ease = np.linspace(0.0, 1.0, 31)[:, None] * b.motion[:1]
+    smooth = BVH(b.skeleton, np.concatenate([ease, b.motion[1:]]), b.frame_time)
+    write_bvh(tmp_path / "smooth.bvh", smooth)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ReferenceFrameWarning)
+        kept = load_bvh(tmp_path / "smooth.bvh")
+    assert kept.num_frames == len(smooth.motion)
+    assert "bvh_reference_frame_left_out" not in kept.meta

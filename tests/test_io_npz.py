@@ -10,7 +10,7 @@ from mrlib.errors import MotionFileError, UnsupportedFormatError
 from mrlib.io import load_motion, save_motion
 from mrlib.io.axes import up_axis_rotation
 from mrlib.io.bodyfit import default_body
-from mrlib.io.npz import load_easymocap, load_npz, save_npz
+from mrlib.io.npz import BodyModelWarning, load_easymocap, load_npz, save_npz
 from mrlib.representation.motion import Motion
 from mrlib.representation.rotations import (
     axis_angle_to_matrix,
@@ -83,7 +83,9 @@ def test_amass_smplh_z_up(tmp_path, body):
     betas16 = np.concatenate([m.betas, rng.normal(size=6)])
     np.savez(tmp_path / "amass.npz", poses=poses156, trans=trans_z, betas=betas16,
              mocap_framerate=np.array(60.0), gender=np.array("male"))  # fmt: skip
-    back = load_motion(tmp_path / "amass.npz", body=body)
+    with pytest.warns(BodyModelWarning, match="made for the male SMPL body"):
+        back = load_motion(tmp_path / "amass.npz", body=body)
+    assert back.meta["source_gender"] == "male"  # read on the neutral body, said so
     assert back.fps == 60.0 and back.meta["up_axis"] == "z" and back.meta["dropped_hand_pose"]
     np.testing.assert_allclose(back.betas, m.betas, atol=1e-6)  # first 10 of 16
     assert np.all(back.poses[:, 22:] == 0)  # SMPL's hand joints: no SMPL-H counterpart
@@ -154,9 +156,12 @@ def test_bad_npz_names_the_key(tmp_path, arrays, match):
 
 
 def test_not_an_npz(tmp_path):
-    (tmp_path / "junk.npz").write_text("hello")
-    with pytest.raises(MotionFileError, match="cannot read npz"):
+    (tmp_path / "junk.npz").write_text("hello")  # not numpy's advice about pickles
+    with pytest.raises(MotionFileError, match=r"is not an .npz archive \(neither a zip"):
         load_motion(tmp_path / "junk.npz")
+    (tmp_path / "empty.npz").write_bytes(b"")
+    with pytest.raises(MotionFileError, match="empty.npz: is empty"):
+        load_motion(tmp_path / "empty.npz")
     with pytest.raises(UnsupportedFormatError):
         load_motion(tmp_path / "clip.pkl")
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ from mrlib.errors import (
     shown,
 )
 from mrlib.io.bvh.hierarchy import BVH, BVHSkeleton, frame_time_problem
+from mrlib.io.bvh.kinematics import ReferenceFrameWarning, without_reference_frame
 from mrlib.io.bvh.reader import parse_bvh, read_bvh
 from mrlib.io.bvh.writer import format_bvh, write_bvh
 from mrlib.io.export import smpl_to_bvh
@@ -175,7 +177,14 @@ def load_bvh(
         joint in cm).
     """
     path = Path(path)
-    bvh = read_bvh(path)
+    bvh, dropped = without_reference_frame(read_bvh(path))
+    if dropped:
+        warnings.warn(
+            f"{path}: frame 1 is a reference pose (every rotation 0, then a jump to frame "
+            "2), not motion: left out",
+            ReferenceFrameWarning,
+            stacklevel=2,
+        )
     _check_angles(bvh, path)
     r = retarget_bvh(bvh, joint_map, body=body, up_axis=up_axis, unit=unit, **retarget_options)
     if label == "auto":
@@ -186,6 +195,8 @@ def load_bvh(
             except MotionFileError:
                 label = None  # a JSON that is not Bandai Namco metadata: no label
     meta = {"source": str(path), "format": "bvh", "bvh_frames": bvh.num_frames, **r.meta()}
+    if dropped:
+        meta["bvh_reference_frame_left_out"] = True
     motion = Motion(
         poses=r.poses,
         trans=r.trans,

@@ -217,8 +217,8 @@ def load_joint_map(spec: str | Path | Mapping[str, str] | JointMap) -> JointMap:
         return joint_map_from_json(Path(spec))
     raise JointMapError(
         None,
-        f"unknown joint map '{spec}'; shipped maps: {sorted(shipped)}, or pass a JSON path "
-        "or a dict",
+        f"unknown joint map '{spec}'; shipped maps: {sorted(shipped)}, or a JSON file of "
+        "{smpl_name: bvh_name} (a dict in Python)",
     )
 
 

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 import zipfile
 import zlib
 from pathlib import Path
@@ -62,13 +63,31 @@ __all__ = [
     "load_easymocap",
     "read_npy_header",
     "POSE_WIDTHS",
+    "BodyModelWarning",
 ]
+
+
+class BodyModelWarning(UserWarning):
+    """A motion file was made for another SMPL body than mrlib's neutral one (its
+    ``gender`` key): its shape parameters are read on the neutral body."""
+
 
 # Pose vector widths and the body model they come from.
 POSE_WIDTHS = {72: "SMPL", 156: "SMPL-H", 165: "SMPL-X"}
 _FPS_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps")
 _USED_KEYS = frozenset(
-    ("poses", "trans", "betas", *_FPS_KEYS, "up_axis", "contacts", "label", "name", "meta_json")
+    (
+        "poses",
+        "trans",
+        "betas",
+        *_FPS_KEYS,
+        "up_axis",
+        "contacts",
+        "label",
+        "name",
+        "meta_json",
+        "gender",
+    )  # fmt: skip
 )
 # The most one array of an npz may hold, uncompressed: 4 hours of SMPL-X poses at 30 fps
 # in float64. Checked before the array is read, from the zip's record and the array's own
@@ -194,6 +213,12 @@ def load_npz(
     """
     path = Path(path)
     try:
+        with open(path, "rb") as f:
+            head = f.read(6)
+        if not head:
+            raise MotionFileError(path, "is empty")
+        if not head.startswith((b"PK", b"\x93NUMPY")):
+            raise MotionFileError(path, "is not an .npz archive (neither a zip nor a numpy file)")
         z = np.load(path, allow_pickle=False)
         if not isinstance(z, np.lib.npyio.NpzFile):
             raise MotionFileError(path, "not an .npz archive (a single .npy array?)")
@@ -256,6 +281,15 @@ def load_npz(
         )
     else:
         rate = float(fps)
+    gender = (_text_value(data, "gender", path) or "neutral").strip().lower()
+    if gender not in ("neutral", ""):
+        meta["source_gender"] = gender
+        warnings.warn(
+            f"{path}: made for the {gender} SMPL body; mrlib reads its shape (betas) on "
+            "its neutral body, so its proportions and foot height may differ",
+            BodyModelWarning,
+            stacklevel=3,
+        )
     declared = _text_value(data, "up_axis")
     _check_rotations(path, "'poses'", poses)  # before the turn to Y up hides the root's
     if up_axis is not None and str(up_axis).lower() != "auto":
@@ -375,7 +409,11 @@ def load_easymocap(
         raise MotionFileError(folder, "EasyMocap input must be a folder of per-frame JSON files")
     files = sorted(folder.glob("*.json"), key=_natural_key)
     if not files:
-        raise MotionFileError(folder, "no *.json files in the folder")
+        raise MotionFileError(
+            folder,
+            "a folder is read as EasyMocap output (one JSON file per frame), but it has no "
+            "*.json files; give a motion file (.bvh, .npz) instead",
+        )
     if fps is None or not (np.isfinite(fps) and fps > 0):
         raise MotionFileError(folder, "EasyMocap files store no frame rate: pass fps=")
     Rh, Th, poses, shapes = [], [], [], []

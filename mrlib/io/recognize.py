@@ -345,14 +345,14 @@ def recognise_bvh(bvh, rest_joints: np.ndarray, min_confidence: float = MIN_CONF
     _, P = bvh_forward_kinematics(part)
     local, _ = bvh_local_transforms(part)
     hint = (
-        "Pass joint_map={smpl_name: bvh_name, ...} (a dict or a JSON file; `mrlib info "
-        "--write-map map.json` writes a start)."
+        "Pass a joint map {smpl_name: bvh_name, ...} (--joint-map map.json, joint_map= in "
+        "Python; `mrlib info --write-map map.json` writes a start)."
     )
     try:
         match = match_skeleton(sk.names, sk.parents, sk.offsets, P, rest_joints, local)
     except JointMapError as e:
         raise JointMapError(
-            bvh.source, f"no joint map fits this skeleton: {e.problem} {hint}"
+            bvh.source, f"no joint map fits this skeleton: {e.problem.rstrip('.')}. {hint}"
         ) from None
     if match.confidence < min_confidence:
         failed = [f"{w} ({d})" for w, ok, d in match.checks if not ok]

@@ -102,7 +102,7 @@ from mrlib.io.axes import (
 )
 from mrlib.io.bodyfit import default_body, joint_shape_basis
 from mrlib.io.bvh.hierarchy import BVH
-from mrlib.io.bvh.kinematics import bvh_forward_kinematics
+from mrlib.io.bvh.kinematics import bvh_forward_kinematics, without_reference_frame
 from mrlib.io.jointmap import JointMap, detect_joint_map, load_joint_map, validate_map
 from mrlib.io.proportions import compared_joints, source_bones
 from mrlib.io.recognize import SkeletonMatch, recognise_bvh
@@ -298,6 +298,7 @@ def calibrate_retarget(
             raise MotionFileError(b.source, f"skeleton differs from {bvhs[0].source}'s")
     parts = []
     for b in bvhs:
+        b = without_reference_frame(b)[0]  # as load_bvh reads it
         n = min(b.num_frames, max_frames_per_clip)
         parts.append(
             b.motion[np.unique(np.linspace(0, b.num_frames - 1, n).round().astype(np.int64))]

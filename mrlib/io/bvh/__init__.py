@@ -38,11 +38,13 @@ from mrlib.io.bvh.hierarchy import (
     frame_time_problem,
 )
 from mrlib.io.bvh.kinematics import (
+    ReferenceFrameWarning,
     bvh_forward_kinematics,
     bvh_local_transforms,
     euler_to_matrix,
     forward_kinematics,
     matrix_to_euler,
+    without_reference_frame,
 )
 from mrlib.io.bvh.reader import MAX_BVH_BYTES, MAX_DEPTH, parse_bvh, read_bvh
 from mrlib.io.bvh.writer import format_bvh, write_bvh
@@ -60,6 +62,8 @@ __all__ = [
     "forward_kinematics",
     "bvh_forward_kinematics",
     "frame_time_problem",
+    "without_reference_frame",
+    "ReferenceFrameWarning",
     "MIN_FRAME_TIME",
     "MAX_FRAME_TIME",
     "MAX_BVH_BYTES",

@@ -1,8 +1,9 @@
 """Euler angles and forward kinematics of BVH skeletons, vectorised over frames: the
 rotation channels' angles to matrices and back (``euler_to_matrix``,
 ``matrix_to_euler``), a clip's local transforms (``bvh_local_transforms``) and global
-rotations and positions (``forward_kinematics``, ``bvh_forward_kinematics``).
-Conventions: ``mrlib.io.bvh``.
+rotations and positions (``forward_kinematics``, ``bvh_forward_kinematics``); and a
+reference pose written before the motion, found by its joints' turns
+(``without_reference_frame``). Conventions: ``mrlib.io.bvh``.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ __all__ = [
     "bvh_local_transforms",
     "forward_kinematics",
     "bvh_forward_kinematics",
+    "without_reference_frame",
+    "ReferenceFrameWarning",
 ]
 
 _AXIS = {"X": 0, "Y": 1, "Z": 2}
@@ -169,3 +172,31 @@ def bvh_forward_kinematics(bvh: BVH) -> tuple[np.ndarray, np.ndarray]:
     """``(global_rot (T, J, 3, 3), positions (T, J, 3))`` of a BVH in file units."""
     rot, trans = bvh_local_transforms(bvh)
     return forward_kinematics(bvh.skeleton.parents, rot, trans)
+
+
+class ReferenceFrameWarning(UserWarning):
+    """A BVH file's first frame was a reference pose, not motion, and was left out
+    (:func:`without_reference_frame`)."""
+
+
+def without_reference_frame(bvh: BVH) -> tuple[BVH, bool]:
+    """``bvh`` without its first frame when that frame is a reference pose that the
+    exporter put before the motion (Axis Neuron, the cgspeed conversions of the CMU
+    captures): every rotation channel exactly 0 while the next frame's are not, and the
+    turn of some joint from it to the next frame over 20 degrees and over twice the
+    clip's other frame-to-frame turns (their 99th percentile, over the first 2000
+    frames): a motion that leaves the zero pose smoothly is kept. Returns
+    ``(bvh, dropped)``."""
+    names = [c for chs in bvh.skeleton.channels for c in chs]
+    rot = [i for i, c in enumerate(names) if c.endswith("rotation")]
+    if bvh.num_frames < 3 or not rot:
+        return bvh, False
+    if np.abs(bvh.motion[0, rot]).max() > 0 or np.abs(bvh.motion[1, rot]).max() == 0:
+        return bvh, False
+    head = BVH(bvh.skeleton, bvh.motion[:2000], bvh.frame_time, source=bvh.source)
+    R, _ = bvh_local_transforms(head)  # (T, J, 3, 3)
+    cos = (np.einsum("tjab,tjab->tj", R[:-1], R[1:]) - 1) / 2  # of each joint's turn
+    turn = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max(1)  # (T - 1,) the largest
+    if not (turn[0] > 20 and turn[0] > 2 * np.percentile(turn[1:], 99)):
+        return bvh, False
+    return BVH(bvh.skeleton, bvh.motion[1:], bvh.frame_time, source=bvh.source), True

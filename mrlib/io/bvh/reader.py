@@ -61,8 +61,10 @@ class _Tokens:
 
     def next(self, what: str) -> tuple[str, int]:
         if self.pos >= len(self.items):
-            where = "before MOTION" if self.motion_line is not None else "at end of file"
-            raise self.error(f"expected {what}, file ends {where} (truncated hierarchy?)")
+            where = (
+                "the hierarchy ends at MOTION" if self.motion_line is not None else "the file ends"
+            )
+            raise self.error(f"expected {what}, but {where} (truncated hierarchy?)")
         tok = self.items[self.pos]
         self.pos += 1
         return tok
@@ -170,11 +172,20 @@ def _parse_frames(lines: list[str], first: int, n_frames: int, n_channels: int, 
         row_lines.append(i + 1)
     if len(rows) != n_frames:
         short = len(rows) < n_frames
-        line = len(lines) if short else row_lines[n_frames]
+        declared = next(
+            (i + 1 for i in range(first - 1, -1, -1) if lines[i].lstrip().startswith("Frames")),
+            first,
+        )
+        if short:
+            raise BVHFormatError(
+                source,
+                f"line {declared}: 'Frames: {n_frames}' but the file ends at line {len(lines)} "
+                f"after {len(rows)} frame lines (truncated file?)",
+            )
         raise BVHFormatError(
             source,
-            f"line {line}: 'Frames: {n_frames}' but the file has {len(rows)} frame lines "
-            f"({'truncated file?' if short else 'more frame lines than declared'})",
+            f"line {row_lines[n_frames]}: more frame lines than declared ('Frames: {n_frames}' "
+            f"on line {declared}; the file has {len(rows)})",
         )
     if n_frames == 0:
         return np.zeros((0, n_channels))
