@@ -51,6 +51,29 @@ def test_empty_and_empty_slice():
         _motion().slice(10, 10)
 
 
+@pytest.mark.parametrize(
+    "T, fps, want", [(150, 30, 300), (150, 60, 600), (150, 24, 240), (7, 12, 6), (31, 45, 93)]
+)
+def test_resample_keeping_the_duration(T, fps, want):
+    """``keep_duration``: a clip's duration at the new rate (150 frames at 15 fps: 300 at
+    30, where the endpoint rule gives 299), the frames up to the last input frame as
+    without it, and the ones past it continuing the spline."""
+    t = np.arange(T) / 15.0
+    poses = np.zeros((T, 24, 3))
+    poses[:, 1, 0] = 0.5 * np.sin(2 * np.pi * 0.7 * t)  # one smooth joint angle
+    contacts = (np.arange(T)[:, None] + np.arange(6)) % 3 == 0  # labels that change often
+    m = Motion(poses, np.stack([t, 0 * t, 0.3 * t], 1), 15.0, contacts=contacts.astype(float))
+    plain, kept = m.resample(fps, smooth=True), m.resample(fps, smooth=True, keep_duration=True)
+    assert kept.num_frames == want and kept.fps == fps
+    assert np.array_equal(kept.poses[: len(plain)], plain.poses)
+    assert np.array_equal(kept.contacts[: len(plain)], plain.contacts)
+    tk = np.arange(want) / fps  # past the end: the motion continued, no held frame
+    assert np.allclose(kept.poses[:, 1, 0], 0.5 * np.sin(2 * np.pi * 0.7 * tk), atol=2e-3)
+    assert np.allclose(kept.trans[:, 0], tk, atol=1e-5)
+    # slerp (smooth=False) is never asked to reach past the last frame
+    assert m.resample(fps, keep_duration=True).num_frames == plain.num_frames
+
+
 def test_resample_keeps_endpoints_and_is_smooth():
     m = _motion(T=31)
     up = m.resample(60)

@@ -51,7 +51,7 @@ def test_samples_come_at_the_clips_rate_unless_asked(run, tmp_path, capsys):
     assert "samples at 30 fps, the training clips' rate" in capsys.readouterr().out
     (npz,) = (tmp_path / "a").glob("*.npz")
     m = load_motion(npz)
-    assert m.fps == 30.0 and m.num_frames == 59  # 30 model frames raised to 30 fps
+    assert m.fps == 30.0 and m.num_frames == 60  # 30 model frames (2 s) raised to 30 fps
     argv = ["sample", ckpt, "--seconds", "2", "--fps", "15", "--out", str(tmp_path / "b"), "--no-progress"]  # fmt: skip
     assert main(argv) == 0
     assert load_motion(next((tmp_path / "b").glob("*.npz"))).fps == 15.0
@@ -93,3 +93,11 @@ def test_rates_that_are_not_rates_are_ignored(value):
     assert clip_rates(state) is None
     assert clip_rates({"clip_names": ["a", "b"], "clip_fps": [30, 24.0]}) == [30.0, 24.0]
     assert np.isfinite(clip_rates({"clip_names": ["a"], "clip_fps": [15]})[0])
+
+
+def test_keyframes_a_second_apart_are_no_rate_to_write_samples_at(run, tmp_path):
+    state = load_checkpoint(run / "checkpoint.pt")
+    for rates, want in (([1.0, 1.0], None), ([1.0, 30.0], 30.0), ([12.0, 12.0], 12.0)):
+        state["clip_fps"] = rates
+        path = save_checkpoint(tmp_path / f"r{rates[-1]:g}.pt", state)
+        assert load_model(path).source_fps == want

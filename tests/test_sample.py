@@ -102,7 +102,12 @@ def test_condition_per_level_range_crossover_and_blend(model):
     assert not np.allclose(mixed.poses, pure.poses)
     # blend weight 0 at every level is the first label exactly
     b0 = generate(model, Condition.blend("walk_normal", "walk_sad", 0.0), seed=0)
-    assert np.allclose(b0.poses, pure.poses, atol=1e-6)
+    assert np.allclose(b0.poses, pure.poses, atol=1e-6) and b0.label == "walk_normal"
+    # a blend carries both labels, the heavier first
+    for w, want in ((0.5, "walk_normal+walk_sad"), (0.75, "walk_sad+walk_normal")):
+        blend = Condition.blend("walk_normal", "walk_sad", w)
+        assert blend.name(model) == want
+    assert generate(model, blend, length=30, seed=0).label == "walk_sad+walk_normal"
 
 
 def test_generate_levels(model):
@@ -315,10 +320,12 @@ def test_samples_at_another_frame_rate(model):
         seed=3,
         sampler=Sampler(fps=3 * model.fps, fix_contacts=False),
     )
-    assert high.fps == 3 * model.fps and high.num_frames == 3 * (length - 1) + 1
+    assert high.fps == 3 * model.fps and high.num_frames == 3 * length  # as long as the draw
     assert high.meta["sampler"]["fps"] == 3 * model.fps and low.meta["sampler"]["fps"] == model.fps
     # the spline passes through the model's frames: every third frame is the draw itself
     np.testing.assert_allclose(high.trans[::3], low.trans, atol=1e-5)
+    # the two frames after the draw's last continue its splines: no frame held
+    assert np.linalg.norm(np.diff(high.trans[-4:], axis=0), axis=1).min() > 0
     cleaned = generate(model, "walk_sad", length=length, seed=3, sampler=Sampler(fps=3 * model.fps))
     assert cleaned.fps == 3 * model.fps and cleaned.contacts.shape == (high.num_frames, 6)
     # the clean-up's jitter filter spans the time of JITTER_SIGMA model frames

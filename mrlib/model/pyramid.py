@@ -24,6 +24,7 @@ from mrlib.errors import ClipTooShortError, MotionValueError
 
 __all__ = [
     "pyramid_lengths",
+    "shortest_length",
     "level_fps",
     "resample_linear",
     "resample_periodic",
@@ -79,11 +80,16 @@ def pyramid_lengths(
     if lengths[0] < min_length:
         need = _shortest(num_levels, factor, min_length)
         raise ClipTooShortError(
-            f"a clip of {length} frames gives a coarsest level of {lengths[0]} frames with "
-            f"{num_levels} levels and factor {factor:g}; need at least {min_length} "
-            f"(use clips of >= {need} frames or fewer levels)"
+            f"a clip of {length} frames is too short for {num_levels} levels and factor "
+            f"{factor:g}: its coarsest level needs at least {min_length} frames (use clips "
+            f"of >= {need} frames or fewer levels)"
         )
     return lengths
+
+
+def shortest_length(num_levels: int, factor: float = 4 / 3, min_length: int = 3) -> int:
+    """The fewest frames :func:`pyramid_lengths` accepts for these levels."""
+    return _shortest(num_levels, factor, min_length)
 
 
 def level_fps(fps: float, lengths: list[int]) -> list[float]:

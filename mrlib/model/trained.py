@@ -26,7 +26,12 @@ __all__ = [
     "check_model",
     "check_label_model",
     "check_device",
+    "MIN_SOURCE_FPS",
 ]
+
+# Clips recorded below this rate (and below the model's) are keyframes, not a capture
+# rate: the model's samples stay at its own rate (GenerativeModel.source_fps).
+MIN_SOURCE_FPS = 10.0
 
 
 @dataclass(eq=False)  # compared (and hashed) by identity: a model holds tensors
@@ -59,10 +64,14 @@ class GenerativeModel:
         """The frame rate the training clips were captured at (the highest, if they
         differ) when the checkpoint records it and it is not the model's own rate (a
         ``demo`` model at 30 fps of 24-fps captures, a ``preview`` model at 15 fps of
-        30-fps ones): the rate ``mrlib sample`` writes by default. None otherwise."""
+        30-fps ones): the rate ``mrlib sample`` writes by default. None otherwise, and
+        for clips under ``MIN_SOURCE_FPS`` below the model's rate (keyframes a second
+        apart are not a rate to write motion at)."""
         if not self.clip_fps:
             return None
         r = max(self.clip_fps)
+        if r < min(MIN_SOURCE_FPS, self.fps):
+            return None
         return r if abs(r - self.fps) > 1e-6 else None
 
     @property

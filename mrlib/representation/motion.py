@@ -187,7 +187,7 @@ class Motion:
             return 2**62
         return int(np.floor(last + 1e-9)) + 1
 
-    def resample(self, fps: float, *, smooth: bool = False) -> Motion:
+    def resample(self, fps: float, *, smooth: bool = False, keep_duration: bool = False) -> Motion:
         """Resample to ``fps``: rotations by slerp, translation linearly, contact labels
         by nearest frame. The first frame is kept; the last output frame is the last
         one not after the input's end. A resampling that would make more than
@@ -198,11 +198,19 @@ class Motion:
         cubic splines instead (:meth:`at_frames`): raising a generated clip's rate, slerp
         bends the motion at every input frame, which shows as jerk at the higher rate;
         the spline passes through the same frames without the bends. ``meta["source_fps"]``
-        keeps the first rate the motion had (the one it was read at)."""
+        keeps the first rate the motion had (the one it was read at).
+
+        ``keep_duration=True`` (with ``smooth``, clips of 4 frames or more): as many frames
+        as the clip lasts at ``fps``, ``round(T * fps / self.fps)`` (150 frames at 15 fps
+        give 300 at 30, not 299), the last ones continued by the splines less than one
+        input frame past the last (what ``mrlib.generate`` returns at ``Sampler.fps``)."""
         n_out = self.resampled_frames(fps)
         if abs(fps - self.fps) < 1e-9:
             return self.replace()
         T = self.num_frames
+        extend = keep_duration and smooth and T >= 4
+        if extend:
+            n_out = max(n_out, int(round(T * float(fps) / self.fps)))
         if n_out < 2 <= T:  # 8 s at 0.001 fps: one pose "lasting" 1000 s, the motion lost
             raise MotionValueError(
                 f"resampling {self.name or 'the clip'} ({T} frames, {self.duration:.4g} s) "
@@ -220,7 +228,12 @@ class Motion:
         # the rate it was captured at stays known (a model trained on resampled clips
         # records it: GenerativeModel.source_fps)
         meta = {**self.meta, "source_fps": float(self.meta.get("source_fps", self.fps))}
-        return self.at_frames(t, smooth=smooth).replace(fps=float(fps), meta=meta)
+        if extend and t[-1] > T - 1:  # the splines continued past the last frame
+            nearest = np.floor(t + 0.5).astype(np.int64)  # as at_frames: halves go up
+            out = self._spline_at(t, np.clip(nearest, 0, T - 1))
+        else:
+            out = self.at_frames(t, smooth=smooth)
+        return out.replace(fps=float(fps), meta=meta)
 
     def at_frames(self, t, *, smooth: bool = False) -> Motion:
         """The motion at fractional frame positions ``t`` (a 1-D array, clipped to the

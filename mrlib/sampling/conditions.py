@@ -183,10 +183,11 @@ class Condition:
         if self.parts_of is not None:
             return ",".join(f"{p}={c}" for p, c in self.parts_of)
         W = self.weights(model)
-        names = [model.labels[int(k)] for k in W.argmax(1)]
-        if len(set(names)) == 1 and float(W.max(1).values.min()) == 1.0:
-            return names[0]
-        return "+".join(dict.fromkeys(names))
+        used = (W > 0).any(0).nonzero().flatten().tolist()
+        # in the order they enter, coarse to fine; at one level the heavier first
+        first = {k: int((W[:, k] > 0).nonzero()[0]) for k in used}
+        used.sort(key=lambda k: (first[k], -float(W[first[k], k]), k))
+        return "+".join(model.labels[k] for k in used)
 
 
 def as_condition(value) -> Condition:

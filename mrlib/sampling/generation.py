@@ -18,8 +18,8 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError, check_count, check_number, check_seed
-from mrlib.model.pyramid import PackedLevels, level_fps, pyramid_lengths
+from mrlib.errors import ClipTooShortError, MotionValueError, check_count, check_number, check_seed
+from mrlib.model.pyramid import PackedLevels, level_fps, pyramid_lengths, shortest_length
 from mrlib.model.trained import GenerativeModel
 from mrlib.representation.features import features_to_motion, features_to_motions
 from mrlib.representation.motion import Motion
@@ -260,7 +260,14 @@ def label_inputs(
         )
     length = check_count("length", length)  # its bound: sample_features
     pad = (model.config.model.kernel_size - 1) // 2
-    lengths = pyramid_lengths(int(length), L, model.config.model.scale_factor, min_length=pad + 1)
+    factor = model.config.model.scale_factor
+    need = shortest_length(L, factor, min_length=pad + 1)
+    if length < need:
+        raise ClipTooShortError(
+            f"a sample of {length} frames is shorter than this model draws: at least {need} "
+            f"frames ({need / model.fps:.3g} s at the model's {model.fps:g} fps)"
+        )
+    lengths = pyramid_lengths(int(length), L, factor, min_length=pad + 1)
     amp = noise_amplitude(model, W, sampler)
     G = guided_weights(W, sampler)
     conds = [G[i].expand(1, lengths[i], -1) for i in range(L)]
@@ -344,13 +351,14 @@ def _label_samples(
     lengths, amp, conds = label_inputs(model, W, length, sampler)
     outs = sample_ranked(model, conds, lengths, amp, seed, num, sampler.candidates)
     label = condition.name(model)
-    names = [f"{label}_seed{seed}_{b}" for b in range(num)]
+    tag = "unseeded" if seed is None else f"seed{seed}"
+    names = [f"{label}_{tag}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
     if sampler.match_contact_rate:
         c = output_contacts(model, outs[-1], W)
         motions = [m.replace(contacts=c[b]) for b, m in enumerate(motions)]
     if sampler.fps is not None and sampler.fps != model.fps:  # raised before the feet are planted
-        motions = [m.resample(sampler.fps, smooth=True) for m in motions]
+        motions = [m.resample(sampler.fps, smooth=True, keep_duration=True) for m in motions]
     for b, m in enumerate(motions):  # what made the sample, saved with it (npz meta_json)
         m.meta["sampler"] = sampler_record(model, sampler, seed, b, W)
     if sampler.fix_contacts:

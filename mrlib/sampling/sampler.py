@@ -70,7 +70,8 @@ class Sampler:
             (raised, or lowered for a model trained above its clips' rate) by cubic splines
             (``Motion.resample(fps, smooth=True)``) before the clean-up plants the feet at
             that rate (its jitter filter spans the same time as at the model's rate:
-            ``JITTER_SIGMA`` model frames). ``length`` still counts the model's frames. Used by
+            ``JITTER_SIGMA`` model frames). ``length`` still counts the model's frames; the
+            output lasts as long: ``round(length * fps / model.fps)`` frames. Used by
             ``mrlib.generate`` (``mrlib sample --fps``).
         candidates: draws per label sample, of which the one the model's critics score
             highest is kept (``mrlib.sampling.ranking``; 1: the paper's sampler, every
