@@ -245,6 +245,11 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
         "sample --seconds nan": (["sample", str(ckpt), "--seconds", "nan"], 2, "--seconds"),
         "sample --seconds inf": (["sample", str(ckpt), "--seconds", "inf"], 2, "--seconds"),
         "sample --seconds 0": (["sample", str(ckpt), "--seconds", "0"], 2, "--seconds"),
+        "sample --seconds 0.1": (  # one frame: shorter than the model draws, said in seconds
+            ["sample", str(ckpt), "--seconds", "0.1", "--out", str(tmp / "short")],
+            1,
+            "shorter than this model draws: at least",
+        ),
         "sample --fine-noise -1": (["sample", str(ckpt), "--fine-noise", "-1"], 2, "--fine-noise"),
         "sample --guidance nan": (["sample", str(ckpt), "--guidance", "nan"], 2, "--guidance"),
         "sample --candidates 0": (["sample", str(ckpt), "--candidates", "0"], 2, "--candidates"),
@@ -274,6 +279,21 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             "a_file",
         ),
         "sample --out under /proc": (["sample", str(ckpt), "--out", "/proc/mrlib-x"], 1, "/proc"),
+        "sample --out a file": (
+            ["sample", str(ckpt), "--out", str(tmp / "a_file")],
+            1,
+            "a_file: is a file, not a folder",
+        ),
+        "evaluate --out a file": (  # refused before anything is drawn
+            ["evaluate", str(ckpt), "--samples", "1", "--out", str(tmp / "a_file")],
+            1,
+            "a_file: is a file, not a folder",
+        ),
+        "train --out a file": (
+            ["train", str(clip), "--iterations", "1", "--out", str(tmp / "a_file")],
+            1,
+            "a_file",
+        ),
         "sample --device bogus": (["sample", str(ckpt), "--device", "bogus"], 2, "bogus"),
         "sample --fit-steps -1": (["sample", str(ckpt), "--fit-steps", "-1"], 2, "--fit-steps"),
         "sample --sharpen -1": (["sample", str(ckpt), "--sharpen", "-1"], 2, "--sharpen"),
@@ -283,8 +303,10 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             "no/dir",
         ),
         "export under /sys": (["export", str(clip), "/sys/mrlib-x.npz"], 1, "/sys"),
-        "export --fps 1e9": (["export", str(clip), str(tmp / "x.npz"), "--fps", "1e9"], 1, "fps"),
-        "train --fps nan": (["train", str(clip), "--fps", "nan", "--out", str(tmp)], 1, "fps"),
+        "export --fps 1e9": (["export", str(clip), str(tmp / "x.npz"), "--fps", "1e9"], 2, "--fps"),
+        "train --fps nan": (["train", str(clip), "--fps", "nan", "--out", str(tmp)], 2, "--fps"),
+        "train --fps 0": (["train", str(clip), "--fps", "0", "--out", str(tmp)], 2, "frame rate"),
+        "evaluate --samples 0": (["evaluate", str(ckpt), "--samples", "0"], 2, "--samples"),
         "train --lr 0": (["train", str(clip), "--lr", "0", "--out", str(tmp)], 2, "--lr"),
         "train --lr nan": (["train", str(clip), "--lr", "nan", "--out", str(tmp)], 2, "--lr"),
         "train a clip too short for the levels": (
@@ -504,3 +526,11 @@ def test_bytes_paths_are_read_like_str_paths(tmp_path):
     clip = save_motion(synthetic_walk("walk_sad", seconds=1.0, fps=10.0), tmp_path / "a.npz")
     back = load_motion(bytes(clip))
     assert back.num_frames == 10 and back.label == "walk_sad"
+
+
+def test_resuming_a_finished_run_says_so_and_changes_nothing(checkpoint, capsys):
+    before = checkpoint.read_bytes()
+    argv = ["train", "--resume", str(checkpoint), "--out", str(checkpoint.parent), "--no-progress"]
+    assert main(argv) == 0
+    assert "the run is already complete" in capsys.readouterr().out
+    assert checkpoint.read_bytes() == before

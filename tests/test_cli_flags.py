@@ -44,3 +44,16 @@ def test_every_flag_mrlib_names_exists():
     assert not missing, f"flags named but not on the command line: {missing}"
     stale = set(OTHER_PROGRAMS) - set(named)
     assert not stale, f"OTHER_PROGRAMS entries nothing names any more: {stale}"
+
+
+def test_version_is_the_packages(capsys):
+    import pytest
+
+    from mrlib.app.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    text = (ROOT / "pyproject.toml").read_text()  # tomllib: Python 3.11 on
+    want = re.search(r'^version = "([^"]+)"', text, re.M).group(1)
+    assert capsys.readouterr().out.strip() == f"mrlib {want}"

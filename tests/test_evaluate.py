@@ -89,6 +89,14 @@ def test_the_papers_distance_leaves_the_contact_labels_out(body):
     )
     assert cached["coverage_pct"] == theirs["coverage_pct"]
 
+    class OtherBody:  # a cache built for another body is not used either
+        def __getattr__(self, name):
+            raise AssertionError("the cache of another body was used")
+
+    other = ev._ReferenceCache(OtherBody(), "rotmat", False)
+    again = ev.score_motions([flipped], ref, settings=paper, _cache=other, **kw)
+    assert again["coverage_pct"] == theirs["coverage_pct"]
+
 
 # -- the protocol on constructed motion ---------------------------------------------------------
 def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_path):
@@ -299,6 +307,9 @@ def test_evaluate_model_scores_cleaned_samples_by_default_with_the_raw_ones_besi
         assert raw_rows[("base", label)]["skate_pct"] == pytest.approx(
             both_rows[("base (raw)", label)]["skate_pct"]
         )
+    one = next(iter(refs))  # a baseline of one model per clip misses none
+    with pytest.raises(MotionValueError, match="one model for each of"):
+        ev.evaluate_model(model, {"base": {one: model}}, settings=settings, progress=False)
     with pytest.raises(MotionValueError, match="clash"):
         ev.evaluate_model(
             model, {"ours (raw)": model}, settings=settings, calibration=off, body=body,

@@ -369,7 +369,7 @@ def test_training_writes_a_safe_checkpoint_with_the_speech_normaliser(trained, d
     assert model.dim == 13 and model.num_levels == 3 and model.fps == FPS
     assert torch.equal(model.normalizer.std, data.normalizer.std)
     assert model.feature_config == LOGMEL.config
-    with pytest.raises(CheckpointError, match="no 'speech' key"):
+    with pytest.raises(CheckpointError, match="a label model, not a speech-conditioned one"):
         from mrlib.model.checkpoint import save_checkpoint
 
         plain = {k: v for k, v in load_checkpoint(trained.checkpoint).items() if k != "speech"}

@@ -613,8 +613,10 @@ def test_cli_train_with_nan_fps_fails_with_a_clear_error(tmp_path, capsys):
     from mrlib.app.demo import DATA_SAMPLES
 
     clip = str(DATA_SAMPLES / "walk_sad.npz")
-    assert main(["train", clip, "--fps", "nan", "--iterations", "1", "--out", str(tmp_path)]) == 1
-    assert "fps must be a number" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:  # a usage error, before anything is read
+        main(["train", clip, "--fps", "nan", "--iterations", "1", "--out", str(tmp_path)])
+    assert e.value.code == 2
+    assert "--fps: must be a frame rate" in capsys.readouterr().err
     assert not (tmp_path / "checkpoint.pt").exists()
 
 

@@ -157,8 +157,9 @@ def score_motions(
     gens = [m.replace(contacts=c) for m, (c, _) in zip(motions, labelled, strict=True)]
     g_feats = [mt.metric_features(m, s.feature_kind, s.contact_features) for m in gens]
     cache = _cache
-    if cache is None or (cache.kind, cache.contacts) != (s.feature_kind, s.contact_features):
-        cache = _ReferenceCache(body, s.feature_kind, s.contact_features)  # none, or other features
+    want = (body, s.feature_kind, s.contact_features)  # none, or another body's or features
+    if cache is None or (cache.body, cache.kind, cache.contacts) != want:
+        cache = _ReferenceCache(body, s.feature_kind, s.contact_features)
     ref = cache(reference)
     r_feats = ref.features
 
@@ -444,6 +445,10 @@ def evaluate_model(
         if bname in methods:
             raise MotionValueError(f"baselines has a second method named {bname!r}")
         per_key = dict(b) if isinstance(b, Mapping) else {key: b for key in refs}
+        if sorted(per_key) != sorted(refs):
+            raise MotionValueError(
+                f"baseline {bname!r}: one model for each of {sorted(refs)}, got {sorted(per_key)}"
+            )
         recon = {key: reconstruct(m, _clip_index(m, key)) for key, m in per_key.items()}
         methods[bname] = (per_key, recon)
     variants = {

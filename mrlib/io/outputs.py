@@ -110,6 +110,9 @@ def write_error(path: str | Path, e: OSError, what: str = "") -> OutputWriteErro
     if isinstance(e, OutputWriteError):
         return e
     reason = e.strerror or str(e) or type(e).__name__
+    blocker = file_in_the_way(path)
+    if blocker is not None:
+        reason = f"{blocker} is a file, not a folder"
     if not what:
         if _ACTIVE.get() is not None:
             what = "none of this command's outputs was written (earlier files are kept)"
@@ -160,11 +163,23 @@ def remove_stale_temporaries(path: str | Path) -> None:
                 tmp.unlink()
 
 
+def file_in_the_way(path: str | Path) -> Path | None:
+    """The nearest existing folder of ``path`` that is not a folder (an output folder
+    given as a file's name), or None."""
+    for parent in Path(path).parents:
+        if os.path.lexists(parent):
+            return None if os.path.isdir(parent) else parent
+    return None
+
+
 def check_writable(path: str | Path, *, overwrite: bool) -> None:
     """Refuse, before any work, an output that :func:`atomic_write` would refuse: a
-    symbolic link or something other than a regular file at ``path``, or (unless
-    ``overwrite``) any existing file."""
+    symbolic link or something other than a regular file at ``path``, a file where its
+    folder should be, or (unless ``overwrite``) any existing file."""
     path = Path(path)
+    blocker = file_in_the_way(path)
+    if blocker is not None:
+        raise OutputError(blocker, "is a file, not a folder: nothing can be written under it")
     try:
         st = os.lstat(path)
     except FileNotFoundError:

@@ -164,10 +164,15 @@ def reading(path: str | Path) -> Iterator[None]:
 def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
     """Read a checkpoint with ``weights_only=True`` and check its format."""
     path = Path(path)
+    if path.is_dir():
+        hint = " (a run folder: its checkpoint.pt)" if (path / "checkpoint.pt").is_file() else ""
+        raise CheckpointError(path, f"is a folder, not a checkpoint file{hint}")
     if not path.is_file():
         raise CheckpointError(path, "no such checkpoint file")
     try:
-        state = torch.load(path, map_location=map_location, weights_only=True)
+        with warnings.catch_warnings():  # torch's advice on files mrlib never writes
+            warnings.filterwarnings("ignore", message="Detected pickle protocol")
+            state = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as exc:  # what weights_only refuses: classes, code
         raise CheckpointError(
             path,

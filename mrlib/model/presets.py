@@ -234,9 +234,9 @@ PRESETS = {
 # are on 2 CPU cores, measured in ``docs/results.md``. Speech presets are ``speech_*``.
 PRESET_SUMMARIES = {
     "paper": "the paper's: 15k + 3 x 25k iterations, full-width networks (use a GPU)",
-    "tutorial": "CPU budget: narrower networks, 800 iterations per block (~20 min)",
-    "demo": "tutorial networks, 1200/800/300/200 iterations, 1 critic step (~7 min)",
-    "preview": "demo at 15 fps, 800/600/400/300 iterations (~5 min; fast motion suffers)",
+    "tutorial": "CPU budget: narrower networks, 800 iterations per block (20-30 min)",
+    "demo": "tutorial networks, 1200/800/300/200 iterations, 1 critic step (~6 min)",
+    "preview": "demo at 15 fps, 800/600/400/300 iterations (~4 min; fast motion suffers)",
     "speech_paper": "the paper's speech setting: 10 levels, the label schedule (use a GPU)",
     "speech_tutorial": "CPU budget for ~12 speech clips of 10 s: 3900 iterations (20-30 min)",
     "speech_demo": "speech_tutorial's networks, 700 iterations (minutes; notebook 04's default)",

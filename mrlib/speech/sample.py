@@ -102,7 +102,8 @@ def _speech_model_from_state(state: dict, device, wavlm_path: str | None) -> Spe
     if "speech" not in state:
         raise CheckpointError(
             None,
-            "not a speech-conditioned checkpoint (no 'speech' key); use mrlib.sampling.generation.load_model",
+            "a label model, not a speech-conditioned one: sample it with a label (mrlib sample "
+            "--label, mrlib.generate), or train a speech model (mrlib train-speech)",
         )
     sp = state["speech"]
     cfg = SpeechFeatureConfig.from_dict(json.loads(sp["feature_config"]))

@@ -76,6 +76,11 @@ def check_run_folder(
         RunExistsError: naming the folder, what it holds and the ways around.
     """
     out = Path(out_dir)
+    from mrlib.io.outputs import OutputError, file_in_the_way
+
+    blocker = out if os.path.lexists(out) and not os.path.isdir(out) else file_in_the_way(out)
+    if blocker is not None:
+        raise OutputError(blocker, "is a file, not a folder: choose another --out (out_dir)")
     present = [n for n in RUN_FILES if os.path.lexists(out / n)]
     if not present or overwrite:
         return

@@ -14,6 +14,7 @@ import argparse
 import sys
 import warnings
 
+from mrlib import __version__
 from mrlib.app.cli.common import describe, threads_option
 from mrlib.app.cli.common import sample_files as _sample_files  # noqa: F401 (tests use it)
 from mrlib.app.cli.data import add_data
@@ -47,17 +48,26 @@ EPILOG = """examples:
 """
 
 
+class _Parser(argparse.ArgumentParser):
+    """A usage error in one line, pointing at the command's help (not argparse's usage
+    block of a dozen lines above it)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``mrlib`` parser. Each command runs the ``_cmd_<command>`` of this module as it
     is when the parser is built (so a test or a wrapper may replace one here)."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="mrlib",
         description="Multi-resolution generative modelling of SMPL human motion from limited data.",
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--debug", action="store_true", help="show the full traceback of an error")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    parser.add_argument("--version", action="version", version=f"mrlib {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     add_demo(sub).set_defaults(func=_cmd_demo)
     add_train(sub).set_defaults(func=_cmd_train)
     add_train_speech(sub).set_defaults(func=_cmd_train_speech)

@@ -46,9 +46,9 @@ def parse_iterations(text: str | None) -> tuple[int, ...] | None:
     try:
         its = tuple(int(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"--iterations wants integers, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"wants integers, got {text!r}") from None
     if any(i <= 0 for i in its):
-        raise argparse.ArgumentTypeError("--iterations must be positive")
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
     return its
 
 
@@ -93,6 +93,24 @@ def _sampler_setting(limit_name: str):
 
     parse.__name__ = "number"
     return parse
+
+
+def parse_positive(text: str) -> int:
+    """A count of at least one (samples, iterations)."""
+    n = read_number(text, _whole, f"wants a positive integer, got {text!r}")
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
+    return n
+
+
+def parse_fps(text: str) -> float:
+    """A frame rate in (0, ``MAX_FPS``]."""
+    from mrlib.representation.motion import MAX_FPS
+
+    value = read_number(text, float, f"not a frame rate: {text!r}")
+    if not (math.isfinite(value) and 0 < value <= MAX_FPS):
+        raise argparse.ArgumentTypeError(f"must be a frame rate in (0, {MAX_FPS:g}], got {text!r}")
+    return value
 
 
 def parse_threads(text: str) -> int:
@@ -257,7 +275,9 @@ def sample_output_options(
     p.add_argument("--render", action="store_true", help=render_help)
     p.add_argument("--glb", action="store_true", help=glb_help)
     device_option(p)
-    p.add_argument("--out", type=Path, default=out)
+    p.add_argument(
+        "--out", type=Path, default=out, help=f"folder the samples are written to [default: {out}]"
+    )
     overwrite_option(p, overwrite_help)
     progress_option(p)
 
@@ -348,7 +368,7 @@ def write_samples(motions, tag: str, args) -> int:
                 else:
                     save_motion(m, path, overwrite=args.overwrite)
             stem = str(paths[".npz"])[: -len(".npz")]
-            kinds = "/".join(k for k in paths if k != ".png")
+            kinds = "/".join(paths)
             # printed once the files exist (at the end of the command's transaction)
             when_written(lambda line=f"wrote {stem}{kinds}: {m}": print(line))
     return 0

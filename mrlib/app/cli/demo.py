@@ -7,6 +7,7 @@ from pathlib import Path
 
 from mrlib.app.cli.common import (
     add_command,
+    parse_positive,
     parse_seed,
     preset_choices,
     preset_help,
@@ -25,7 +26,9 @@ def add_demo(sub) -> argparse.ArgumentParser:
         "animated previews, exports and summary.md to --out.",
         more=preset_help("labels"),
     )
-    p.add_argument("--out", type=Path, default=Path("outputs"))
+    p.add_argument(
+        "--out", type=Path, default=Path("outputs"), help="folder of the results [default: outputs]"
+    )
     p.add_argument(
         "--preset",
         default="preview",
@@ -36,10 +39,16 @@ def add_demo(sub) -> argparse.ArgumentParser:
         "--quick", action="store_true", help="smoke-test budget (seconds; results not meaningful)"
     )
     p.add_argument(
-        "--iterations", type=int, default=None, help="iterations per block (overrides the preset)"
+        "--iterations",
+        type=parse_positive,
+        default=None,
+        help="iterations per block (overrides the preset)",
     )
     p.add_argument(
-        "--samples", type=int, default=10, help="evaluation samples per label [default: 10]"
+        "--samples",
+        type=parse_positive,
+        default=10,
+        help="evaluation samples per label [default: 10]",
     )
     p.add_argument("--seed", type=parse_seed, default=0)
     p.add_argument(

@@ -9,6 +9,7 @@ from mrlib.app.cli.common import (
     add_command,
     device_option,
     overwrite_option,
+    parse_positive,
     parse_seed,
     progress_option,
     sampler_from_args,
@@ -34,8 +35,10 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
             "--out outputs/table1",
         ],
     )
-    p.add_argument("checkpoint", type=Path)
-    p.add_argument("--samples", type=int, default=200, help="samples per sequence [default: 200]")
+    p.add_argument("checkpoint", type=Path, help="a trained model (a run's checkpoint.pt)")
+    p.add_argument(
+        "--samples", type=parse_positive, default=200, help="samples per sequence [default: 200]"
+    )
     p.add_argument("--eps", type=float, default=2.0, help="coverage threshold [default: 2.0]")
     p.add_argument(
         "--tight-eps",
@@ -71,7 +74,12 @@ def add_evaluate(sub) -> argparse.ArgumentParser:
         "raw ones beside them as 'ours (raw)', and '<baseline name> (raw)' with --baseline)",
     )
     device_option(p)
-    p.add_argument("--out", type=Path, default=Path("outputs/evaluation"))
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("outputs/evaluation"),
+        help="folder of the tables, settings and plot [default: outputs/evaluation]",
+    )
     overwrite_option(p, "replace evaluation files already in --out")
     progress_option(p)
     return p
@@ -123,6 +131,13 @@ def cmd_evaluate(args) -> int:
         if not per_key:
             raise MrlibError(
                 f"no baseline checkpoint in {args.baseline} matches this model's clips"
+            )
+        missing = [key for key in refs if key not in per_key]
+        if missing:
+            raise MrlibError(
+                f"no baseline checkpoint in {args.baseline} has the clip(s) {missing}: a "
+                "baseline needs a model for every clip of this model (mrlib train "
+                "--per-clip on the same clips)"
             )
         baselines = {args.baseline_name: per_key}
     result = evaluate_model(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import add_command, joint_map_option, overwrite_option
+from mrlib.app.cli.common import add_command, joint_map_option, overwrite_option, parse_fps
 
 
 def add_export(sub) -> argparse.ArgumentParser:
@@ -19,7 +19,7 @@ def add_export(sub) -> argparse.ArgumentParser:
     )
     p.add_argument("src", type=Path, help="input: .bvh, .npz or an EasyMocap folder")
     p.add_argument("dst", type=Path, help="output: .npz, .bvh or .glb")
-    p.add_argument("--fps", type=float, default=None, help="resample to this frame rate")
+    p.add_argument("--fps", type=parse_fps, default=None, help="resample to this frame rate")
     joint_map_option(p)
     overwrite_option(p, "replace DST if it exists")
     return p

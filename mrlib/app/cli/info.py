@@ -5,7 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mrlib.app.cli.common import add_command, joint_map_option, overwrite_option
+import numpy as np
+
+from mrlib.app.cli.common import add_command, joint_map_option, overwrite_option, parse_fps
 from mrlib.errors import MrlibError
 
 
@@ -24,7 +26,7 @@ def add_info(sub) -> argparse.ArgumentParser:
         ],
     )
     p.add_argument("path", type=Path)
-    p.add_argument("--fps", type=float, default=None, help="resample to this frame rate first")
+    p.add_argument("--fps", type=parse_fps, default=None, help="resample to this frame rate first")
     joint_map_option(p)
     p.add_argument(
         "--write-map",
@@ -51,7 +53,9 @@ def cmd_info(args) -> int:
     print(f"  label        {m.label}")
     print(f"  betas        {[round(float(b), 3) for b in m.betas]}")
     span = m.trans.max(0) - m.trans.min(0)
-    print(f"  root travel  x {span[0]:.2f} m, y {span[1]:.2f} m, z {span[2]:.2f} m")
+    path = float(np.linalg.norm(np.diff(m.trans[:, [0, 2]], axis=0), axis=1).sum())
+    print(f"  root extent  x {span[0]:.2f} m, y {span[1]:.2f} m, z {span[2]:.2f} m")
+    print(f"  root path    {path:.2f} m on the ground, {path / max(m.duration, 1e-9):.2f} m/s")
     table = ("joint_map_pairs", "retarget_joint_error_cm", "joint_map_report")
     for k, v in m.meta.items():
         if k not in table:

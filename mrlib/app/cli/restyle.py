@@ -37,7 +37,7 @@ def add_restyle(sub) -> argparse.ArgumentParser:
             "mrlib restyle ckpt.pt clip.bvh --label walk_angry --keep detail",
         ],
     )
-    p.add_argument("checkpoint", type=Path)
+    p.add_argument("checkpoint", type=Path, help="a trained model (a run's checkpoint.pt)")
     p.add_argument("clip", type=Path, help="the motion to restyle (.bvh, .npz, EasyMocap folder)")
     p.add_argument("--label", required=True, help="the label to restyle towards")
     p.add_argument(

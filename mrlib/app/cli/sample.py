@@ -10,6 +10,7 @@ from pathlib import Path
 
 from mrlib.app.cli.common import (
     add_command,
+    parse_fps,
     parse_seed,
     parse_steps,
     read_number,
@@ -98,7 +99,7 @@ def add_sample(sub) -> argparse.ArgumentParser:
             "mrlib sample ckpt.pt --label walk_sad --continue clip.bvh --seconds 5",
         ],
     )
-    p.add_argument("checkpoint", type=Path)
+    p.add_argument("checkpoint", type=Path, help="a trained model (a run's checkpoint.pt)")
     g = p.add_mutually_exclusive_group()
     g.add_argument(
         "--label", default=None, help="condition for every level (default: the first label)"
@@ -181,7 +182,7 @@ def add_sample(sub) -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--fps",
-        type=float,
+        type=parse_fps,
         default=None,
         help="frame rate of the samples (label, crossover and blend samples): the model draws "
         "at its own rate (the preview preset: 15 fps; demo: 30), resampled by cubic splines "
@@ -355,7 +356,9 @@ def cmd_sample(args) -> int:
         return write_samples(motions, f"{tag}_{what}", args)
     if args.fps is None and model.source_fps is not None:
         sampler = dataclasses.replace(sampler, fps=model.source_fps)
-        print(f"samples at {model.source_fps:g} fps, the training clips' rate (the model draws "
+        whose = "the training clips' rate" if len(set(model.clip_fps)) == 1 else (
+            "the highest rate of the training clips")  # fmt: skip
+        print(f"samples at {model.source_fps:g} fps, {whose} (the model draws "
               f"at {model.fps:g} fps: --fps {model.fps:g} for that)")  # fmt: skip
     motions = generate(
         model, condition, length=length, seed=args.seed, num=args.num, sampler=sampler

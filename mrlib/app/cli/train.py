@@ -14,6 +14,7 @@ from mrlib.app.cli.common import (
     add_command,
     iterations_option,
     joint_map_option,
+    parse_fps,
     preset_choices,
     preset_help,
     progress_option,
@@ -117,6 +118,9 @@ def _resume(args, trainer_class, options: dict[str, str]) -> int:
     trainer = trainer_class.start(
         None, None, args.out, resume=args.resume, device=args.device, overwrite=args.overwrite
     )
+    if trainer.done and Path(args.out).resolve() == Path(args.resume).resolve().parent:
+        print(f"{args.resume}: the run is already complete (every block trained); nothing to do")
+        return 0
     use_threads(resume_thread_count(trainer.threads))  # the count the run began with
     return _report_training(trainer.fit(progress=not args.no_progress, overwrite=args.overwrite))
 
@@ -170,7 +174,9 @@ def add_train(sub) -> argparse.ArgumentParser:
         help="Adam learning rate, overriding the preset's (tutorial: 5e-4; 2e-3 sharpens each "
         "label, docs/results.md 'Body parts')",
     )
-    p.add_argument("--fps", type=float, default=None, help="resample every clip to this frame rate")
+    p.add_argument(
+        "--fps", type=parse_fps, default=None, help="resample every clip to this frame rate"
+    )
     joint_map_option(p)
     p.add_argument(
         "--checkpoint-every",
@@ -377,7 +383,7 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
         help="audio of the random generations [default: 'paired' for the tutorial preset, "
         "whose critics hear the speech; 'unpaired' for the paper's, as in the paper]",
     )
-    p.add_argument("--fps", type=float, default=None, help="motion frame rate [default: 25]")
+    p.add_argument("--fps", type=parse_fps, default=None, help="motion frame rate [default: 25]")
     up_axis_option(p)
     p.add_argument(
         "--skip-unpaired-files",
