@@ -63,7 +63,7 @@ def main(argv=None) -> int:
 
     import mrlib
     from mrlib.evaluation import EvaluationSettings
-    from mrlib.evaluation.calibration import PLAYED_TWICE
+    from mrlib.evaluation.calibration import OTHER_TAKE, PLAYED_TWICE
     from mrlib.evaluation.evaluate import evaluate, model_references, model_sample_fn
     from mrlib.evaluation.results import CALIB_PREFIX, FEATURE_SETS
     from mrlib.model.presets import get_preset
@@ -106,8 +106,11 @@ def main(argv=None) -> int:
     rows = result.rows
     n = a.samples * len(refs)
     speed = {k: v / n for k, v in spent.items()}
-    order = [CALIB_PREFIX + PLAYED_TWICE, "GenMM", "ours (raw)", "ours", "ours, one draw"]
-    label = {CALIB_PREFIX + PLAYED_TWICE: "clip played twice", "ours (raw)": "mrlib raw",
+    take = CALIB_PREFIX + OTHER_TAKE
+    order = [CALIB_PREFIX + PLAYED_TWICE, take, "GenMM", "ours (raw)", "ours", "ours, one draw"]
+    order = [m for m in order if any(r["method"] == m for r in rows)]
+    label = {CALIB_PREFIX + PLAYED_TWICE: "clip played twice",
+             take: "the walk's second take (real, `_002`)", "ours (raw)": "mrlib raw",
              "ours": "mrlib cleaned",
              "ours, one draw": "mrlib cleaned, one draw per sample (`candidates=1`)"}  # fmt: skip
     print(f"\n{a.samples} samples per walk of twice its length, scored at {model.fps:g} fps; "
@@ -118,12 +121,15 @@ def main(argv=None) -> int:
         mean = {k: float(np.nanmean([r[k] for r in rs])) for k in KEYS}
         s = f"{speed[m]:.2f}" if m in speed else "-"
         print(f"| {label.get(m, m)} | " + " | ".join(_fmt(k, mean[k]) for k in KEYS) + f" | {s} |")
-    print("\nper walk: coverage eps 1 % (GenMM / mrlib cleaned), global diversity (same)")
+    shown = [m for m in (take, "GenMM", "ours") if m in order]
+    print(f"\nper walk: coverage eps 1 % ({' / '.join(label.get(m, m) for m in shown)}), "
+          "global diversity (same)")  # fmt: skip
     for key in refs:
-        g = next(r for r in rows if r["method"] == "GenMM" and r["sequence"] == key)
-        o = next(r for r in rows if r["method"] == "ours" and r["sequence"] == key)
-        print(f"  {key}: {g['coverage_tight_pct']:.1f} / {o['coverage_tight_pct']:.1f}, "
-              f"{g['global_div']:.2f} / {o['global_div']:.2f}")  # fmt: skip
+        got = [next((r for r in rows if r["method"] == m and r["sequence"] == key), None)
+               for m in shown]  # fmt: skip
+        cov = " / ".join("-" if r is None else f"{r['coverage_tight_pct']:.1f}" for r in got)
+        div = " / ".join("-" if r is None else f"{r['global_div']:.2f}" for r in got)
+        print(f"  {key}: {cov}, {div}")
     print("(s/sample: drawing one sample, one thread as set above; mrlib cleaned includes "
           "its raw draw)")  # fmt: skip
     return 0

@@ -73,20 +73,21 @@ def split_model(split: str, seed: int, body, base=None):
     return model, rec.reused, list(source.paths)
 
 
-def unseen_take_fidelity(result) -> dict[str, float]:
-    """Label -> condition fidelity (%) of the label's other real take, the model never saw
-    (``mrlib.evaluate_model``'s ``calib: other take`` row: the lowest other take number of
-    a Bandai clip, here the ``_002`` take)."""
+def unseen_take(result, key: str = "cond_fidelity_pct") -> dict[str, float]:
+    """Label -> ``key`` (condition fidelity by default) of the label's other real take, the
+    model never saw (``mrlib.evaluate_model``'s ``calib: other take`` row: the lowest other
+    take number of a Bandai clip, here the ``_002`` take)."""
     from mrlib.evaluation.calibration import OTHER_TAKE
     from mrlib.evaluation.results import CALIB_PREFIX
 
-    return {r["sequence"]: r["cond_fidelity_pct"] for r in result.rows
+    return {r["sequence"]: r[key] for r in result.rows
             if r["method"] == CALIB_PREFIX + OTHER_TAKE}  # fmt: skip
 
 
 def per_label_table(result) -> tuple[str, list[dict]]:
     """Markdown: one line per label of the cleaned output (``ours``), and the rows; the
-    fidelity of the label's unseen take (:func:`unseen_take_fidelity`) in brackets."""
+    fidelity and global diversity of the label's unseen take (:func:`unseen_take`) in
+    brackets."""
     from mrlib.evaluation.calibration import PLAYED_TWICE
     from mrlib.evaluation.results import CALIB_PREFIX
 
@@ -94,15 +95,17 @@ def per_label_table(result) -> tuple[str, list[dict]]:
             "skate_pct", "jerk_ratio", "penetration_cm")  # fmt: skip
     clip = {r["sequence"]: r for r in result.rows if r["method"] == CALIB_PREFIX + PLAYED_TWICE}
     rows = [r for r in result.rows if r["method"] == "ours"]
-    takes = unseen_take_fidelity(result)
-    out = ["| label | coverage eps 2 | coverage eps 1 | fidelity (unseen take) | global div. | "
+    takes, take_div = unseen_take(result), unseen_take(result, "global_div")
+    out = ["| label | coverage eps 2 | coverage eps 1 | fidelity (unseen take) | global div. (unseen take) | "
            "skating % (clip twice) | jerk ratio | penetration cm |", "|---|" + "---:|" * 7]  # fmt: skip
     for r in rows:
         c = clip.get(r["sequence"], {}).get("skate_pct", float("nan"))
         t = takes.get(r["sequence"])
         t = "" if t is None else f" ({t:.1f})"
+        d = take_div.get(r["sequence"])
+        d = "" if d is None else f" ({d:.2f})"
         out.append(f"| {r['sequence']} | {r['coverage_pct']:.1f} | {r['coverage_tight_pct']:.1f} | "
-                   f"{r['cond_fidelity_pct']:.1f}{t} | {r['global_div']:.2f} | {r['skate_pct']:.1f} "
+                   f"{r['cond_fidelity_pct']:.1f}{t} | {r['global_div']:.2f}{d} | {r['skate_pct']:.1f} "
                    f"({c:.1f}) | {r['jerk_ratio']:.2f} | {r['penetration_cm']:.2f} |")  # fmt: skip
     mean = {k: float(np.mean([r[k] for r in rows])) for k in keys}
     out.append("| mean | " + " | ".join(
@@ -203,7 +206,7 @@ def main(argv=None) -> int:
               f"{settings.candidates} draw(s) per sample; contact labels at {labels_at}\n",
               flush=True)  # fmt: skip
         result = evaluate_model(model, settings=settings, body=body, progress=False)
-        real = unseen_take_fidelity(result)
+        real = unseen_take(result)
         text, rows = per_label_table(result)
         print(f"{text}\n\n(evaluation {time.perf_counter() - t:.0f} s)", flush=True)
         # the paper's distance has another scale: only the fidelity meets a bar there
