@@ -219,7 +219,7 @@ def retarget_bvh(
         poses=poses, trans=trans, betas=b, offsets=C_all, joint_map=jmap, unit=unit_m,
         up_axis=up_axis, scale=scale_used, pelvis_offset=delta, recognition=recognition,
         mode=mode, betas_at_bound=fit.at_bound(b), implausible_joints=implausible_joints(poses),
-        **clip_errors(source, G, J, trans, scale_used, leg_src, mode),
+        **clip_errors(source, G, J, trans, scale_used, leg_src, mode, delta),
     )  # fmt: skip
     if not result.error_mean_cm <= MAX_RETARGET_ERROR_CM:  # NaN included
         raise MotionFileError(

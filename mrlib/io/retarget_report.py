@@ -162,23 +162,30 @@ def clip_errors(
     scale: float,
     leg_src: float,
     mode: str,
+    delta: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Steps 7 and 9: the clip's errors and leg ratio, as the ``RetargetResult`` fields
     of those names, of SMPL's motion (global rotations ``G (T, 24, 3, 3)``, rest joints ``J``,
     translation ``trans``) against the source scaled by ``scale`` (``leg_src``: its leg
-    length); ``mode`` says which of them the clip is judged by."""
+    length); ``mode`` says which of them the clip is judged by. ``delta``: the fitted
+    pelvis offset (``(3,)`` metres, pelvis frame): where the source's root joint sits
+    off SMPL's pelvis (CMU's ~10 cm above its hip joints) is a convention of the
+    skeleton, not an error, so the pelvis is compared with the root moved by it."""
     s = source
     joints = smpl_forward_joints(G, J, trans)
+    target = scale * s.Pw[:, s.src]  # (T, M, 3) where SMPL's joints should be
+    shift = np.zeros((len(G), 3)) if delta is None else G[:, 0] @ np.asarray(delta, float)
+    target[:, 0] = target[:, 0] + shift
     # 7. error: SMPL joints vs the scaled source joints. The joints of SMPL's forward
     # pass are this forward kinematics of the rest joints J(b) (tested against
     # body.forward); numpy avoids the skinning module's per-call overhead.
-    err = np.linalg.norm(joints[:, s.placed] - scale * s.Pw[:, s.src[s.placed]], axis=-1)
+    err = np.linalg.norm(joints[:, s.placed] - target[:, s.placed], axis=-1)
     err = err * 100.0  # (T, M) cm
     leg_ratio = leg_length(J[None], None) / (scale * leg_src)
     # 9. the normalised error: the source's bone lengths laid along SMPL's posed bones,
     # in SMPL's size (scaled by leg length)
     k_norm = leg_length(J[None], None) / leg_src
-    norm = _normalised_error(G, J, s.src, s.placed, s.Pw) * 100.0 * k_norm  # (T, M) cm
+    norm = _normalised_error(G, J, s.src, s.placed, s.Pw, shift / scale) * 100.0 * k_norm
     judged = err if mode == "positions" else norm
     joint_err = np.full(NUM_JOINTS, np.nan)
     joint_err[s.placed] = judged.mean(0)
@@ -193,7 +200,12 @@ def clip_errors(
 
 
 def _normalised_error(
-    G: np.ndarray, J: np.ndarray, src: np.ndarray, placed: np.ndarray, Pw: np.ndarray
+    G: np.ndarray,
+    J: np.ndarray,
+    src: np.ndarray,
+    placed: np.ndarray,
+    Pw: np.ndarray,
+    shift: np.ndarray | None = None,
 ) -> np.ndarray:
     """``(T, M)`` distances (Pw's unit) between the source joints ``Pw (T, Js, 3)`` and a
     skeleton with the source's bone lengths laid along SMPL's posed bones (global
@@ -201,10 +213,11 @@ def _normalised_error(
     mapped joint hangs from its nearest mapped ancestor by the source's bone length, in
     the direction SMPL's body goes from one to the other. Proportions do not count; a
     pose that differs does, and so does a map that puts a joint where the source has
-    another (the directions between them disagree)."""
+    another (the directions between them disagree). ``shift (T, 3)``: the source's root
+    moved onto SMPL's pelvis (its fitted offset, Pw's unit)."""
     X = smpl_forward_joints(G, J, np.zeros((len(G), 3)))
     keep = {int(j) for j in placed}
-    Y = {0: Pw[:, src[0]]}
+    Y = {0: Pw[:, src[0]] + (0.0 if shift is None else shift)}
     out = []
     for k in sorted(keep):
         if k == 0:
@@ -214,7 +227,11 @@ def _normalised_error(
         while a not in keep and a > 0:
             a = PARENTS[a]
         w = X[:, k] - X[:, a]
-        length = np.median(np.linalg.norm(Pw[:, src[k]] - Pw[:, src[a]], axis=-1))
+        length = np.median(
+            np.linalg.norm(
+                Pw[:, src[k]] - Y[a] if a == 0 else Pw[:, src[k]] - Pw[:, src[a]], axis=-1
+            )
+        )
         Y[k] = Y[a] + length * w / np.maximum(np.linalg.norm(w, axis=-1, keepdims=True), 1e-12)
         out.append(np.linalg.norm(Y[k] - Pw[:, src[k]], axis=-1))
     return np.stack(out, 1)
