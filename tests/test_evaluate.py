@@ -121,6 +121,11 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
     assert by["dummy"]["recon_error"] == 0.0
     assert math.isnan(by["noisier"]["recon_error"]) and math.isnan(by["dummy"]["cond_fidelity_pct"])
     assert by["dummy"]["samples"] == 3 and by["dummy"]["frames"] == 140
+    # a real clip too short to score is left out, named (not called "generated")
+    short = ref.slice(0, 20).replace(name="take_002")
+    few = dict(kw, calibration=ev.CalibrationOptions(others={"arc": {"other take": short}}))
+    notes = ev.evaluate({"dummy": noisy_crops(refs, 0.01)}, refs, **few).notes
+    assert any("'other take' left out: take_002 has" in n for n in notes), notes
     # more noise: more jitter, more local diversity
     assert by["noisier"]["jerk_ratio"] > by["dummy"]["jerk_ratio"] > 1.0
     assert by["noisier"]["local_div"] > by["dummy"]["local_div"]

@@ -318,13 +318,13 @@ def evaluate(
                         [m], ref, settings=settings, body=body, label=label,
                         all_references=multi, _cache=cache,
                     )  # fmt: skip
-                except ClipTooShortError as e:
-                    notes.append(f"{label}: calibration row {key!r} ({m.name}) left out: {e}")
+                except ClipTooShortError as e:  # the metric calls the scored clip "generated"
+                    why = str(e).replace("generated has", f"{m.name or 'the clip'} has")
+                    notes.append(f"{label}: calibration row {key!r} left out: {why}")
                     continue
-                source = m.name or ""
                 calib_rows.setdefault(key, []).append(
                     {"method": CALIB_PREFIX + key, "kind": "calibration", "sequence": label,
-                     "source": source, **row}
+                     "source": m.name or "", **row}
                 )  # fmt: skip
         order = [k for k in CALIBRATION_METHODS if k in calib_rows]
         order += [k for k in calib_rows if k not in CALIBRATION_METHODS]

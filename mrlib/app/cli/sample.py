@@ -276,7 +276,7 @@ def _constrained(model, condition, sampler, length: int | None, args) -> list:
 
 def cmd_sample(args) -> int:
     from mrlib.model.trained import load_model
-    from mrlib.sampling.conditions import Condition
+    from mrlib.sampling.conditions import Condition, label_weights
     from mrlib.sampling.generation import generate
 
     constrained = args.path or args.keyframes or args.loop or args.prefix
@@ -355,6 +355,7 @@ def cmd_sample(args) -> int:
         motions = _constrained(model, condition, sampler, length, args)
         return write_samples(motions, f"{tag}_{what}", args)
     if args.fps is None and model.source_fps is not None:
+        label_weights(model, condition)  # an unknown label is refused before the notice
         sampler = dataclasses.replace(sampler, fps=model.source_fps)
         whose = "the training clips' rate" if len(set(model.clip_fps)) == 1 else (
             "the highest rate of the training clips")  # fmt: skip
