@@ -57,9 +57,11 @@ def cmd_info(args) -> int:
     print(f"  root extent  x {span[0]:.2f} m, y {span[1]:.2f} m, z {span[2]:.2f} m")
     print(f"  root path    {path:.2f} m on the ground, {path / max(m.duration, 1e-9):.2f} m/s")
     table = ("joint_map_pairs", "retarget_joint_error_cm", "joint_map_report")
-    for k, v in m.meta.items():
-        if k not in table:
-            print(f"  meta.{k:<10} {f'{v:.4g}' if isinstance(v, float) else v}")
+    shown = [k for k in m.meta if k not in table]
+    width = max((len(k) for k in shown), default=0)
+    for k in shown:
+        v = m.meta[k]
+        print(f"  meta.{k:<{width}} {f'{v:.4g}' if isinstance(v, float) else v}")
     if "joint_map_pairs" not in m.meta:
         if args.write_map is not None:
             raise MrlibError(f"{args.path}: --write-map is for BVH files (this one has no map)")
