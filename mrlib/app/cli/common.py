@@ -63,13 +63,19 @@ def _whole(text: str) -> int:
         return int(v)
 
 
+def _count(text: str, least: int) -> int:
+    """A whole number of at least ``least`` (0 or 1)."""
+    kind = "a positive integer" if least == 1 else f"an integer >= {least}"
+    n = read_number(text, _whole, f"wants {kind}, got {text!r}")
+    if n < least:
+        raise argparse.ArgumentTypeError(f"must be {kind}, got {text!r}")
+    return n
+
+
 def parse_steps(text: str) -> int:
     """A count of steps (its cap is the command's check, in one line:
     ``mrlib.sampling.constraints.optimise.check_fit_steps``)."""
-    n = read_number(text, _whole, f"wants an integer >= 0, got {text!r}")
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {n}")
-    return n
+    return _count(text, 0)
 
 
 def parse_non_negative(text: str) -> float:
@@ -97,10 +103,7 @@ def _sampler_setting(limit_name: str):
 
 def parse_positive(text: str) -> int:
     """A count of at least one (samples, iterations)."""
-    n = read_number(text, _whole, f"wants a positive integer, got {text!r}")
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return n
+    return _count(text, 1)
 
 
 def parse_fps(text: str) -> float:
@@ -115,10 +118,7 @@ def parse_fps(text: str) -> float:
 
 def parse_threads(text: str) -> int:
     """A positive count (its cap, 4 x the usable CPUs, is ``mrlib.threads``'s check)."""
-    n = read_number(text, _whole, f"wants a positive integer, got {text!r}")
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}")
-    return n
+    return _count(text, 1)
 
 
 # -- presets -------------------------------------------------------------------------------
