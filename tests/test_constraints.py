@@ -297,6 +297,19 @@ def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body)
     assert _steps(glued, body)[19] > 2 * steps[19]
 
 
+def test_a_continuation_of_a_faster_walk_never_walks_back(model, clips, body):
+    """A prefix that covers ground faster than the model walks: after the join the root
+    goes on forward (it slid back over the blend when the gap there was faded out)."""
+    prefix = clips[0].slice(0, 20)
+    fast = prefix.replace(trans=prefix.trans * np.array([3.0, 1.0, 3.0]))
+    m = C.continue_motion(model, fast, 20, "walk_sad", seed=0, fit=C.NoiseFit(steps=5),
+                          body=body)  # fmt: skip
+    heading = fast.trans[-1, [0, 2]] - fast.trans[0, [0, 2]]
+    heading /= np.linalg.norm(heading)
+    ahead = m.trans[19:, [0, 2]] @ heading  # from the prefix's last frame on
+    assert ahead.min() >= ahead[0] - 0.02, ahead[:12]
+
+
 # -- loops --------------------------------------------------------------------------------
 def test_circular_generation_is_periodic(model):
     W = Condition.label("walk_sad").weights(model)

@@ -426,7 +426,14 @@ def continue_motion(
         field = h00 * r1[j] + h10 * (r1[j] - r0[j])
         poses[K - 1 :, j] = _aa(_mat(field) @ R[K - 1 :, j])
     trans = m.trans.astype(np.float64).copy()
-    trans[K - 1 :] += h00 * d1 + h10 * (d1 - d0)
+    # on the ground the gap at the join stays and the prefix's velocity fades into the
+    # model's, never back (fading the gap, or a velocity term that returns to zero, pulled
+    # the root back over the blend when the model walks slower than the clip); the
+    # height eases back to the model's
+    gap = h00 * d1 + h10 * (d1 - d0)
+    ease = (u - u**2 + u**3 / 3) * w  # its slope goes from 1 to 0, its value only grows
+    gap[:, [0, 2]] = d1[[0, 2]] + ease * (d1 - d0)[[0, 2]]
+    trans[K - 1 :] += gap
     poses[:K], trans[:K] = prefix.poses, prefix.trans
     contacts = m.contacts
     if contacts is not None:
