@@ -18,6 +18,16 @@ the raised output was chosen on.
 
     python bench/output_rate.py [--samples 10] [--seed 0] [--split dev|heldout] [--seeds 0,1]
 
+``--restyle``: restyled takes instead of samples: the development walks' ``_002`` takes
+(never seen in training; the normal walk's lasts too short) restyled by the same ``preview`` model to every label (the
+default level, seed 0, cleaned), scored at the takes' 30 fps against each take: the
+result at the model's rate raised by slerp and by splines, and ``mrlib.restyle``'s
+default (the model's output raised by splines before the path and the feet are laid at
+the take's rate).
+
+``--path``: samples that walk a path (``mrlib.sampling.constraints.generate_on_path``,
+``circle:2``, 10 s), the same ways as the plain samples.
+
 ``--preset demo --clip-fps 24``: the other direction, clips at a lower rate than the model's
 (the 30-fps captures resampled to 24 fps by splines stand in for 24-fps captures; the
 ``demo`` model trains at 30 fps on them, development walks only), its samples lowered to
@@ -31,7 +41,9 @@ import argparse
 import numpy as np
 
 import mrlib
+from mrlib.errors import ClipTooShortError
 from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
+from mrlib.sampling.restyling import restyle_lengths
 from mrlib.training.data import TrainingSet
 from mrlib.training.trainer import train_cached
 
@@ -51,6 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--split", choices=("dev", "heldout"), default="dev")
     ap.add_argument("--seeds", default="0", help="--split heldout: training seeds")
     ap.add_argument("--preset", choices=("preview", "demo"), default="preview")
+    ap.add_argument("--restyle", action="store_true", help="restyled unseen takes, not samples")
+    ap.add_argument("--path", action="store_true", help="samples on a path (circle:2, 10 s)")
     ap.add_argument("--clip-fps", type=float, default=None,
                     help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)
@@ -80,8 +94,85 @@ def main(argv: list[str] | None = None) -> int:
         model, _ = train_cached(data, cfg, body=body, progress=False)
         if seed is not None:
             print(f"\n## training seed {seed}")
-        table(model, full, low, args, body)
+        if args.restyle:
+            restyled(model, args, body)
+        elif args.path:
+            on_path(model, full, args, body)
+        else:
+            table(model, full, low, args, body)
     return 0
+
+
+def on_path(model, full: dict, args, body) -> None:
+    """Samples walking ``circle:2``, raised to the clips' rate three ways."""
+    from mrlib.sampling.constraints import generate_on_path
+
+    ways = ("slerp", "spline", "Sampler(fps)")
+    print(
+        f"model at {model.fps:g} fps; {args.samples} cleaned samples per label on circle:2, 10 s\n"
+    )
+    print("| label | clip skating % | " + " | ".join(f"{w}: jerk ratio | skating %" for w in ways) + " |")  # fmt: skip
+    print("|---|---:|" + "---:|---:|" * len(ways))
+    ratio, extra = {w: [] for w in ways}, {w: [] for w in ways}
+    for label, clip in full.items():
+        cj, cs = scores(clip, body)
+        got = {w: [] for w in ways}
+        for b in range(args.samples):
+            kw = dict(seconds=10.0, seed=args.seed + b, body=body)
+            low = generate_on_path(
+                model, "circle:2", label, sampler=mrlib.Sampler(candidates=1), **kw
+            )
+            got["slerp"].append(scores(low.resample(clip.fps), body))
+            got["spline"].append(scores(low.resample(clip.fps, smooth=True), body))
+            high = generate_on_path(model, "circle:2", label,
+                                    sampler=mrlib.Sampler(fps=clip.fps, candidates=1), **kw)  # fmt: skip
+            got["Sampler(fps)"].append(scores(high, body))
+        r = {w: np.mean(v, axis=0) for w, v in got.items()}
+        for w in ways:
+            ratio[w].append(r[w][0] / cj)
+            extra[w].append(100 * (r[w][1] - cs))
+        print(f"| {label} | {100 * cs:.1f} | " + " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways) + " |")  # fmt: skip
+    print("\nmean over labels, jerk over the clips' and skating minus the clips' (points): "
+          + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
+
+
+def restyled(model, args, body) -> None:
+    """Unseen takes restyled to every label, the ways of reaching the take's rate."""
+    takes = mrlib.datasets.bandai.tutorial_clips([n.replace("_001", "_002") for n in CLIPS])
+    ways = ("slerp", "spline", "restyle default")
+    print(f"model at {model.fps:g} fps; each take restyled to {len(model.labels)} labels\n")
+    print("| take | frames, fps | take jerk | take skating % | "
+          + " | ".join(f"{w}: jerk ratio | skating %" for w in ways) + " |")  # fmt: skip
+    print("|---|---|---:|---:|" + "---:|---:|" * len(ways))
+    ratio, extra = {w: [] for w in ways}, {w: [] for w in ways}
+    for path in takes.paths:
+        take = mrlib.load_motion(path, body=body)
+        try:
+            restyle_lengths(model, take.resampled_frames(model.fps), take.name)
+        except ClipTooShortError as e:  # the normal walk's second take lasts 1 s
+            print(f"not restyled: {e}")
+            continue
+        take.contacts = mrlib.representation.foot_contacts(take, body)
+        cj, cs = scores(take, body)
+        got = {w: [] for w in ways}
+        for lab in model.labels:
+            low = mrlib.restyle(model, take, lab, seed=args.seed, body=body,
+                                sampler=mrlib.Sampler(fps=model.fps))  # fmt: skip
+            got["slerp"].append(scores(low.resample(take.fps), body))
+            got["spline"].append(scores(low.resample(take.fps, smooth=True), body))
+            out = mrlib.restyle(model, take, lab, seed=args.seed, body=body)
+            assert out.num_frames == take.num_frames and out.fps == take.fps
+            got["restyle default"].append(scores(out, body))
+        r = {w: np.mean(v, axis=0) for w, v in got.items()}
+        for w in ways:
+            ratio[w].append(r[w][0] / cj)
+            extra[w].append(100 * (r[w][1] - cs))
+        cells = " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways)
+        print(f"| {take.name} | {take.num_frames}, {take.fps:g} | {cj:.1f} | {100 * cs:.1f} | {cells} |")  # fmt: skip
+    print("\nmean over takes, jerk over the take's and skating minus the take's (points): "
+          + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
+    w = "restyle default"
+    print(f"{w}, worst take: jerk {max(ratio[w]):.2f}x the take's, skating {max(extra[w]):+.1f} points over the take's")  # fmt: skip
 
 
 def table(model, full: dict, low: dict, args, body) -> None:

@@ -101,3 +101,57 @@ def test_keyframes_a_second_apart_are_no_rate_to_write_samples_at(run, tmp_path)
         state["clip_fps"] = rates
         path = save_checkpoint(tmp_path / f"r{rates[-1]:g}.pt", state)
         assert load_model(path).source_fps == want
+
+
+@pytest.mark.parametrize(
+    "flags, frames",
+    [
+        (["--path", "line:1", "--seconds", "2"], 60),  # 30 model frames raised to 30 fps
+        (["--parts", "upper=walk_sad,lower=walk_happy", "--seconds", "2"], 60),
+        (["--loop", "--seconds", "2"], 60),  # a cycle of 30 frames, 60 at 30 fps
+    ],
+)
+def test_path_loop_and_part_samples_come_at_the_clips_rate(run, tmp_path, capsys, flags, frames):
+    ckpt = str(run / "checkpoint.pt")
+    out = tmp_path / "a"
+    assert main(["sample", ckpt, *flags, "--out", str(out), "--no-progress"]) == 0
+    assert "samples at 30 fps, the training clips' rate" in capsys.readouterr().out
+    m = load_motion(next(out.glob("*.npz")))
+    assert m.fps == 30.0 and m.num_frames == frames
+    assert main(["sample", ckpt, *flags, "--fps", "15", "--out", str(tmp_path / "b"), "--no-progress"]) == 0  # fmt: skip
+    m = load_motion(next((tmp_path / "b").glob("*.npz")))
+    assert m.fps == 15.0 and m.num_frames == frames // 2
+
+
+def test_fitted_samples_stay_at_the_models_rate_and_say_so(run, tmp_path, capsys):
+    ckpt = str(run / "checkpoint.pt")
+    out = tmp_path / "a"
+    prefix = str(run.parent / "walk_sad.npz")  # a 30-fps clip
+    argv = ["sample", ckpt, "--continue", prefix, "--seconds", "1", "--fit-steps", "2",
+            "--out", str(out), "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    said = capsys.readouterr().out
+    assert "samples at the model's 15 fps, not its clips' 30" in said
+    assert load_motion(next(out.glob("*.npz"))).fps == 15.0
+    assert main([*argv, "--fps", "30"]) == 1
+    assert "fitted at the model's rate" in capsys.readouterr().err
+
+
+def test_a_loop_raised_to_the_clips_rate_still_joins(run):
+    from mrlib.representation.body import resolve_body
+    from mrlib.sampling.constraints import generate_loop, loop_seam
+    from mrlib.sampling.sampler import Sampler
+
+    model, body = load_model(run / "checkpoint.pt"), resolve_body(None, shared=True)
+    raw = Sampler(fix_contacts=False)
+    kw = dict(seed=0, start="sample", body=body)
+    low = generate_loop(model, "walk_sad", 20, sampler=raw, **kw)
+    high = generate_loop(model, "walk_sad", 20, sampler=Sampler(fix_contacts=False, fps=30.0), **kw)
+    assert (low.fps, low.num_frames, high.fps, high.num_frames) == (15.0, 20, 30.0, 40)
+    # the same cycle: every second raised frame is a model frame
+    np.testing.assert_allclose(high.poses[::2], low.poses, atol=1e-4)
+    np.testing.assert_allclose(high.trans[::2], low.trans, atol=1e-5)
+    np.testing.assert_allclose(high.meta["loop_offset"], low.meta["loop_offset"], atol=1e-5)
+    # the step across the seam is no larger than the cycle's others at the new rate
+    calm = generate_loop(model, "walk_sad", 20, seed=0, body=body, sampler=Sampler(fps=30.0))
+    assert loop_seam(calm, body)["seam"] <= loop_seam(calm, body)["p95"]

@@ -62,18 +62,32 @@ def _heading(motion) -> np.ndarray:
 
 
 # -- what comes out ---------------------------------------------------------------------------
-def test_restyle_resamples_to_the_model_and_records_what_made_it(model, clip, body, tmp_path):
+def test_restyle_returns_the_clips_rate_and_records_what_made_it(model, clip, body, tmp_path):
     m = restyle(model, clip, "wave", 2, seed=0, body=body)
     at_model = clip.resample(model.fps)
-    assert m.fps == model.fps and m.num_frames == at_model.num_frames == 50
-    assert m.label == "wave" and np.isfinite(m.poses).all() and m.contacts.shape == (50, 6)
+    # drawn at the model's 10 fps, returned at the clip's 30 fps, frame for frame
+    assert m.fps == clip.fps == 30.0 and m.num_frames == clip.num_frames == 150
+    assert m.label == "wave" and np.isfinite(m.poses).all() and m.contacts.shape == (150, 6)
     assert np.allclose(m.betas, clip.betas)
     info = m.meta["restyle"]
     assert (info["label"], info["level"], info["keep"], info["seed"]) == ("wave", 2, "coarse", 0)
     assert info["seconds"] > 0 and info["source_fps"] == 30.0
-    # the clip at the model's rate gives the same result: resampling is the first step
+    # at the model's rate: the clip there gives the same result (resampling is the first
+    # step), with the clip's frame count at that rate
+    low = restyle(model, clip, "wave", 2, seed=0, body=body, sampler=Sampler(fps=model.fps))
+    assert low.fps == model.fps and low.num_frames == at_model.num_frames == 50
     same = restyle(model, at_model, "wave", 2, seed=0, body=body)
-    np.testing.assert_allclose(same.poses, m.poses, atol=1e-5)
+    np.testing.assert_allclose(same.poses, low.poses, atol=1e-5)
+    # the raised result passes through the model-rate one at every third frame (raw: the
+    # clean-up's jitter filter works at each rate)
+    raw_hi = restyle(model, clip, "wave", 2, seed=0, body=body, sampler=RAW)
+    raw_lo = restyle(model, clip, "wave", 2, seed=0, body=body, sampler=dataclasses.replace(
+        RAW, fps=model.fps))  # fmt: skip
+    np.testing.assert_allclose(raw_hi.poses[::3], raw_lo.poses, atol=1e-4)
+    # the root starts and ends where the clip's does, at its own frames
+    np.testing.assert_allclose(
+        raw_hi.trans[[0, -1]][:, [0, 2]], clip.trans[[0, -1]][:, [0, 2]], atol=1e-4
+    )
     # a file works as well as a Motion
     from mrlib.io import save_motion
 
@@ -297,8 +311,12 @@ def test_restyle_cli(tmp_path):
     stem = "walk_happy_to_wave_coarse1_seed0_0"
     assert got == [f"{stem}.bvh", f"{stem}.glb", f"{stem}.npz"], got
     m = load_motion(out / f"{stem}.npz")
-    assert m.meta["restyle"]["level"] == 1 and m.fps == 10.0 and m.num_frames == 80
+    # at the clip's own 30 fps and frame count (the model draws at 10 fps)
+    assert m.meta["restyle"]["level"] == 1 and m.fps == 30.0 and m.num_frames == 240
     assert main(base) == 1  # refuses to overwrite
+    assert main([*base, "--overwrite", "--fps", "10"]) == 0
+    m = load_motion(out / f"{stem}.npz")
+    assert m.fps == 10.0 and m.num_frames == 80
     assert main([*base, "--overwrite", "--raw"]) == 0
     assert main([*base, "--keep", "detail", "--level", "2", "--seed", "1"]) == 0
     assert (out / "walk_happy_to_wave_detail2_seed1_0.npz").is_file()
@@ -371,7 +389,8 @@ def test_interactive_restyle_builds_and_redraws(model, clip, body, monkeypatch):
     assert isinstance(view, RestyleView) and view.image is None
     assert view.motion.num_frames == view.source.num_frames == view.label_sample.num_frames
     assert view.shares.levels == (1, 2, 3) and "at levels 2-4" in view.title
-    want = restyle(model, clip, "wave", 1, seed=0, body=body)
+    # the widget shows the restyle at the model's rate, as its level shares are measured
+    want = restyle(model, clip, "wave", 1, seed=0, body=body, sampler=Sampler(fps=model.fps))
     np.testing.assert_allclose(view.motion.poses, want.poses, atol=1e-5)
     controls = {c.description: c for row in box.children[:3] for c in row.children}
     controls["level k"].value = 3

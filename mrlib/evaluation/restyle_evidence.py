@@ -213,9 +213,11 @@ def restyle_evidence(
 ) -> RestyleEvidence:  # fmt: skip
     """Measure ``restyled`` (a result of :func:`restyle`, best without the foot clean-up)
     against its ``source`` clip; ``references`` from :func:`restyle_references` (built
-    for the restyled clip's length and level when None)."""
+    for the restyled clip's length and level when None). Both are measured at the model's
+    frame rate (a restyled clip at its input's rate is resampled to it, as the input is)."""
     info = restyled.meta.get("restyle", {})
     source = at_model_rate(model, source)
+    restyled = at_model_rate(model, restyled)
     if source.num_frames != restyled.num_frames:
         raise MotionValueError(
             f"the source has {source.num_frames} frames at {model.fps:g} fps, the restyled "

@@ -187,7 +187,10 @@ class Motion:
             return 2**62
         return int(np.floor(last + 1e-9)) + 1
 
-    def resample(self, fps: float, *, smooth: bool = False, keep_duration: bool = False) -> Motion:
+    def resample(
+        self, fps: float, *, smooth: bool = False, keep_duration: bool = False,
+        frames: int | None = None,
+    ) -> Motion:  # fmt: skip
         """Resample to ``fps``: rotations by slerp, translation linearly, contact labels
         by nearest frame. The first frame is kept; the last output frame is the last
         one not after the input's end. A resampling that would make more than
@@ -203,13 +206,25 @@ class Motion:
         ``keep_duration=True`` (with ``smooth``, clips of 4 frames or more): as many frames
         as the clip lasts at ``fps``, ``round(T * fps / self.fps)`` (150 frames at 15 fps
         give 300 at 30, not 299), the last ones continued by the splines less than one
-        input frame past the last (what ``mrlib.generate`` returns at ``Sampler.fps``)."""
+        input frame past the last (what ``mrlib.generate`` returns at ``Sampler.fps``).
+        ``frames`` (with ``smooth``, clips of 4 frames or more): exactly that many, continued
+        the same way where the clip ends first (a restyled clip at its input's frame count:
+        ``mrlib.restyle``)."""
         n_out = self.resampled_frames(fps)
-        if abs(fps - self.fps) < 1e-9:
+        if abs(fps - self.fps) < 1e-9 and frames in (None, self.num_frames):
             return self.replace()
         T = self.num_frames
-        extend = keep_duration and smooth and T >= 4
-        if extend:
+        extend = (keep_duration or frames is not None) and smooth and T >= 4
+        if frames is not None:
+            ok = isinstance(frames, (int, np.integer)) and frames >= 2
+            if not (extend and ok and (frames - 1) * self.fps / fps <= T):
+                raise MotionValueError(
+                    f"resample(frames={frames!r}) needs smooth=True, a clip of 4 frames or "
+                    f"more (this one: {T}) and 2 to {int(np.floor(T * fps / self.fps + 1e-9)) + 1}"
+                    f" frames at {fps:g} fps (ending within one input frame of its end)"
+                )
+            n_out = int(frames)
+        elif extend:
             n_out = max(n_out, int(round(T * float(fps) / self.fps)))
         if n_out < 2 <= T:  # 8 s at 0.001 fps: one pose "lasting" 1000 s, the motion lost
             raise MotionValueError(

@@ -36,7 +36,9 @@ synthetic clips). So the root is then laid on the clip's ground path by time
 part of their difference above the cutoff), eased in and out over ``PATH_EASE_S`` at the
 ends and scaled down where it goes beyond ``PATH_SWAY_M`` (3 cm). The result starts and
 ends where the clip does (at the same times) and never leaves its path by more than the
-bound, at any frame rate of the clip (its path is resampled with it). The facing (yaw of
+bound, at any frame rate of the clip. The result comes back at the clip's own frame rate
+and frame count (``Sampler.fps``: another rate): the model's output is resampled by cubic
+splines, then laid on the clip's path and its feet planted at that rate. The facing (yaw of
 the pelvis) is corrected by the low band of the per-frame yaw difference. With
 ``keep="detail"`` both bands of the ground velocity come from the clip, so the root
 travels as the clip's. The root height is generated like any other channel (the label's
@@ -351,7 +353,8 @@ def restyle(
         model: a label-conditioned ``mrlib.sampling.generation.GenerativeModel``.
         motion: the clip, a ``Motion`` or a file ``mrlib.io.load_motion`` reads; any
             length the pyramid can hold (:func:`restyle_lengths`), any frame rate (it is
-            resampled to the model's). A long clip runs in one pass.
+            resampled to the model's, and the result back to the clip's). A long clip
+            runs in one pass.
         label: the target label (name or index).
         level: ``k`` in ``1..L-1``: the clip's levels ``1..k`` are kept (``keep="coarse"``)
             or replaced by the label's (``keep="detail"``); default ``L - 2``
@@ -360,19 +363,22 @@ def restyle(
         seed: the noise of the label's levels (None: a fresh draw).
         align: turn the clip to the training clips' mean facing first (and back after).
         sampler: a ``mrlib.Sampler``: the fine noise and guidance of the label's levels,
-            and whether the feet are planted (``fix_contacts``,
+            the output's frame rate (``fps``; None: the clip's own), and whether the feet
+            are planted (``fix_contacts``,
             ``mrlib.sampling.cleanup.cleanup_foot_contacts`` with ``keep_path=True``: the
             root keeps the clip's ground path; False for the raw result).
         body: body model for the contact labels of a clip that has none and for the
             clean-up (default: mrlib's).
     Returns:
-        A ``Motion`` at the model's frame rate with the clip's number of frames there,
-        its label the target label, its root on the clip's ground path (within
+        A ``Motion`` at the clip's frame rate with the clip's number of frames (drawn at
+        the model's rate and resampled by cubic splines, ``Motion.resample(smooth=True)``,
+        before the feet are planted; ``Sampler(fps=model.fps)``: at the model's rate with
+        the clip's number of frames there), its label the target label, its root on the clip's ground path (within
         ``PATH_SWAY_M``, exactly at the first and last frame); ``meta["restyle"]``
         records how it was made.
     """
     from mrlib.representation.body import resolve_body
-    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
     from mrlib.sampling.conditions import Condition
     from mrlib.sampling.generation import (
         check_conditions,
@@ -430,7 +436,13 @@ def restyle(
         origin=source.trans[0, [0, 2]], label=tag,
         name=f"{name}_restyled_{tag}_{keep}{k}",
     )  # fmt: skip
-    trans = relay_root_path(m.trans, source.trans, model.fps, cutoff)
+    # drawn at the model's rate; out at the clip's (or the sampler's) by cubic splines,
+    # before the root is laid on the clip's path and the feet are planted at that rate
+    fps = float(motion.fps if sampler.fps is None else sampler.fps)
+    path = motion if abs(fps - motion.fps) < 1e-6 else motion.resample(fps)
+    if m.num_frames != path.num_frames or abs(fps - model.fps) > 1e-6:
+        m = m.resample(fps, smooth=True, frames=path.num_frames)
+    trans = relay_root_path(m.trans, path.trans, fps, cutoff)
     m = m.replace(trans=trans.astype(m.trans.dtype))
     if keep == "detail":
         from mrlib.representation.contacts import foot_contacts
@@ -442,6 +454,6 @@ def restyle(
         "cutoff_hz": float(cutoff), "path_sway_m": PATH_SWAY_M, "fine_noise": sampler.fine_noise,
         "guidance": sampler.guidance, "seconds": time.perf_counter() - t0,
     }  # fmt: skip
-    if sampler.fix_contacts:
-        m = cleanup_foot_contacts(m, body, keep_path=True)
+    if sampler.fix_contacts:  # its jitter filter spans the same time as at the model's rate
+        m = cleanup_foot_contacts(m, body, keep_path=True, jitter=JITTER_SIGMA * fps / model.fps)
     return m

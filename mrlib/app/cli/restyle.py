@@ -4,11 +4,13 @@ a label's detail added, or the reverse)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from mrlib.app.cli.common import (
     add_command,
     joint_map_option,
+    parse_fps,
     parse_seed,
     sample_output_options,
     sampler_from_args,
@@ -30,7 +32,9 @@ def add_restyle(sub) -> argparse.ArgumentParser:
         "resampled to the model's frame rate and taken down its pyramid to level K; levels "
         "K+1..L then add the detail of --label (--keep coarse), or levels 1..K come from --label "
         "and the clip's own detail goes on top (--keep detail). The root travels and faces as "
-        "the clip does. Writes one .npz and one .bvh (and a .glb with --glb) like 'sample'.",
+        "the clip does, and the result comes back at the clip's frame rate and frame count "
+        "(--fps: another rate). Writes one .npz and one .bvh (and a .glb with --glb) like "
+        "'sample'.",
         [
             "mrlib restyle ckpt.pt clip.bvh --label walk_sad --out outputs/restyled",
             "mrlib restyle ckpt.pt clip.bvh --label walk_happy --level 2 --glb",
@@ -62,6 +66,13 @@ def add_restyle(sub) -> argparse.ArgumentParser:
     )
     joint_map_option(p)
     p.add_argument(
+        "--fps",
+        type=parse_fps,
+        default=None,
+        help="frame rate of the result, resampled by cubic splines before the feet are "
+        "planted [the clip's own]",
+    )
+    p.add_argument(
         "--seed", type=parse_seed, default=0, help="noise seed of the label's levels [0]"
     )
     p.add_argument(
@@ -84,6 +95,8 @@ def cmd_restyle(args) -> int:
     from mrlib.sampling.restyling import restyle, restyle_level
 
     sampler = sampler_from_args(args)
+    if args.fps is not None:
+        sampler = dataclasses.replace(sampler, fps=args.fps)  # its bounds checked there
     model = load_model(args.checkpoint, device=args.device)
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(

@@ -184,7 +184,8 @@ def add_sample(sub) -> argparse.ArgumentParser:
         "--fps",
         type=parse_fps,
         default=None,
-        help="frame rate of the samples (label, crossover and blend samples): the model draws "
+        help="frame rate of the samples (label, crossover, blend, --path, --loop and --parts "
+        "samples; keyframes and continuations stay at the model's): the model draws "
         "at its own rate (the preview preset: 15 fps; demo: 30), resampled by cubic splines "
         "before the feet are planted at this rate [default: the rate of the clips it was "
         "trained on (24-fps captures come back at 24 fps), recorded in checkpoints since "
@@ -284,8 +285,12 @@ def cmd_sample(args) -> int:
         raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
-    if args.fps is not None and (constrained or args.parts or args.audio is not None):
-        raise MrlibError("--fps applies to label, --crossover and --blend samples only")
+    fitted = args.keyframes or args.prefix  # made at the model's rate
+    if args.fps is not None and (fitted or args.audio is not None):
+        raise MrlibError(
+            "--fps applies to label, --crossover, --blend, --path, --loop and --parts "
+            "samples (keyframes and continuations are fitted at the model's rate)"
+        )
     if args.sharpen != 0 and not args.parts:
         raise MrlibError("--sharpen applies to --parts only")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
@@ -322,6 +327,9 @@ def cmd_sample(args) -> int:
 
         steps = SHARPEN_STEPS if args.sharpen is None else args.sharpen
         parts = Condition.parts(args.parts, in_step=args.in_step)
+        for lab in args.parts.values():
+            model.label_index(lab)  # an unknown label is refused before the notice
+        sampler = _output_rate(model, sampler, args)
         motions = generate_parts(model, parts, length=length, seed=args.seed, num=args.num,
                                  sampler=sampler, sharpen=Sharpening(
                                      steps=steps, progress=not args.no_progress))  # fmt: skip
@@ -352,19 +360,34 @@ def cmd_sample(args) -> int:
             if args.loop
             else "continued"
         )
+        label_weights(model, condition)  # an unknown label is refused before the notice
+        sampler = _output_rate(model, sampler, args, fitted=bool(fitted))
         motions = _constrained(model, condition, sampler, length, args)
         return write_samples(motions, f"{tag}_{what}", args)
-    if args.fps is None and model.source_fps is not None:
-        label_weights(model, condition)  # an unknown label is refused before the notice
-        sampler = dataclasses.replace(sampler, fps=model.source_fps)
-        whose = "the training clips' rate" if len(set(model.clip_fps)) == 1 else (
-            "the highest rate of the training clips")  # fmt: skip
-        print(f"samples at {model.source_fps:g} fps, {whose} (the model draws "
-              f"at {model.fps:g} fps: --fps {model.fps:g} for that)")  # fmt: skip
+    label_weights(model, condition)  # an unknown label is refused before the notice
+    sampler = _output_rate(model, sampler, args)
     motions = generate(
         model, condition, length=length, seed=args.seed, num=args.num, sampler=sampler
     )
     return write_samples(motions, tag, args)
+
+
+def _output_rate(model, sampler, args, fitted: bool = False):
+    """``sampler`` at the training clips' rate where the model draws at another and
+    ``--fps`` is not given, with a line that says so; samples fitted at the model's rate
+    (keyframes, continuations) stay there, and the line says that instead."""
+    if args.fps is not None or model.source_fps is None:
+        return sampler
+    if fitted:
+        print(f"samples at the model's {model.fps:g} fps, not its clips' "
+              f"{model.source_fps:g}: keyframes and continuations are fitted at the model's "
+              "rate")  # fmt: skip
+        return sampler
+    whose = "the training clips' rate" if len(set(model.clip_fps)) == 1 else (
+        "the highest rate of the training clips")  # fmt: skip
+    print(f"samples at {model.source_fps:g} fps, {whose} (the model draws "
+          f"at {model.fps:g} fps: --fps {model.fps:g} for that)")  # fmt: skip
+    return dataclasses.replace(sampler, fps=model.source_fps)
 
 
 def _audio_samples(args):

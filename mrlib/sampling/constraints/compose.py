@@ -122,8 +122,9 @@ def generate_parts(
     Args:
         length, seed, num: as ``mrlib.generate`` (every part's samples are the draws of
             ``seed``).
-        sampler: a ``mrlib.Sampler``: the draws' fine noise and guidance; its
-            ``fix_contacts`` plants the feet of the spliced motion.
+        sampler: a ``mrlib.Sampler``: the draws' fine noise and guidance, the output's
+            frame rate (``fps``: each draw raised as ``mrlib.generate`` raises it; None:
+            the model's); its ``fix_contacts`` plants the feet of the spliced motion.
         sharpen: Adam steps of the noise fit that moves each part's windows nearer its
             own label's training clips than any other's, or a ``Sharpening`` (its margin,
             a progress bar; ``mrlib.sampling.constraints.sharpen``); ``SHARPEN_STEPS`` is
@@ -133,7 +134,7 @@ def generate_parts(
         A ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``), or with ``num=k`` a
         list of k, as ``mrlib.generate``.
     """
-    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
     from mrlib.sampling.constraints.sharpen import generate_sharpened
     from mrlib.sampling.generation import shaped_samples
 
@@ -152,7 +153,8 @@ def generate_parts(
 
     base_c = next(c for js, c in groups if 0 in js)
     motions = {base_c: draw(base_c, length)}
-    T = motions[base_c][0].num_frames
+    first = motions[base_c][0]
+    T = round(first.num_frames * model.fps / first.fps)  # the model's frames (Sampler.fps)
     for _, c in groups:
         if c in motions:
             continue
@@ -165,8 +167,9 @@ def generate_parts(
         pick = {js: motions[c][b] for js, c in groups}
         out.append(splice_parts(pick, name=f"{tag}_seed{seed}_{b}", align=align_gait,
                                 body=body))  # fmt: skip
-    if sampler.fix_contacts:
-        out = [cleanup_foot_contacts(m, body) for m in out]
+    if sampler.fix_contacts:  # its jitter filter spans the same time at any output rate
+        out = [cleanup_foot_contacts(m, body, jitter=JITTER_SIGMA * m.fps / model.fps)
+               for m in out]  # fmt: skip
     for m in out:
         m.label = tag
         m.meta["parts"] = dict(labels)

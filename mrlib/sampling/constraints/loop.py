@@ -92,15 +92,28 @@ def _calm_start(motion: Motion, body) -> int:
     return (int(np.argmin(_joint_steps(motion, body, T + 1))) + 1) % T
 
 
-def _clean_loop(m: Motion, body) -> Motion:
+def _raised_loop(m: Motion, fps: float) -> Motion:
+    """A loop resampled to about ``fps`` by cubic splines through three cycles, so the
+    frames near the seam see across it: ``round(T * fps / m.fps)`` frames evenly over the
+    cycle (its duration kept; the rate is ``fps`` to within one frame per cycle)."""
+    T = m.num_frames
+    n = max(2, round(T * float(fps) / m.fps))
+    t = T + np.arange(n) * (T / n)  # the middle cycle of three, in input frames
+    mid = tile_loop(m, 3).at_frames(t, smooth=True)
+    off = np.asarray(m.meta["loop_offset"], np.float64)
+    meta = {**m.meta, "source_fps": float(m.meta.get("source_fps", m.fps))}
+    return mid.replace(trans=mid.trans - off, fps=float(fps), meta=meta)
+
+
+def _clean_loop(m: Motion, body, jitter: float | None = None) -> Motion:
     """Foot clean-up of a loop: on three cycles, keeping the middle one, so the
     clean-up sees across the seam. Planting the feet moves the root, so a cleaned cycle
     travels its own distance: ``loop_offset`` becomes the middle cycle's (from its first
     frame to the third cycle's), else the wrap would step by the difference."""
-    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 
     T = m.num_frames
-    c = cleanup_foot_contacts(tile_loop(m, 3), body)
+    c = cleanup_foot_contacts(tile_loop(m, 3), body, jitter=jitter or JITTER_SIGMA)
     mid = c.slice(T, 2 * T)
     off = c.trans[2 * T] - c.trans[T]
     off[1] = 0.0
@@ -125,7 +138,9 @@ def generate_loop(
     """A loop of ``length`` frames (default: the condition's training clip) under a
     condition (a label or a ``mrlib.Condition``; None: the first label; method and
     ``start``: module docstring). ``sampler``: a ``mrlib.Sampler`` (fine noise, guidance;
-    its ``fix_contacts`` plants the feet, across the seam)."""
+    ``fps``: the cycle drawn at the model's rate, resampled by cubic splines across the
+    seam to that rate, its duration kept; its ``fix_contacts`` plants the feet, across the
+    seam)."""
     from mrlib.sampling.conditions import as_condition
     from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs
     from mrlib.sampling.sampler import Sampler
@@ -162,8 +177,12 @@ def generate_loop(
 
         m = m.replace(contacts=output_contacts(model, x[None], W)[0])
     m.meta["loop_method"] = method
+    if sampler.fps is not None and abs(sampler.fps - model.fps) > 1e-6:
+        m = _raised_loop(m, sampler.fps)  # before the feet are planted, as generate raises
     if sampler.fix_contacts and m.contacts is not None:
-        m = _clean_loop(m, body)
+        from mrlib.sampling.cleanup import JITTER_SIGMA
+
+        m = _clean_loop(m, body, jitter=JITTER_SIGMA * m.fps / model.fps)
     if start == "calm":
         k = _calm_start(m, body)
         m = roll_loop(m, k)

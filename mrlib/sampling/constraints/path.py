@@ -330,6 +330,7 @@ def follow_path(
     smooth_s: float = 0.5,
     clean: bool = True,
     body=None,
+    jitter: float | None = None,
 ) -> Motion:
     """``motion`` walking ``path`` (method: module docstring), starting at the path's
     first point.
@@ -341,6 +342,8 @@ def follow_path(
         clean: plant the feet afterwards (``mrlib.sampling.cleanup.cleanup_foot_contacts``
             with ``keep_path``: the root keeps the path, the legs plant the feet; needs
             contact labels, skipped without them).
+        jitter: the clean-up's jitter filter, frames (None: ``JITTER_SIGMA``; a model's
+            sample raised to a higher rate spans the same time with proportionally more).
     Returns:
         The motion with new translation and global orientation; ``meta["path"]`` says
         which path and pace.
@@ -388,10 +391,11 @@ def follow_path(
     )
     out = motion.replace(poses=poses, trans=trans, meta=meta)
     if clean and out.contacts is not None:
-        from mrlib.sampling.cleanup import cleanup_foot_contacts
+        from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 
         # the root stays on the path: the legs take the feet's ground corrections
-        out = cleanup_foot_contacts(out, body, keep_path=True)
+        sigma = JITTER_SIGMA if jitter is None else float(jitter)
+        out = cleanup_foot_contacts(out, body, keep_path=True, jitter=sigma)
     return out
 
 
@@ -445,8 +449,10 @@ def generate_on_path(
         condition: a label or a ``mrlib.Condition`` (None: the first label).
         seconds: length; default: the path's times, else one lap / the whole path at
             the condition's own pace (:func:`natural_pace`).
-        sampler: a ``mrlib.Sampler``: the draw's fine noise and guidance, and whether the
-            feet are planted after the bend (``fix_contacts``, ``mrlib.sampling.cleanup``).
+        sampler: a ``mrlib.Sampler``: the draw's fine noise and guidance, the output's
+            frame rate (``fps``; None: the model's; ``seconds`` and the path's times are
+            kept), and whether the feet are planted after the bend (``fix_contacts``,
+            ``mrlib.sampling.cleanup``).
         max_seconds: refuse (before generating) a walk longer than this, given or
             implied by the path (None: no limit).
     """
@@ -474,4 +480,8 @@ def generate_on_path(
     sampler = sampler or Sampler()
     m = generate(model, condition, length=length, seed=seed,
                  sampler=replace(sampler, fix_contacts=False))  # fmt: skip
-    return follow_path(m, path, clean=sampler.fix_contacts, body=body)
+    # at sampler.fps the raw draw is already raised; the clean-up's filter spans the same time
+    from mrlib.sampling.cleanup import JITTER_SIGMA
+
+    jitter = JITTER_SIGMA * m.fps / model.fps
+    return follow_path(m, path, clean=sampler.fix_contacts, body=body, jitter=jitter)
