@@ -96,7 +96,8 @@ CASES = {
     "C.parse_path": (lambda f, out: dict(spec="line:2"), {"spec": {TEXT}}),
     "C.follow_path": (
         lambda f, out: dict(motion=f.motion, path="line:2"),
-        {"motion": set(), "path": {TEXT}, "smooth_s": set(), "clean": set(), "body": set()},
+        {"motion": set(), "path": {TEXT}, "smooth_s": set(), "clean": set(), "body": set(),
+         "jitter": set()},  # fmt: skip
     ),
     "C.generate_on_path": (
         lambda f, out: dict(model=f.model, path="line:2", condition="walk_sad"),

@@ -84,6 +84,10 @@ def test_path_files_and_bad_specs(tmp_path):
     p = C.parse_path(f)
     assert p.times is not None and p.duration == 2.5 and len(p.points) == 3
     assert C.GroundPath.from_csv(f).arc_at_time(np.array([1.0]))[0] == pytest.approx(1.0)
+    # a spreadsheet's export in a locale that writes decimal commas
+    (tmp_path / "semi.csv").write_text("x;z;t\n0;0;0\n0;1,5;1\n1,5;2;2,5\n")
+    semi = C.parse_path(tmp_path / "semi.csv")
+    assert np.allclose(semi.points, [[0, 0], [0, 1.5], [1.5, 2]]) and semi.duration == 2.5
     (tmp_path / "bad.csv").write_text("x,z\n0,0\n0,zz\n")
     with pytest.raises(MotionFileError, match="bad.csv"):
         C.parse_path(tmp_path / "bad.csv")
@@ -423,8 +427,14 @@ def test_spliced_parts_take_each_group_from_its_own_label(model):
     assert step.num_frames == 30
     assert np.array_equal(step.poses[:, low], sad.poses[:, low])
     assert np.array_equal(step.trans, sad.trans)
-    with pytest.raises(MotionValueError, match="overlap"):
+    # by name, before anything is drawn (and on the command line, when its argument is read)
+    msg = "'upper' and 'left_arm' overlap at left_collar, left_shoulder, left_elbow"
+    with pytest.raises(MotionValueError, match=msg):
         C.generate_parts(model, {"upper": "wave", "left_arm": "walk_sad"}, length=30)
+    with pytest.raises(MotionValueError, match=msg):
+        C.parse_parts("upper=wave,left_arm=walk_sad")
+    with pytest.raises(MotionValueError, match="unknown body part 'arms'"):
+        C.parse_parts("upper=wave,arms=walk_sad")
     two = C.generate_parts(model, parts, length=30, seed=2, num=2, sampler=RAW)
     assert isinstance(two, list) and len(two) == 2 and two[0].label == "upper=wave,lower=walk_sad"
     assert np.abs(two[0].poses - m.poses).max() < 1e-3  # sample b: noise stream (seed, b)

@@ -154,8 +154,9 @@ def add_sample(sub) -> argparse.ArgumentParser:
         "--path",
         default=None,
         metavar="SPEC",
-        help="walk a ground path: circle:R, circle-right:R, eight:R, line:L (metres) or a CSV "
-        "of x,z[,t]; --seconds defaults to the path's times or its length at the label's pace",
+        help="walk a ground path: circle:R, circle-right:R, eight:R, line:L (metres; R 2 and "
+        "L 10 when left out, as in 'circle') or a CSV of x,z[,t]; --seconds defaults to the "
+        "path's times or its length at the label's pace",
     )
     c.add_argument(
         "--keyframes",
@@ -361,6 +362,10 @@ def cmd_sample(args) -> int:
             else "continued"
         )
         label_weights(model, condition)  # an unknown label is refused before the notice
+        if args.path is not None:  # and a path spec or file that is not one
+            from mrlib.sampling.constraints import parse_path
+
+            parse_path(args.path)
         sampler = _output_rate(model, sampler, args, fitted=bool(fitted))
         motions = _constrained(model, condition, sampler, length, args)
         return write_samples(motions, f"{tag}_{what}", args)

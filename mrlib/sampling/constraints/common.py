@@ -71,10 +71,28 @@ def part_joints(part: str | Sequence) -> tuple[int, ...]:
     return joint_ids(part)
 
 
+def disjoint_parts(parts) -> list[set[int]]:
+    """The joint ids of each of ``parts`` (names or joint lists, :func:`part_joints`), or
+    a ``MotionValueError`` naming the first two parts that share a joint, and the joints."""
+    groups = [set(part_joints(p)) for p in parts]
+    seen: dict[int, object] = {}
+    for js, part in zip(groups, parts, strict=True):
+        both = sorted(js & seen.keys())
+        if both:
+            names = ", ".join(JOINT_NAMES[j] for j in both)
+            raise MotionValueError(
+                f"body parts {seen[both[0]]!r} and {part!r} overlap at {names}: give each "
+                "joint to one part (joints no part names go with the pelvis's part)"
+            )
+        seen.update(dict.fromkeys(js, part))
+    return groups
+
+
 @check_args(spec=check_text)
 def parse_parts(spec: str) -> dict[str, str]:
     """``"upper=walk_happy,lower=walk_sad"`` -> ``{"upper": "walk_happy", ...}``; a part
-    named twice is refused (the second would silently replace the first)."""
+    named twice, an unknown part and parts that share a joint are refused (the second
+    would silently replace the first)."""
     out: dict[str, str] = {}
     for item in str(spec).split(","):
         part, eq, cond = item.partition("=")
@@ -87,6 +105,7 @@ def parse_parts(spec: str) -> dict[str, str]:
                 f"{part}={cond.strip()}); give each part one label"
             )
         out[part] = cond.strip()
+    disjoint_parts(list(out))
     return out
 
 

@@ -29,7 +29,7 @@ from mrlib.representation.skeleton import JOINT_NAMES, NUM_JOINTS
 from mrlib.sampling.arguments import check_parts, checked
 from mrlib.sampling.conditions import Condition
 from mrlib.sampling.constraints.common import (
-    part_joints,
+    disjoint_parts,
 )
 from mrlib.sampling.sampler import Sampler
 
@@ -60,13 +60,8 @@ def _groups(parts: Mapping) -> list[tuple[tuple[int, ...], object]]:
     the part holding the pelvis, or else the first part."""
     if not parts:
         raise MotionValueError("give at least one part=condition")
-    groups = [(set(part_joints(p)), c) for p, c in parts.items()]
-    seen: set[int] = set()
-    for js, _ in groups:
-        if js & seen:
-            raise MotionValueError(f"body parts overlap at joints {sorted(js & seen)}")
-        seen |= js
-    rest = set(range(NUM_JOINTS)) - seen
+    groups = list(zip(disjoint_parts(list(parts)), parts.values(), strict=True))
+    rest = set(range(NUM_JOINTS)) - set().union(*(js for js, _ in groups))
     if rest:
         k = next((i for i, (js, _) in enumerate(groups) if 0 in js), 0)
         groups[k][0].update(rest)

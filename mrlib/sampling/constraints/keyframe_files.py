@@ -66,11 +66,22 @@ def _frame_index(frame) -> int:
 def _bounded_values(
     name: str, value, shape: tuple[int, ...], limit: float, within: str, hint: str
 ) -> np.ndarray:
-    """``value`` as a float64 array of ``shape``, finite and no component beyond
-    ``limit``, else a ``MotionValueError``: "keyframe {name} must {within}" ({hint})."""
-    a = np.asarray(value, np.float64).reshape((-1, *shape[1:]))
-    if a.shape != shape or not np.isfinite(a).all():
-        raise MotionValueError(f"keyframe {name} must be finite {shape}, got {a.shape}")
+    """``value`` as a float64 array of ``shape`` (or as many values flat), finite and no
+    component beyond ``limit``, else a ``MotionValueError``: "keyframe {name} must
+    {within}" ({hint})."""
+    words = {(NUM_JOINTS, 3): f"{NUM_JOINTS} joint rotations of 3 axis-angle values (SMPL)",
+             (3,): "3 values, x, y and z in metres"}.get(shape, str(shape))  # fmt: skip
+    try:
+        a = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        raise MotionValueError(f"keyframe {name} must be {words}, got {shown(value)}") from None
+    if a.size == math.prod(shape):
+        a = a.reshape(shape)
+    if a.shape != shape:
+        got = f"{' x '.join(map(str, a.shape))} values" if a.ndim else "one number"
+        raise MotionValueError(f"keyframe {name} must be {words}, got {got}")
+    if not np.isfinite(a).all():
+        raise MotionValueError(f"keyframe {name} holds NaN or infinite values")
     if np.abs(a).max() > limit:
         raise MotionValueError(f"keyframe {name} must {within}, got {np.abs(a).max():.3g} ({hint})")
     return a
@@ -99,7 +110,7 @@ class Keyframe:
             raise MotionValueError(f"keyframe at frame {self.frame} constrains nothing")
         if self.poses is not None:
             p = _bounded_values(
-                "poses", self.poses, (NUM_JOINTS, 3), MAX_AXIS_ANGLE,
+                f"at frame {self.frame}: poses", self.poses, (NUM_JOINTS, 3), MAX_AXIS_ANGLE,
                 f"be axis-angle radians within +-{MAX_AXIS_ANGLE:g}", "degrees or another unit?",
             )  # fmt: skip
             object.__setattr__(self, "poses", p)
@@ -109,7 +120,7 @@ class Keyframe:
             raise MotionValueError("keyframe joints given without poses")
         if self.trans is not None:
             t = _bounded_values(
-                "trans", self.trans, (3,), MAX_TRANSLATION_M,
+                f"at frame {self.frame}: trans", self.trans, (3,), MAX_TRANSLATION_M,
                 f"lie within {MAX_TRANSLATION_M:g} m of the origin", "centimetres?",
             )  # fmt: skip
             object.__setattr__(self, "trans", t)

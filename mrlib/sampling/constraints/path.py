@@ -96,8 +96,13 @@ class GroundPath:
     def __post_init__(self) -> None:
         p = np.asarray(self.points, np.float64)
         if p.ndim != 2 or p.shape[1] != 2 or len(p) < 2 or not np.isfinite(p).all():
+            if p.ndim == 2 and p.shape[1] == 2 and len(p) >= 2:
+                got = "NaN or infinite values"
+            else:
+                got = f"an array of shape {p.shape}" if p.ndim else "one number"
             raise MotionValueError(
-                f"a path needs (N >= 2, 2) finite (x, z) points in metres, got shape {p.shape}"
+                "a path needs 2 or more points of 2 numbers each, (x, z) in metres, as an "
+                f"array of N rows and 2 columns; got {got}"
             )
         if np.abs(p).max() > MAX_PATH_COORD:
             raise MotionValueError(
@@ -125,8 +130,13 @@ class GroundPath:
         if self.times is not None:
             t = np.asarray(self.times, np.float64).reshape(-1)
             if len(t) != len(self.points) or not np.isfinite(t).all() or (np.diff(t) <= 0).any():
+                k = int(np.argmax(np.diff(t) <= 0)) + 1 if len(t) > 1 else 0
+                why = (f"got {len(t)}" if len(t) != len(self.points) else "got NaN or infinite "
+                       "values" if not np.isfinite(t).all() else f"time {k} ({t[k]:g} s) is not "
+                       f"after time {k - 1} ({t[k - 1]:g} s)")  # fmt: skip
                 raise MotionValueError(
-                    f"path times must be {len(self.points)} strictly increasing seconds"
+                    f"path times must be {len(self.points)} strictly increasing seconds, one "
+                    f"per point: {why}"
                 )
             if np.abs(t).max() > MAX_PATH_TIME:
                 raise MotionValueError(
@@ -248,7 +258,8 @@ def check_path_spec(name: str, value: Any) -> Any:
 @checked(spec=check_path_spec)
 def parse_path(spec: str | Path | GroundPath) -> GroundPath:
     """A path from ``"circle:R"``, ``"circle-right:R"``, ``"eight:R"``, ``"line:L"``
-    (metres) or a CSV file (:meth:`GroundPath.from_csv`)."""
+    (metres; without a number, R is 2 and L 10: ``"circle"``) or a CSV file
+    (:meth:`GroundPath.from_csv`)."""
     if isinstance(spec, GroundPath):
         return spec
     text = str(spec)

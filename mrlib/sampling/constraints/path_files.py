@@ -22,8 +22,9 @@ MAX_PATH_POINTS = 100_000
 
 def read_path_csv(path: str | Path, build: Callable[[np.ndarray, np.ndarray | None], Any]):
     """``build(points (N, 2), times (N,) or None)`` of the CSV file ``path``: columns
-    ``x, z`` (metres) and optionally ``t`` (seconds), with or without a header row; ``#``
-    starts a comment.
+    ``x, z`` (metres) and optionally ``t`` (seconds), with or without a header row,
+    separated by commas, spaces or tabs, or by semicolons with decimal commas (``1,5;2``,
+    as spreadsheets write in many locales); ``#`` starts a comment.
 
     Raises:
         MotionFileError: naming ``path``: not a regular file, larger than
@@ -53,8 +54,10 @@ def _columns(path: Path, text: str) -> tuple[np.ndarray, np.ndarray | None]:
     rows = []
     for no, line in enumerate(text.splitlines(), 1):
         line = line.split("#")[0].strip()
-        if line:
-            rows.append((no, [v for v in line.replace(",", " ").split()]))
+        if line and ";" in line:  # a spreadsheet's export where commas mark decimals
+            rows.append((no, [v.strip().replace(",", ".") for v in line.split(";") if v.strip()]))
+        elif line:
+            rows.append((no, line.replace(",", " ").split()))
     header = None
     if rows and not all(_is_number(v) for v in rows[0][1]):
         header_line, header = rows[0][0], [h.strip().lower() for h in rows[0][1]]
