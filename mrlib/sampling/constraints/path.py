@@ -333,7 +333,7 @@ def ground_track(motion: Motion, body=None, smooth_s: float = 0.5) -> dict[str, 
     return {"pelvis": pel, "travel": travel, "heading": h, "arc": arc, "speed": speed}
 
 
-@checked(path=check_path_spec)
+@checked(path=check_path_spec, jitter=lambda n, v: check_number(n, v, low=0, optional=True))
 def follow_path(
     motion: Motion,
     path: GroundPath | str,
