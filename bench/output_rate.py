@@ -28,6 +28,10 @@ the take's rate).
 ``--path``: samples that walk a path (``mrlib.sampling.constraints.generate_on_path``,
 ``circle:2``, 10 s), the same ways as the plain samples.
 
+``--continue``: the first 2 s of each development walk's ``_002`` take continued by 2 s
+under its label (``continue_motion``; ``--samples`` seeds), the new frames
+(from the prefix's last) scored the same ways.
+
 ``--preset demo --clip-fps 24``: the other direction, clips at a lower rate than the model's
 (the 30-fps captures resampled to 24 fps by splines stand in for 24-fps captures; the
 ``demo`` model trains at 30 fps on them, development walks only), its samples lowered to
@@ -65,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--preset", choices=("preview", "demo"), default="preview")
     ap.add_argument("--restyle", action="store_true", help="restyled unseen takes, not samples")
     ap.add_argument("--path", action="store_true", help="samples on a path (circle:2, 10 s)")
+    ap.add_argument("--continue", dest="cont", action="store_true", help="continued takes")
     ap.add_argument("--clip-fps", type=float, default=None,
                     help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)
@@ -98,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
             restyled(model, args, body)
         elif args.path:
             on_path(model, full, args, body)
+        elif args.cont:
+            continued(model, args, body)
         else:
             table(model, full, low, args, body)
     return 0
@@ -133,6 +140,45 @@ def on_path(model, full: dict, args, body) -> None:
             extra[w].append(100 * (r[w][1] - cs))
         print(f"| {label} | {100 * cs:.1f} | " + " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways) + " |")  # fmt: skip
     print("\nmean over labels, jerk over the clips' and skating minus the clips' (points): "
+          + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
+
+
+def continued(model, args, body) -> None:
+    """Unseen takes' first 2 s continued by 2 s, the ways of reaching the take's rate."""
+    from mrlib.sampling.constraints import NoiseFit, continue_motion
+
+    takes = mrlib.datasets.bandai.tutorial_clips([n.replace("_001", "_002") for n in CLIPS])
+    ways = ("spline", "Sampler(fps)")
+    seeds = range(args.seed, args.seed + args.samples)
+    print(f"model at {model.fps:g} fps; {len(seeds)} continuations per take\n")
+    print("| take | take jerk | take skating % | "
+          + " | ".join(f"{w}: jerk ratio | skating %" for w in ways) + " |")  # fmt: skip
+    print("|---|---:|---:|" + "---:|---:|" * len(ways))
+    ratio, extra = {w: [] for w in ways}, {w: [] for w in ways}
+    for path in takes.paths:
+        take = mrlib.load_motion(path, body=body)
+        if take.duration < 2.0:
+            print(f"not continued: {take.name} lasts {take.duration:.1f} s")
+            continue
+        take.contacts = mrlib.representation.foot_contacts(take, body)
+        cj, cs = scores(take, body)
+        prefix, got = take.slice(0, round(2 * take.fps)), {w: [] for w in ways}
+        frames = round(2 * model.fps)
+        for seed in seeds:
+            kw = dict(seed=seed, body=body, fit=NoiseFit(progress=False))
+            low = continue_motion(model, prefix, frames, take.label, sampler=mrlib.Sampler(), **kw)
+            high = continue_motion(model, prefix, frames, take.label,
+                                   sampler=mrlib.Sampler(fps=take.fps), **kw)  # fmt: skip
+            k = prefix.num_frames - 1  # from the prefix's last frame on
+            got["spline"].append(scores(low.resample(take.fps, smooth=True).slice(k), body))
+            got["Sampler(fps)"].append(scores(high.slice(k), body))
+        r = {w: np.mean(v, axis=0) for w, v in got.items()}
+        for w in ways:
+            ratio[w].append(r[w][0] / cj)
+            extra[w].append(100 * (r[w][1] - cs))
+        cells = " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways)
+        print(f"| {take.name} | {cj:.1f} | {100 * cs:.1f} | {cells} |")
+    print("\nmean over takes, jerk over the take's and skating minus the take's (points): "
           + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
 
 

@@ -302,16 +302,44 @@ def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body)
 
 
 def test_a_continuation_of_a_faster_walk_never_walks_back(model, clips, body):
-    """A prefix that covers ground faster than the model walks: after the join the root
-    goes on forward (it slid back over the blend when the gap there was faded out)."""
+    """A prefix that covers ground faster than the model walks: after the join the eased
+    root goes on forward (it slid back over the blend when the gap there was faded out).
+    Raw: this prefix's feet slide (its root moves 3x as far as its steps), and planting
+    the continuation's feet holds the root back from that slide."""
     prefix = clips[0].slice(0, 20)
     fast = prefix.replace(trans=prefix.trans * np.array([3.0, 1.0, 3.0]))
     m = C.continue_motion(model, fast, 20, "walk_sad", seed=0, fit=C.NoiseFit(steps=5),
-                          body=body)  # fmt: skip
+                          body=body, sampler=Sampler(fix_contacts=False))  # fmt: skip
     heading = fast.trans[-1, [0, 2]] - fast.trans[0, [0, 2]]
     heading /= np.linalg.norm(heading)
     ahead = m.trans[19:, [0, 2]] @ heading  # from the prefix's last frame on
     assert ahead.min() >= ahead[0] - 0.02, ahead[:12]
+
+
+def test_a_held_prefix_comes_back_as_it_is_and_the_rest_is_planted(body):
+    """cleanup_foot_contacts with PlantOptions(hold=K), as a continuation plants its feet after the
+    ease: the root drifting after frame K (an ease that slides the feet) is planted
+    again from the join on, the first K frames untouched; without the hold the clean-up
+    moves them too."""
+    from mrlib.representation.contacts import foot_contacts
+    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.planting import PlantOptions
+
+    w = synthetic_walk("walk_sad", seconds=4.0, fps=30.0, body=body)
+    K, trans = 60, w.trans.copy()
+    trans[K:, 0] += np.linspace(0, 0.4, w.num_frames - K)  # 0.4 m over 2 s
+    m = w.replace(trans=trans, contacts=foot_contacts(w, body))
+    held = cleanup_foot_contacts(m, body, options=PlantOptions(hold=K))
+    free = cleanup_foot_contacts(m, body)
+    assert np.array_equal(held.poses[:K], m.poses[:K]) and np.array_equal(
+        held.trans[:K], m.trans[:K]
+    )
+    assert np.abs(free.trans[:K] - m.trans[:K]).max() > 0.02  # the hold is what keeps them
+    after = contact_skating(held.slice(K - 1), body)
+    assert after < 0.5 * contact_skating(m.slice(K - 1), body)
+    assert after < 1.2 * contact_skating(free.slice(K - 1), body)
+    step = np.linalg.norm(np.diff(held.trans, axis=0), axis=1)
+    assert step[K - 2 : K + 2].max() < 1.5 * np.median(step)  # no jump at the join
 
 
 # -- loops --------------------------------------------------------------------------------

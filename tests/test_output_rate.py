@@ -123,18 +123,33 @@ def test_path_loop_and_part_samples_come_at_the_clips_rate(run, tmp_path, capsys
     assert m.fps == 15.0 and m.num_frames == frames // 2
 
 
-def test_fitted_samples_stay_at_the_models_rate_and_say_so(run, tmp_path, capsys):
+def test_continuations_and_keyframes_come_at_the_clips_rate(run, tmp_path, capsys):
+    from mrlib.sampling.constraints import Keyframe, keyframe_errors, save_keyframes
+
     ckpt = str(run / "checkpoint.pt")
+    prefix = load_motion(run.parent / "walk_sad.npz")  # a 30-fps clip of 72 frames
     out = tmp_path / "a"
-    prefix = str(run.parent / "walk_sad.npz")  # a 30-fps clip
-    argv = ["sample", ckpt, "--continue", prefix, "--seconds", "1", "--fit-steps", "2",
-            "--out", str(out), "--no-progress"]  # fmt: skip
+    argv = ["sample", ckpt, "--continue", str(run.parent / "walk_sad.npz"), "--seconds", "1",
+            "--fit-steps", "2", "--out", str(out), "--no-progress"]  # fmt: skip
     assert main(argv) == 0
-    said = capsys.readouterr().out
-    assert "samples at the model's 15 fps, not its clips' 30" in said
-    assert load_motion(next(out.glob("*.npz"))).fps == 15.0
-    assert main([*argv, "--fps", "30"]) == 1
-    assert "fitted at the model's rate" in capsys.readouterr().err
+    assert "samples at 30 fps, the training clips' rate" in capsys.readouterr().out
+    m = load_motion(next(out.glob("*.npz")))
+    # the prefix frame for frame, then 15 model frames (1 s) at 30 fps
+    assert m.fps == 30.0 and m.num_frames == prefix.num_frames + 30
+    np.testing.assert_allclose(m.poses[: prefix.num_frames], prefix.poses, atol=1e-6)
+    # keyframes at frames of 30 fps: frame 50 of 60 (2 s)
+    keys = [Keyframe.from_motion(prefix, 0, 0), Keyframe.from_motion(prefix, 50, 50)]
+    save_keyframes(tmp_path / "k.npz", keys)
+    argv = ["sample", ckpt, "--keyframes", str(tmp_path / "k.npz"), "--seconds", "2",
+            "--fit-steps", "2", "--out", str(tmp_path / "b"), "--no-progress"]  # fmt: skip
+    assert main(argv) == 0
+    assert "--keyframes count frames at this rate" in capsys.readouterr().out
+    m = load_motion(next((tmp_path / "b").glob("*.npz")))
+    assert m.fps == 30.0 and m.num_frames == 60
+    err = keyframe_errors(m, keys)
+    assert err["rotation_deg"] < 0.01 and err["trans_cm"] < 0.01
+    assert main([*argv[:-3], "--fps", "15", "--out", str(tmp_path / "c"), "--no-progress"]) == 1
+    assert "beyond the motion's 30 frames" in capsys.readouterr().err
 
 
 def test_a_loop_raised_to_the_clips_rate_still_joins(run):

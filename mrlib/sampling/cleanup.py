@@ -159,10 +159,13 @@ def cleanup_foot_contacts(
     ``move_root=False``): the legs take the feet's ground corrections. For a motion
     whose path is given, as ``mrlib.sampling.restyling.restyle``'s (the clip's).
     ``options``: the solve's knobs (:class:`mrlib.sampling.planting.PlantOptions`:
-    ``smooth_s``, ``pin_weight``, ``leg_hold_s``, ...). Milliseconds per clip.
+    ``smooth_s``, ``pin_weight``, ``leg_hold_s``, ...; ``hold=K``: the first K frames come
+    back as they are and the corrections start from zero after them, a given prefix the
+    rest continues, ``mrlib.sampling.constraints.continue_motion``). Milliseconds per clip.
     """
     if motion.contacts is None:
         raise MotionValueError("motion has no contact labels to clean up")
+    given = motion
     ground = motion.trans[:, [0, 2]].copy()
     motion = remove_jitter(motion, jitter)
     if keep_path:  # the jitter filter leaves the ground path as it is
@@ -188,8 +191,10 @@ def cleanup_foot_contacts(
         options=options,
     )  # fmt: skip
     Rn, tn = move_ankles(Rn, J, legs), tn + offset
+    k = max(0, min(int(options.hold), motion.num_frames))
     runs = sum(len(contact_runs(c[:, v])) for v in range(6))
     poses = matrix_to_axis_angle(torch.from_numpy(Rn)).numpy().astype(np.float32)
+    poses[:k], tn[:k] = given.poses[:k], given.trans[:k]  # as given, jitter filter included
     changed = {
         f.name: round(float(getattr(options, f.name)), 3)
         for f in fields(options)

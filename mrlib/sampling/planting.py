@@ -67,6 +67,11 @@ FLOOR_SLACK = 3e-3  # m: how far below the floor (where planted feet rest) a ver
 FLOOR_MARGIN = 1e-3  # m: the floor the feet are kept above, above the estimated floor
 
 
+# the size weight of a held frame (PlantOptions.hold) over a free one's: its
+# correction comes out a millionth of what it would be
+HELD = 1e6
+
+
 @dataclass(frozen=True)
 class PlantOptions:
     """The knobs of :func:`smooth_foot_offsets`, today's defaults (the module constants;
@@ -83,6 +88,9 @@ class PlantOptions:
         slide: contact vertices still faster (m/s) than this are pinned harder, over
             ``reweight`` re-solves (0: one solve).
         iterations: solves of the floor's active set at most.
+        hold: the first ``hold`` frames keep no correction (their size terms weigh
+            ``HELD`` times more): a given prefix that the rest continues from
+            (``cleanup_foot_contacts`` returns those frames as they came).
     """
 
     smooth_s: float = SMOOTH_S
@@ -96,6 +104,7 @@ class PlantOptions:
     slide: float = SLIDE
     reweight: int = REWEIGHT
     iterations: int = 6
+    hold: int = 0
 
 
 PLANT_DEFAULTS = PlantOptions()
@@ -124,9 +133,18 @@ def _diff(T: int, n: int):
     return D
 
 
+def _sizes(T: int, hold: int):
+    """The size terms' ``(T, T)`` diagonal: 1 per frame, ``HELD`` on the first ``hold``."""
+    from scipy import sparse
+
+    w = np.ones(T)
+    w[: max(0, min(int(hold), T))] = HELD
+    return sparse.diags(w)
+
+
 def _vertical(
     y: np.ndarray, c: np.ndarray, floor: float, J3, fps: float, o: PlantOptions,
-    move_root: bool = True,
+    move_root: bool = True, hold: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Vertical offsets of the root ``(T,)`` and of each foot ``(2, T)``, the smoothest
     (least jerk, weighted by the joints each moves, and least size: ``o.root_hold_s``,
@@ -144,7 +162,7 @@ def _vertical(
     T = len(y)
     dt = 1.0 / fps
     level = floor + FLOOR_MARGIN
-    I = sparse.identity(T)
+    I = _sizes(T, hold)
     rest_w, rest, need = [], [], []
     for f in range(2):
         yf, cf = y[:, 3 * f : 3 * f + 3], c[:, 3 * f : 3 * f + 3]
@@ -229,7 +247,7 @@ def smooth_foot_offsets(
             vertically (with ``move_root``): the root's ground path is kept exactly.
         options: the energy's weights and the solves (:class:`PlantOptions`; ``reweight``:
             how many times to re-solve with the contact vertices still faster than
-            ``slide`` weighted up, 0 solves once).
+            ``slide`` weighted up, 0 solves once; ``hold``: frames kept as they are).
     Returns:
         ``(root offset (T, 3), leg offsets (2, T, 3))``.
     """
@@ -248,12 +266,12 @@ def smooth_foot_offsets(
     J3 = _diff(T, 3) * fps**3
     J3 = (J3.T @ J3) * (dt * smooth_s**4)
     if floor is not None:  # vertical: on the floor and never below it
-        root[:, 1], legs[:, :, 1] = _vertical(F[..., 1], c, floor, J3, fps, o, move_root)
+        root[:, 1], legs[:, :, 1] = _vertical(F[..., 1], c, floor, J3, fps, o, move_root, o.hold)
     if not c.any():
         return root, legs
     move_root = move_root and ground_root  # from here on: the ground plane
     D1 = _central_diff(T) * fps  # m/s
-    I = sparse.identity(T, format="csr")
+    I = _sizes(T, o.hold).tocsr()
     P = F[..., [0, 2]]  # (T, 6, 2) ground positions
     weight = c * (dt * o.pin_weight)  # (T, 6)
     reweight, slide = int(o.reweight), o.slide

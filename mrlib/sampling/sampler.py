@@ -72,9 +72,10 @@ class Sampler:
             that rate (its jitter filter spans the same time as at the model's rate:
             ``JITTER_SIGMA`` model frames). ``length`` still counts the model's frames; the
             output lasts as long: ``round(length * fps / model.fps)`` frames. Used by
-            ``mrlib.generate`` (``mrlib sample --fps``), the paths, loops and body parts of
-            ``mrlib.sampling.constraints`` and ``mrlib.restyle`` (None there: the clip's
-            rate); keyframes and continuations are fitted at the model's rate.
+            ``mrlib.generate`` (``mrlib sample --fps``), the paths, loops, body parts,
+            keyframes (their frames count at ``fps``) and continuations of
+            ``mrlib.sampling.constraints``, and ``mrlib.restyle`` (None there: the clip's
+            rate).
         candidates: draws per label sample, of which the one the model's critics score
             highest is kept (``mrlib.sampling.ranking``; 1: the paper's sampler, every
             draw kept), in [1, ``MAX_CANDIDATES``]. Label samples of a model with critics

@@ -163,7 +163,8 @@ def add_sample(sub) -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="NPZ",
-        help="hold these keyframes (mrlib.sampling.constraints.save_keyframes); needs --seconds",
+        help="hold these keyframes (mrlib.sampling.constraints.save_keyframes; their frames "
+        "count frames at the samples' rate, --fps); needs --seconds",
     )
     c.add_argument("--loop", action="store_true", help="a seamless loop (the end joins the start)")
     c.add_argument(
@@ -185,8 +186,7 @@ def add_sample(sub) -> argparse.ArgumentParser:
         "--fps",
         type=parse_fps,
         default=None,
-        help="frame rate of the samples (label, crossover, blend, --path, --loop and --parts "
-        "samples; keyframes and continuations stay at the model's): the model draws "
+        help="frame rate of the samples (and of a --keyframes file's frames): the model draws "
         "at its own rate (the preview preset: 15 fps; demo: 30), resampled by cubic splines "
         "before the feet are planted at this rate [default: the rate of the clips it was "
         "trained on (24-fps captures come back at 24 fps), recorded in checkpoints since "
@@ -286,12 +286,9 @@ def cmd_sample(args) -> int:
         raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
-    fitted = args.keyframes or args.prefix  # made at the model's rate
-    if args.fps is not None and (fitted or args.audio is not None):
-        raise MrlibError(
-            "--fps applies to label, --crossover, --blend, --path, --loop and --parts "
-            "samples (keyframes and continuations are fitted at the model's rate)"
-        )
+    if args.fps is not None and args.audio is not None:
+        raise MrlibError("--fps applies to label models' samples (speech samples come at the "
+                         "model's rate)")  # fmt: skip
     if args.sharpen != 0 and not args.parts:
         raise MrlibError("--sharpen applies to --parts only")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
@@ -366,7 +363,7 @@ def cmd_sample(args) -> int:
             from mrlib.sampling.constraints import parse_path
 
             parse_path(args.path)
-        sampler = _output_rate(model, sampler, args, fitted=bool(fitted))
+        sampler = _output_rate(model, sampler, args)
         motions = _constrained(model, condition, sampler, length, args)
         return write_samples(motions, f"{tag}_{what}", args)
     label_weights(model, condition)  # an unknown label is refused before the notice
@@ -377,21 +374,17 @@ def cmd_sample(args) -> int:
     return write_samples(motions, tag, args)
 
 
-def _output_rate(model, sampler, args, fitted: bool = False):
+def _output_rate(model, sampler, args):
     """``sampler`` at the training clips' rate where the model draws at another and
-    ``--fps`` is not given, with a line that says so; samples fitted at the model's rate
-    (keyframes, continuations) stay there, and the line says that instead."""
+    ``--fps`` is not given, with a line that says so (and that keyframe files count
+    frames at that rate)."""
     if args.fps is not None or model.source_fps is None:
-        return sampler
-    if fitted:
-        print(f"samples at the model's {model.fps:g} fps, not its clips' "
-              f"{model.source_fps:g}: keyframes and continuations are fitted at the model's "
-              "rate")  # fmt: skip
         return sampler
     whose = "the training clips' rate" if len(set(model.clip_fps)) == 1 else (
         "the highest rate of the training clips")  # fmt: skip
+    keys = "; --keyframes count frames at this rate" if args.keyframes else ""
     print(f"samples at {model.source_fps:g} fps, {whose} (the model draws "
-          f"at {model.fps:g} fps: --fps {model.fps:g} for that)")  # fmt: skip
+          f"at {model.fps:g} fps: --fps {model.fps:g} for that){keys}")  # fmt: skip
     return dataclasses.replace(sampler, fps=model.source_fps)
 
 

@@ -125,14 +125,16 @@ def label_setup(model, condition, length: int, seed: int | None, sampler):
     return noises, check_conditions(model, conds, lengths), label, rate_of
 
 
-def planted(motion: Motion, sampler, body=None) -> Motion:
+def planted(motion: Motion, sampler, body=None, model=None) -> Motion:
     """``motion`` with its feet planted (``mrlib.sampling.cleanup``) when the sampler's
-    ``fix_contacts`` asks for it and the motion has contact labels."""
+    ``fix_contacts`` asks for it and the motion has contact labels; the jitter filter
+    spans the same time as at the rate of ``model`` (when given) at the motion's."""
     if not sampler.fix_contacts or motion.contacts is None:
         return motion
-    from mrlib.sampling.cleanup import cleanup_foot_contacts
+    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
 
-    return cleanup_foot_contacts(motion, body)
+    scale = 1.0 if model is None else motion.fps / model.fps
+    return cleanup_foot_contacts(motion, body, jitter=JITTER_SIGMA * scale)
 
 
 def features_motion(model, x: torch.Tensor, label: str | None, name: str, rate_of=None) -> Motion:

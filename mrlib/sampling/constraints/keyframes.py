@@ -35,7 +35,7 @@ damaged file is one ``MotionFileError`` naming it.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import torch
@@ -326,8 +326,12 @@ def generate_with_keyframes(
     None: the first label) that holds ``keyframes`` (method: module docstring; residuals
     ease out over ``BLEND_S`` seconds). ``fit``: the noise fit (:class:`KeyframeFit`:
     ``FIT_STEPS`` Adam steps, the jerk weight ``still``; a plain ``NoiseFit`` weighs the
-    jerk by ``STILL``). ``sampler``: a ``mrlib.Sampler`` (fine noise, guidance; its
-    ``fix_contacts`` plants the feet before the exact fit)."""
+    jerk by ``STILL``). ``sampler``: a ``mrlib.Sampler`` (fine noise, guidance; ``fps``:
+    the output's frame rate, at which the keyframes' frames count, the motion drawn and
+    fitted at the model's and resampled by cubic splines before the feet are planted and
+    the keyframes laid; its ``fix_contacts`` plants the feet before the exact fit).
+    ``length`` counts the model's frames, as ``mrlib.generate``'s: the output has
+    ``round(length * fps / model.fps)``."""
     from mrlib.representation.body import resolve_body
 
     sampler = Sampler() if sampler is None else sampler
@@ -335,15 +339,27 @@ def generate_with_keyframes(
     body = resolve_body(body, shared=True)
     if length < 2:
         raise MotionValueError(f"length must be >= 2 frames, got {length}")
-    probe = Motion(np.zeros((length, NUM_JOINTS, 3)), np.zeros((length, 3)), model.fps)
+    fps = float(sampler.fps or model.fps)
+    n_out = length if fps == model.fps else round(length * fps / model.fps)
+    probe = Motion(np.zeros((n_out, NUM_JOINTS, 3)), np.zeros((n_out, 3)), fps)
     _check_frames(probe, keyframes)
+    # the fit at the model's rate: each keyframe at its nearest model frame
+    at_model = [replace(kf, frame=min(round(kf.frame * model.fps / fps), length - 1))
+                for kf in keyframes]  # fmt: skip
     noises, conds, label, rate_of = label_setup(model, condition, length, seed, sampler)
-    loss_fn = keyframe_objective(model, keyframes, length, still, body)
+    loss_fn = keyframe_objective(model, at_model, length, still, body)
     name = f"{label}_keyframes_seed{seed}"
     m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
-    m = planted(m, sampler, body)
+    m = planted(_raised(m, fps, n_out), sampler, body, model)
     m = align_to_keyframes(m, keyframes, body)
     return apply_keyframes(m, keyframes, blend_s=BLEND_S)
+
+
+def _raised(m: Motion, fps: float, frames: int) -> Motion:
+    """The model's motion ``m`` at ``fps`` with ``frames`` frames (cubic splines)."""
+    if abs(fps - m.fps) < 1e-9 and frames == m.num_frames:
+        return m
+    return m.resample(fps, smooth=True, frames=frames)
 
 
 @checked(fit=check_noise_fit)
@@ -362,9 +378,13 @@ def continue_motion(
     (a label or a ``mrlib.Condition``; None: the first label) (method: module docstring;
     the new frames ease in over ``BLEND_S`` seconds). ``fit``: the noise fit to the prefix
     (``NoiseFit``: Adam steps, 100 by default; a progress bar). ``sampler``: a
-    ``mrlib.Sampler`` (fine noise, guidance; its ``fix_contacts`` plants the feet of the
-    new frames after the fit). The prefix is resampled to the model's frame rate first; a prefix and
-    ``frames`` longer together than ``MAX_SAMPLE_SECONDS`` there are refused before."""
+    ``mrlib.Sampler`` (fine noise, guidance; ``fps``: the output's frame rate, default the
+    model's; its ``fix_contacts`` plants the feet of the new frames after the ease, the
+    prefix held as it is: ``PlantOptions.hold``). The
+    noise is fitted to the prefix resampled to the model's frame rate; the output holds
+    the prefix at the output's rate (itself, frame for frame, when that is its own) and
+    ``frames`` model frames more at that rate. A prefix and ``frames`` longer together
+    than ``MAX_SAMPLE_SECONDS`` are refused before."""
     from mrlib.representation.body import resolve_body
     from mrlib.representation.rotations import axis_angle_to_matrix
     from mrlib.sampling.constraints.optimise import decode
@@ -383,13 +403,15 @@ def continue_motion(
             "(prefix.slice) or ask for fewer frames"
         )
     body = resolve_body(body, shared=True)
+    sampler = Sampler() if sampler is None else sampler
+    fps = float(sampler.fps or model.fps)
+    kept = prefix if abs(prefix.fps - fps) < 1e-6 else prefix.resample(fps)  # in the output
     if abs(prefix.fps - model.fps) > 1e-6:
         prefix = prefix.resample(model.fps)
     K = prefix.num_frames
-    if K < 2 or frames < 1:
+    if K < 2 or frames < 1 or kept.num_frames < 2:
         raise MotionValueError(f"need a prefix of >= 2 frames and frames >= 1, got {K}, {frames}")
     T = K + int(frames)
-    sampler = Sampler() if sampler is None else sampler
     noises, conds, label, rate_of = label_setup(model, condition, T, seed, sampler)
     six = _sixd(axis_angle_to_matrix(torch.from_numpy(prefix.poses[:, 1:].astype(np.float64))))
     six = six.float().to(model.device)  # (K, 23, 6)
@@ -408,7 +430,10 @@ def continue_motion(
 
     name = f"{prefix.name or 'prefix'}_continued"
     m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
-    m = planted(m, sampler, body)
+    # the fit done: at the output's rate, the prefix as kept there, the new frames after it
+    prefix, K = kept, kept.num_frames
+    T = max(K + 1, round(T * fps / model.fps)) if fps != model.fps else T
+    m = _raised(m, fps, T)  # the feet are planted after the ease, the prefix held
     anchors = [Keyframe(f, prefix.poses[f], (0,), prefix.trans[f]) for f in range(K)]
     m = align_to_keyframes(m, anchors, body)
     # keep the prefix; ease the rest from the prefix's last pose and velocity
@@ -418,7 +443,7 @@ def continue_motion(
     r0 = _aa(Rp[K - 2] @ np.swapaxes(R[K - 2], -1, -2))
     d1 = prefix.trans[K - 1] - m.trans[K - 1]
     d0 = prefix.trans[K - 2] - m.trans[K - 2]
-    w = max(BLEND_S * model.fps, 1.0)
+    w = max(BLEND_S * fps, 1.0)
     u = np.clip((np.arange(T - K + 1)) / w, 0, 1)[:, None]  # frames K-1 .. T-1
     h00, h10 = 2 * u**3 - 3 * u**2 + 1, (u**3 - 2 * u**2 + u) * w
     poses = m.poses.astype(np.float64).copy()
@@ -445,4 +470,14 @@ def continue_motion(
 
             contacts[:K] = foot_contacts(prefix, body)
     meta = dict(m.meta, prefix_frames=K)
-    return m.replace(poses=poses, trans=trans, contacts=contacts, meta=meta)
+    out = m.replace(poses=poses, trans=trans, contacts=contacts, meta=meta)
+    if not sampler.fix_contacts or contacts is None:
+        return out
+    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+
+    # the prefix as it is; the corrections start from zero at the join, so the eased
+    # frames after it are planted too
+    from mrlib.sampling.planting import PLANT_DEFAULTS
+
+    jitter, held = JITTER_SIGMA * fps / model.fps, replace(PLANT_DEFAULTS, hold=K)
+    return cleanup_foot_contacts(out, body, jitter=jitter, options=held)
