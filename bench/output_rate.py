@@ -110,6 +110,16 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
+def tally(got: dict, ways, cj: float, cs: float, ratio: dict, extra: dict) -> str:
+    """A row's cells: each way's mean jerk over ``cj`` and skating in %; the ratio and the
+    points over ``cs`` appended to ``ratio`` and ``extra``."""
+    r = {w: np.mean(v, axis=0) for w, v in got.items()}
+    for w in ways:
+        ratio[w].append(r[w][0] / cj)
+        extra[w].append(100 * (r[w][1] - cs))
+    return " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways)
+
+
 def on_path(model, full: dict, args, body) -> None:
     """Samples walking ``circle:2``, raised to the clips' rate three ways."""
     from mrlib.sampling.constraints import generate_on_path
@@ -134,11 +144,7 @@ def on_path(model, full: dict, args, body) -> None:
             high = generate_on_path(model, "circle:2", label,
                                     sampler=mrlib.Sampler(fps=clip.fps, candidates=1), **kw)  # fmt: skip
             got["Sampler(fps)"].append(scores(high, body))
-        r = {w: np.mean(v, axis=0) for w, v in got.items()}
-        for w in ways:
-            ratio[w].append(r[w][0] / cj)
-            extra[w].append(100 * (r[w][1] - cs))
-        print(f"| {label} | {100 * cs:.1f} | " + " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways) + " |")  # fmt: skip
+        print(f"| {label} | {100 * cs:.1f} | {tally(got, ways, cj, cs, ratio, extra)} |")
     print("\nmean over labels, jerk over the clips' and skating minus the clips' (points): "
           + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
 
@@ -172,11 +178,7 @@ def continued(model, args, body) -> None:
             k = prefix.num_frames - 1  # from the prefix's last frame on
             got["spline"].append(scores(low.resample(take.fps, smooth=True).slice(k), body))
             got["Sampler(fps)"].append(scores(high.slice(k), body))
-        r = {w: np.mean(v, axis=0) for w, v in got.items()}
-        for w in ways:
-            ratio[w].append(r[w][0] / cj)
-            extra[w].append(100 * (r[w][1] - cs))
-        cells = " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways)
+        cells = tally(got, ways, cj, cs, ratio, extra)
         print(f"| {take.name} | {cj:.1f} | {100 * cs:.1f} | {cells} |")
     print("\nmean over takes, jerk over the take's and skating minus the take's (points): "
           + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
@@ -209,11 +211,7 @@ def restyled(model, args, body) -> None:
             out = mrlib.restyle(model, take, lab, seed=args.seed, body=body)
             assert out.num_frames == take.num_frames and out.fps == take.fps
             got["restyle default"].append(scores(out, body))
-        r = {w: np.mean(v, axis=0) for w, v in got.items()}
-        for w in ways:
-            ratio[w].append(r[w][0] / cj)
-            extra[w].append(100 * (r[w][1] - cs))
-        cells = " | ".join(f"{r[w][0] / cj:.2f} | {100 * r[w][1]:.1f}" for w in ways)
+        cells = tally(got, ways, cj, cs, ratio, extra)
         print(f"| {take.name} | {take.num_frames}, {take.fps:g} | {cj:.1f} | {100 * cs:.1f} | {cells} |")  # fmt: skip
     print("\nmean over takes, jerk over the take's and skating minus the take's (points): "
           + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip

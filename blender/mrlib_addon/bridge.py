@@ -37,8 +37,8 @@ Commands:
 ``keyframes RIG.bvh CHECKPOINT --frames I,... --times S,... --out KF.npz [--joint-map MAP]``
     The poses (and the root) of frames ``I`` of a clip of the rig, as mrlib reads them, held
     ``S`` seconds into the motion to generate: a keyframe file of ``mrlib sample
-    --keyframes``, its frames at the model's rate (two keys on one frame there: the later
-    one is kept, with a warning).
+    --keyframes``, its frames at the rate that command writes (the training clips', else
+    the model's; two keys on one frame there: the later one is kept, with a warning).
 
 ``labels CHECKPOINT --out OUT.json``
     The model's labels, levels and frame rate (loading it needs torch).
@@ -263,14 +263,15 @@ def rig_keyframes(
     if len(frames) != len(times) or not frames:
         raise ValueError(f"{len(frames)} frames and {len(times)} times: give one time per frame")
     motion = load_motion(rig_bvh, joint_map=joint_map)
-    fps = float(load_model(checkpoint).fps)
+    model = load_model(checkpoint)
+    fps = float(model.source_fps or model.fps)  # the rate `mrlib sample` writes, its frames
     held: dict[int, object] = {}
     for i, t in zip(frames, times, strict=True):
         if not 0 <= i < motion.num_frames:
             raise ValueError(f"{rig_bvh}: frame {i} is outside its {motion.num_frames} frames")
         k = int(round(t * fps))
         if k in held:
-            print(f"warning: two keys on the model's frame {k} ({fps:g} fps): the later one is held",
+            print(f"warning: two keys on the output's frame {k} ({fps:g} fps): the later one is held",
                   file=sys.stderr)  # fmt: skip
         held[k] = Keyframe.from_motion(motion, i, k)
     keys = [held[k] for k in sorted(held)]
