@@ -172,7 +172,8 @@ def continued(model, args, body) -> None:
         frames = round(2 * model.fps)
         for seed in seeds:
             kw = dict(seed=seed, body=body, fit=NoiseFit(progress=False))
-            low = continue_motion(model, prefix, frames, take.label, sampler=mrlib.Sampler(), **kw)
+            low = continue_motion(model, prefix, frames, take.label,
+                                  sampler=mrlib.Sampler(fps=model.fps), **kw)  # fmt: skip
             high = continue_motion(model, prefix, frames, take.label,
                                    sampler=mrlib.Sampler(fps=take.fps), **kw)  # fmt: skip
             k = prefix.num_frames - 1  # from the prefix's last frame on

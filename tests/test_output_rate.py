@@ -132,11 +132,18 @@ def test_continuations_and_keyframes_come_at_the_clips_rate(run, tmp_path, capsy
     argv = ["sample", ckpt, "--continue", str(run.parent / "walk_sad.npz"), "--seconds", "1",
             "--fit-steps", "2", "--out", str(out), "--no-progress"]  # fmt: skip
     assert main(argv) == 0
-    assert "samples at 30 fps, the training clips' rate" in capsys.readouterr().out
+    assert "continued at 30 fps, the prefix's rate" in capsys.readouterr().out
     m = load_motion(next(out.glob("*.npz")))
     # the prefix frame for frame, then 15 model frames (1 s) at 30 fps
     assert m.fps == 30.0 and m.num_frames == prefix.num_frames + 30
     np.testing.assert_allclose(m.poses[: prefix.num_frames], prefix.poses, atol=1e-6)
+    # a 60-fps prefix comes back at 60 fps (the clips' rate is 30), frame for frame
+    fast = save_motion(prefix.resample(60.0, smooth=True), tmp_path / "p60.npz")
+    argv60 = [*argv[:3], str(fast), *argv[4:-3], "--out", str(tmp_path / "a60"), "--no-progress"]
+    assert main(argv60) == 0
+    m60, p60 = load_motion(next((tmp_path / "a60").glob("*.npz"))), load_motion(fast)
+    assert m60.fps == 60.0 and abs(m60.num_frames - (p60.num_frames + 60)) <= 1  # 1 s more
+    np.testing.assert_allclose(m60.poses[: p60.num_frames], p60.poses, atol=1e-6)
     # keyframes at frames of 30 fps: frame 50 of 60 (2 s)
     keys = [Keyframe.from_motion(prefix, 0, 0), Keyframe.from_motion(prefix, 50, 50)]
     save_keyframes(tmp_path / "k.npz", keys)

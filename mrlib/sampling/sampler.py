@@ -74,8 +74,8 @@ class Sampler:
             output lasts as long: ``round(length * fps / model.fps)`` frames. Used by
             ``mrlib.generate`` (``mrlib sample --fps``), the paths, loops, body parts,
             keyframes (their frames count at ``fps``) and continuations of
-            ``mrlib.sampling.constraints``, and ``mrlib.restyle`` (None there: the clip's
-            rate).
+            ``mrlib.sampling.constraints``, and ``mrlib.restyle`` (None for these two: the
+            given clip's rate).
         candidates: draws per label sample, of which the one the model's critics score
             highest is kept (``mrlib.sampling.ranking``; 1: the paper's sampler, every
             draw kept), in [1, ``MAX_CANDIDATES``]. Label samples of a model with critics

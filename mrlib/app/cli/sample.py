@@ -272,6 +272,9 @@ def _constrained(model, condition, sampler, length: int | None, args) -> list:
             _check_sample_frames(round(prefix.duration * model.fps) + frames, model.fps, args)
             cont = replace(C.keyframes.CONTINUE_FIT, **fit)
             m = C.continue_motion(model, prefix, frames, seed=seed, fit=cont, **kw)
+            if b == 0 and args.fps is None and m.fps != model.fps:
+                print(f"continued at {m.fps:g} fps, the prefix's rate (the model draws at "
+                      f"{model.fps:g} fps: --fps for another)")  # fmt: skip
         out.append(m)
     return out
 
@@ -363,7 +366,8 @@ def cmd_sample(args) -> int:
             from mrlib.sampling.constraints import parse_path
 
             parse_path(args.path)
-        sampler = _output_rate(model, sampler, args)
+        if args.prefix is None:  # a continuation comes at its prefix's rate
+            sampler = _output_rate(model, sampler, args)
         motions = _constrained(model, condition, sampler, length, args)
         return write_samples(motions, f"{tag}_{what}", args)
     label_weights(model, condition)  # an unknown label is refused before the notice

@@ -379,7 +379,7 @@ def continue_motion(
     the new frames ease in over ``BLEND_S`` seconds). ``fit``: the noise fit to the prefix
     (``NoiseFit``: Adam steps, 100 by default; a progress bar). ``sampler``: a
     ``mrlib.Sampler`` (fine noise, guidance; ``fps``: the output's frame rate, default the
-    model's; its ``fix_contacts`` plants the feet of the new frames after the ease, the
+    prefix's own, the model's for a prefix under ``MIN_SOURCE_FPS``; its ``fix_contacts`` plants the feet of the new frames after the ease, the
     prefix held as it is: ``PlantOptions.hold``). The
     noise is fitted to the prefix resampled to the model's frame rate; the output holds
     the prefix at the output's rate (itself, frame for frame, when that is its own) and
@@ -402,9 +402,13 @@ def continue_motion(
             "mrlib generates in one sample; continue from the prefix's last seconds "
             "(prefix.slice) or ask for fewer frames"
         )
+    from mrlib.model.trained import MIN_SOURCE_FPS
+
     body = resolve_body(body, shared=True)
     sampler = Sampler() if sampler is None else sampler
-    fps = float(sampler.fps or model.fps)
+    # the prefix's own rate, unless asked (or a rate no motion is written at: keyframes)
+    own = prefix.fps if prefix.fps >= min(MIN_SOURCE_FPS, model.fps) else model.fps
+    fps = float(sampler.fps or own)
     kept = prefix if abs(prefix.fps - fps) < 1e-6 else prefix.resample(fps)  # in the output
     if abs(prefix.fps - model.fps) > 1e-6:
         prefix = prefix.resample(model.fps)
