@@ -156,7 +156,7 @@ def test_continuations_and_keyframes_come_at_the_clips_rate(run, tmp_path, capsy
     err = keyframe_errors(m, keys)
     assert err["rotation_deg"] < 0.01 and err["trans_cm"] < 0.01
     assert main([*argv[:-3], "--fps", "15", "--out", str(tmp_path / "c"), "--no-progress"]) == 1
-    assert "beyond the motion's 30 frames" in capsys.readouterr().err
+    assert "beyond the motion's 30 frames (2 s at 15 fps)" in capsys.readouterr().err
 
 
 def test_a_loop_raised_to_the_clips_rate_still_joins(run):

@@ -135,7 +135,8 @@ def _check_frames(motion: Motion, keyframes: Sequence[Keyframe]) -> None:
     bad = [kf.frame for kf in keyframes if kf.frame >= motion.num_frames]
     if bad:
         raise MotionValueError(
-            f"keyframes at frames {bad} are beyond the motion's {motion.num_frames} frames"
+            f"keyframes at frames {bad} are beyond the motion's {motion.num_frames} frames "
+            f"({motion.duration:.4g} s at {motion.fps:g} fps)"
         )
     frames = [kf.frame for kf in keyframes]
     if len(set(frames)) != len(frames):
