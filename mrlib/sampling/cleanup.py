@@ -57,6 +57,7 @@ from mrlib.sampling.planting import PLANT_DEFAULTS, PlantOptions, move_ankles, s
 __all__ = [
     "remove_jitter",
     "JITTER_SIGMA",
+    "jitter_at",
     "contact_skating",
     "contact_floor",
     "cleanup_foot_contacts",
@@ -72,6 +73,12 @@ __all__ = [
 # samples' jerk from 1.24 / 1.15x the training clips' to 0.96 / 0.88x with coverage at
 # eps 1 up by 0.0-2.1 points and condition fidelity within 0.1 (bench/cleanup_natural.py).
 JITTER_SIGMA = 0.5
+
+
+def jitter_at(fps: float, model_fps: float) -> float:
+    """The jitter filter's sigma, in frames at ``fps``, for a model's output drawn at
+    ``model_fps`` and resampled: ``JITTER_SIGMA`` model frames, the same time at any rate."""
+    return JITTER_SIGMA * float(fps) / float(model_fps)
 
 
 def remove_jitter(motion: Motion, sigma: float = JITTER_SIGMA) -> Motion:

@@ -24,7 +24,7 @@ from mrlib.model.trained import GenerativeModel
 from mrlib.representation.features import features_to_motion, features_to_motions
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
-from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
 from mrlib.sampling.conditions import Condition, as_condition
 from mrlib.sampling.contact_labels import output_contacts
 from mrlib.sampling.ranking import best_candidates, can_rank, critic_scores
@@ -330,7 +330,7 @@ def plant_feet(
     floor = training_floor(model, labels, body)
     # the generator's frame-to-frame jitter spans fps / model.fps frames once raised:
     # filtered over the same time (bench/output_rate.py)
-    jitter = JITTER_SIGMA * (sampler.fps or model.fps) / model.fps
+    jitter = jitter_at(sampler.fps or model.fps, model.fps)
     return [cleanup_foot_contacts(m, body, floor=floor, jitter=jitter) for m in motions]
 
 

@@ -378,7 +378,7 @@ def restyle(
         records how it was made.
     """
     from mrlib.representation.body import resolve_body
-    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+    from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
     from mrlib.sampling.conditions import Condition
     from mrlib.sampling.generation import (
         check_conditions,
@@ -455,5 +455,5 @@ def restyle(
         "guidance": sampler.guidance, "seconds": time.perf_counter() - t0,
     }  # fmt: skip
     if sampler.fix_contacts:  # its jitter filter spans the same time as at the model's rate
-        m = cleanup_foot_contacts(m, body, keep_path=True, jitter=JITTER_SIGMA * fps / model.fps)
+        m = cleanup_foot_contacts(m, body, keep_path=True, jitter=jitter_at(fps, model.fps))
     return m

@@ -131,10 +131,10 @@ def planted(motion: Motion, sampler, body=None, model=None) -> Motion:
     spans the same time as at the rate of ``model`` (when given) at the motion's."""
     if not sampler.fix_contacts or motion.contacts is None:
         return motion
-    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+    from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
 
-    scale = 1.0 if model is None else motion.fps / model.fps
-    return cleanup_foot_contacts(motion, body, jitter=JITTER_SIGMA * scale)
+    jitter = jitter_at(motion.fps, motion.fps if model is None else model.fps)
+    return cleanup_foot_contacts(motion, body, jitter=jitter)
 
 
 def features_motion(model, x: torch.Tensor, label: str | None, name: str, rate_of=None) -> Motion:

@@ -129,7 +129,7 @@ def generate_parts(
         A ``Motion`` (label ``"upper=walk_happy,lower=walk_sad"``), or with ``num=k`` a
         list of k, as ``mrlib.generate``.
     """
-    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+    from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
     from mrlib.sampling.constraints.sharpen import generate_sharpened
     from mrlib.sampling.generation import shaped_samples
 
@@ -163,7 +163,7 @@ def generate_parts(
         out.append(splice_parts(pick, name=f"{tag}_seed{seed}_{b}", align=align_gait,
                                 body=body))  # fmt: skip
     if sampler.fix_contacts:  # its jitter filter spans the same time at any output rate
-        out = [cleanup_foot_contacts(m, body, jitter=JITTER_SIGMA * m.fps / model.fps)
+        out = [cleanup_foot_contacts(m, body, jitter=jitter_at(m.fps, model.fps))
                for m in out]  # fmt: skip
     for m in out:
         m.label = tag

@@ -380,12 +380,12 @@ def continue_motion(
     the new frames ease in over ``BLEND_S`` seconds). ``fit``: the noise fit to the prefix
     (``NoiseFit``: Adam steps, 100 by default; a progress bar). ``sampler``: a
     ``mrlib.Sampler`` (fine noise, guidance; ``fps``: the output's frame rate, default the
-    prefix's own, the model's for a prefix under ``MIN_SOURCE_FPS``; its ``fix_contacts`` plants the feet of the new frames after the ease, the
-    prefix held as it is: ``PlantOptions.hold``). The
-    noise is fitted to the prefix resampled to the model's frame rate; the output holds
-    the prefix at the output's rate (itself, frame for frame, when that is its own) and
-    ``frames`` model frames more at that rate. A prefix and ``frames`` longer together
-    than ``MAX_SAMPLE_SECONDS`` are refused before."""
+    prefix's own, the model's for a prefix under ``MIN_SOURCE_FPS``; its ``fix_contacts``
+    plants the feet of the new frames after the ease, the prefix held as it is:
+    ``PlantOptions.hold``). The noise is fitted to the prefix resampled to the model's
+    frame rate; the output holds the prefix at the output's rate (itself, frame for frame,
+    when that is its own) and ``frames`` model frames more at that rate. A prefix and
+    ``frames`` longer together than ``MAX_SAMPLE_SECONDS`` are refused before."""
     from mrlib.representation.body import resolve_body
     from mrlib.representation.rotations import axis_angle_to_matrix
     from mrlib.sampling.constraints.optimise import decode
@@ -478,11 +478,10 @@ def continue_motion(
     out = m.replace(poses=poses, trans=trans, contacts=contacts, meta=meta)
     if not sampler.fix_contacts or contacts is None:
         return out
-    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+    from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
+    from mrlib.sampling.planting import PLANT_DEFAULTS
 
     # the prefix as it is; the corrections start from zero at the join, so the eased
     # frames after it are planted too
-    from mrlib.sampling.planting import PLANT_DEFAULTS
-
-    jitter, held = JITTER_SIGMA * fps / model.fps, replace(PLANT_DEFAULTS, hold=K)
+    jitter, held = jitter_at(fps, model.fps), replace(PLANT_DEFAULTS, hold=K)
     return cleanup_foot_contacts(out, body, jitter=jitter, options=held)

@@ -180,9 +180,9 @@ def generate_loop(
     if sampler.fps is not None and abs(sampler.fps - model.fps) > 1e-6:
         m = _raised_loop(m, sampler.fps)  # before the feet are planted, as generate raises
     if sampler.fix_contacts and m.contacts is not None:
-        from mrlib.sampling.cleanup import JITTER_SIGMA
+        from mrlib.sampling.cleanup import jitter_at
 
-        m = _clean_loop(m, body, jitter=JITTER_SIGMA * m.fps / model.fps)
+        m = _clean_loop(m, body, jitter=jitter_at(m.fps, model.fps))
     if start == "calm":
         k = _calm_start(m, body)
         m = roll_loop(m, k)

@@ -492,7 +492,7 @@ def generate_on_path(
     m = generate(model, condition, length=length, seed=seed,
                  sampler=replace(sampler, fix_contacts=False))  # fmt: skip
     # at sampler.fps the raw draw is already raised; the clean-up's filter spans the same time
-    from mrlib.sampling.cleanup import JITTER_SIGMA
+    from mrlib.sampling.cleanup import jitter_at
 
-    jitter = JITTER_SIGMA * m.fps / model.fps
+    jitter = jitter_at(m.fps, model.fps)
     return follow_path(m, path, clean=sampler.fix_contacts, body=body, jitter=jitter)

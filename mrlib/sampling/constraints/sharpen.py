@@ -225,7 +225,7 @@ def generate_sharpened(
     the raw output with the generator's contact labels (``raw_sampler()``: one draw, no clean-up).
     Returns a ``Motion``, or with ``num=k`` a list of k, as ``mrlib.generate``."""
     from mrlib.representation.features import features_to_motions
-    from mrlib.sampling.cleanup import JITTER_SIGMA, cleanup_foot_contacts
+    from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
     from mrlib.sampling.conditions import Condition
     from mrlib.sampling.constraints.common import part_joints
     from mrlib.sampling.generation import (
@@ -267,6 +267,6 @@ def generate_sharpened(
         motions = [m.resample(sampler.fps, smooth=True, keep_duration=True) for m in motions]
     if sampler.fix_contacts:  # as generate plants them
         floor = training_floor(model, [model.label_index(condition)])
-        jitter = JITTER_SIGMA * (sampler.fps or model.fps) / model.fps
+        jitter = jitter_at(sampler.fps or model.fps, model.fps)
         motions = [cleanup_foot_contacts(m, floor=floor, jitter=jitter) for m in motions]
     return shaped_samples(motions, None, num)
