@@ -247,3 +247,86 @@ def test_a_reference_pose_before_the_motion_is_left_out(tmp_path):
         kept = load_bvh(tmp_path / "smooth.bvh")
     assert kept.num_frames == len(smooth.motion)
     assert "bvh_reference_frame_left_out" not in kept.meta
+
+
+def _walk_bvh(tmp_path, body=None):
+    """A synthetic walk written as an SMPL-named BVH in centimetres: (path, its text)."""
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.io import save_motion
+
+    walk = synthetic_walk("walk_normal", seconds=2.0, fps=30.0, body=body)
+    path = save_motion(walk, tmp_path / "walk.bvh", body=body, bvh_unit="cm")
+    return path, path.read_text()
+
+
+def test_byte_order_mark_crlf_and_decimal_commas_are_read(tmp_path):
+    from mrlib.io import load_motion
+
+    path, text = _walk_bvh(tmp_path)
+    ref = load_motion(path)
+    head, motion = text.split("MOTION\n")
+    variants = {
+        "bom_crlf": "\ufeff" + text.replace("\n", "\r\n"),
+        "comma": head + "MOTION\n" + motion.replace(".", ","),  # a locale's decimal comma
+    }
+    for name, t in variants.items():
+        (tmp_path / f"{name}.bvh").write_text(t, encoding="utf-8", newline="")
+        got = load_motion(tmp_path / f"{name}.bvh")
+        assert got.fps == ref.fps and got.num_frames == ref.num_frames, name
+        np.testing.assert_allclose(got.poses, ref.poses, atol=1e-6, err_msg=name)
+        np.testing.assert_allclose(got.trans, ref.trans, atol=1e-6, err_msg=name)
+
+
+def test_a_root_without_position_channels_stands_on_the_floor(tmp_path):
+    """Its height is only its OFFSET (0 here): the body is put with its feet on y = 0 as
+    an npz without an up axis is, not 0.9 m below the floor; with position channels the
+    file's height is kept."""
+    from mrlib.io import load_motion
+    from mrlib.io.placement import stance
+
+    path, text = _walk_bvh(tmp_path)
+    lines, out, in_motion = text.splitlines(), [], False
+    for i, ln in enumerate(lines):
+        if ln.strip().startswith("CHANNELS 6") and not out[-2].strip().startswith("JOINT"):
+            ln = ln.replace("CHANNELS 6 Xposition Yposition Zposition", "CHANNELS 3")
+            out[-1] = out[-1].split("OFFSET")[0] + "OFFSET 0 0 0"
+        if in_motion and i > lines.index("MOTION") + 2:
+            ln = " ".join(ln.split()[3:])
+        in_motion = in_motion or ln == "MOTION"
+        out.append(ln)
+    (tmp_path / "no_root_position.bvh").write_text("\n".join(out) + "\n")
+    ref = load_motion(path)
+    got = load_motion(tmp_path / "no_root_position.bvh")
+    assert "floor_shift_m" in got.meta and "floor_shift_m" not in ref.meta
+    assert got.meta["floor_shift_m"] > 0.5  # lifted from below the floor
+    assert stance(got)["floor_cm"] < 1.0
+    np.testing.assert_allclose(got.poses, ref.poses, atol=1e-5)
+
+
+def test_a_guessed_unit_that_makes_an_odd_sized_person_is_warned_about(tmp_path):
+    """A 0.55-scale person written in centimetres is nearer an adult in inches: read so,
+    with a warning naming the unit and the size; given the unit, read right, no warning."""
+    import dataclasses
+    import warnings
+
+    from mrlib.io import load_motion
+    from mrlib.io.bvh import read_bvh
+    from mrlib.io.bvh.writer import write_bvh
+    from mrlib.io.retarget_report import RetargetWarning
+
+    path, _ = _walk_bvh(tmp_path)
+    bvh = read_bvh(path)
+    small = dataclasses.replace(bvh.skeleton, offsets=bvh.skeleton.offsets * 0.55)
+    motion = bvh.motion.copy()
+    motion[:, :3] *= 0.55  # the root's position channels come first
+    write_bvh(tmp_path / "child.bvh", dataclasses.replace(bvh, skeleton=small, motion=motion))
+    with pytest.warns(RetargetWarning, match=r"unit 'inch'.*1\.\d\dx the size.*--unit"):
+        guessed = load_motion(tmp_path / "child.bvh")
+    assert guessed.meta["unit_m"] == pytest.approx(0.0254)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RetargetWarning)
+        given = load_motion(tmp_path / "child.bvh", unit="cm")
+    assert given.meta["unit_m"] == 0.01
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RetargetWarning)
+        assert load_motion(path).meta["retarget_source_size"] == pytest.approx(1.0, abs=0.1)

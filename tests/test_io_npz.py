@@ -225,3 +225,54 @@ def test_easymocap_errors(tmp_path, body):
     (tmp_path / "empty").mkdir()
     with pytest.raises(MotionFileError, match="no \\*.json"):
         load_motion(tmp_path / "empty", fps=30)
+
+
+def test_other_tools_pose_layouts_read_as_amass(tmp_path):
+    """``poses (T, 24, 3)`` and the smplx package's ``global_orient`` / ``body_pose`` /
+    ``transl`` (SMPL 69, SMPL-X 63 wide, also as (T, J, 3)) give the same motion as
+    AMASS's ``poses (T, 72)``; the SMPL-X body drops SMPL's hand joints, saying so."""
+    m = _motion(T=12, seed=3)
+    common = {"mocap_framerate": 30.0, "up_axis": "y"}
+    np.savez(tmp_path / "amass.npz", poses=m.poses.reshape(12, 72), trans=m.trans, **common)
+    np.savez(tmp_path / "j3.npz", poses=m.poses, trans=m.trans, **common)
+    np.savez(tmp_path / "smpl.npz", global_orient=m.poses[:, 0], body_pose=m.poses[:, 1:],
+             transl=m.trans, **common)  # fmt: skip
+    np.savez(tmp_path / "smplx.npz", global_orient=m.poses[:, :1],
+             body_pose=m.poses[:, 1:22].reshape(12, 63), transl=m.trans[:, None], **common)  # fmt: skip
+    ref = load_motion(tmp_path / "amass.npz")
+    for name in ("j3", "smpl"):
+        got = load_motion(tmp_path / f"{name}.npz")
+        np.testing.assert_array_equal(got.poses, ref.poses)
+        np.testing.assert_array_equal(got.trans, ref.trans)
+    x = load_motion(tmp_path / "smplx.npz")
+    assert x.meta["dropped_hand_pose"] and np.all(x.poses[:, 22:] == 0)
+    np.testing.assert_array_equal(x.poses[:, :22], ref.poses[:, :22])
+
+
+@pytest.mark.parametrize(
+    "arrays, match",
+    [
+        ({"poses": np.tile(np.eye(3), (5, 24, 1, 1))}, "rotation matrices"),
+        ({"poses": np.full((5, 72), 30.0)}, "degrees, not radians"),
+        ({"poses": np.zeros((5, 72)), "trans": np.full((5, 3), 1500.0)}, "centimetres"),
+        ({"global_orient": np.zeros((5, 3))}, "not the other"),
+        ({"global_orient": np.zeros((5, 3)), "body_pose": np.zeros((5, 60))}, r"\(T, 69\)"),
+    ],
+)
+def test_degrees_matrices_and_centimetres_are_named(tmp_path, arrays, match):
+    data = {"mocap_framerate": 30.0, "trans": np.zeros((5, 3)), "up_axis": "y"} | arrays
+    np.savez(tmp_path / "x.npz", **data)
+    with pytest.raises(MotionFileError, match=match):
+        load_motion(tmp_path / "x.npz")
+
+
+def test_rate_keys_that_disagree_are_warned_about_and_bytes_read_as_text(tmp_path):
+    m = _motion(T=5)
+    np.savez(tmp_path / "x.npz", poses=m.poses.reshape(5, 72), trans=m.trans,
+             mocap_framerate=30.0, mocap_frame_rate=60.0, gender=np.bytes_(b"female"),
+             up_axis=np.bytes_(b"y"))  # fmt: skip
+    with pytest.warns(UserWarning) as seen:
+        got = load_motion(tmp_path / "x.npz")
+    said = " ".join(str(w.message) for w in seen)
+    assert got.fps == 30.0 and "'mocap_frame_rate' 60" in said
+    assert "the female SMPL body" in said and "b'" not in said

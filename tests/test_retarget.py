@@ -508,15 +508,15 @@ def test_load_time(bandai):
 
 
 # -- rigs of their own: stylised characters, Character Creator, motion-capture subjects -------
-def _transfer(source, rig, body, path):
+def _transfer(source, rig, body, path, unit="auto"):
     """Write ``source`` on ``rig``, load it with no map (a RetargetWarning fails the
-    test) and measure the transfer: ``(motion, limb angle error (T, 12) in degrees, share
+    test; ``unit``: the file's, else guessed) and measure the transfer: ``(motion, limb angle error (T, 12) in degrees, share
     of the file's foot contacts kept within one frame, number of contacts)``."""
     bvh = rigs.write_rig(source, rig, body)
     write_bvh(path, bvh)
     with warnings.catch_warnings():
         warnings.simplefilter("error", RetargetWarning)
-        m = load_motion(path, body=body)
+        m = load_motion(path, body=body, unit=unit)
     if m.fps != source.fps:
         m = m.resample(source.fps)
     n = min(m.num_frames, source.num_frames)
@@ -575,7 +575,10 @@ def test_a_character_larger_than_any_smpl_body_is_transferred_by_rotations(body,
     giant = rigs.Rig(
         "giant", rigs.RIGS["mixamo"].joints, proportions=tuple((g, 1.8) for g in rigs.GROUPS)
     )
-    m, angles, share, count = _transfer(walk, giant, body, tmp_path / "giant.bvh")
+    # the unit given: a person 1.8x SMPL's size read at a guessed unit is warned about
+    m, angles, share, count = _transfer(walk, giant, body, tmp_path / "giant.bvh", unit="cm")
+    with pytest.warns(RetargetWarning, match=r"unit 'cm'.* 1\.80x the size"):
+        load_motion(tmp_path / "giant.bvh", body=body)
     assert m.meta["retarget_mode"] == "rotations" and not np.any(m.betas)
     assert m.meta["retarget_leg_ratio"] == pytest.approx(1.0, abs=1e-6)
     assert m.meta["retarget_error_mean_cm"] < 1.0 and m.meta["retarget_position_error_cm"] < 2

@@ -197,9 +197,10 @@ def load_bvh(
     meta = {"source": str(path), "format": "bvh", "bvh_frames": bvh.num_frames, **r.meta()}
     if dropped:
         meta["bvh_reference_frame_left_out"] = True
+    trans = _root_on_the_floor(bvh, r, body, meta)
     motion = Motion(
         poses=r.poses,
-        trans=r.trans,
+        trans=trans,
         fps=_snap_fps(bvh.fps),
         betas=r.betas,
         label=label,
@@ -207,6 +208,24 @@ def load_bvh(
         meta=meta,
     )
     return motion if fps is None else motion.resample(fps)
+
+
+def _root_on_the_floor(bvh: BVH, r, body, meta: dict) -> np.ndarray:
+    """The retargeted root translation; for a root without position channels, whose
+    height is only its OFFSET (often 0: the body would stand below the floor), moved
+    vertically so the feet stand on ``y = 0`` as npz files without an up axis are
+    (``meta["floor_shift_m"]``)."""
+    if any(c.endswith("position") for c in bvh.skeleton.channels[0]):
+        return r.trans
+    from mrlib.io.placement import FLOOR_TOLERANCE_M, floor_height
+
+    height = floor_height(r.poses, r.trans, r.betas, bvh.fps, body)
+    if height is None or abs(height) <= FLOOR_TOLERANCE_M:
+        return r.trans
+    meta["floor_shift_m"] = round(-height, 4)
+    trans = np.array(r.trans, dtype=np.float64)
+    trans[:, 1] -= height
+    return trans.astype(np.asarray(r.trans).dtype)
 
 
 def _check_angles(bvh: BVH, path: Path) -> None:

@@ -6,7 +6,9 @@ AMASS-style npz keys (https://amass.is.tue.mpg.de/):
   first 22 joints (pelvis ... right wrist) are the same in all three. SMPL's joints 22 and
   23 (``left_hand``, ``right_hand``) have no counterpart in SMPL-H/SMPL-X, which replace
   them by finger joints: they are set to **zero rotation** and the fingers are dropped
-  (``Motion.meta["dropped_hand_pose"]`` says so).
+  (``Motion.meta["dropped_hand_pose"]`` says so). Also read: ``poses (T, J, 3)``, and
+  the ``smplx`` package's ``global_orient`` / ``body_pose`` / ``transl``
+  (``mrlib.io.npz_arrays``); degrees, rotation matrices and centimetres are refused.
 * ``trans`` ``(T, 3)`` metres; ``betas`` (any length; the first 10 are kept, since the
   shape spaces of different body models do not correspond anyway);
   ``mocap_framerate`` or ``mocap_frame_rate`` (frames per second).
@@ -15,7 +17,8 @@ AMASS-style npz keys (https://amass.is.tue.mpg.de/):
   the body** (:func:`detect_npz_up_axis`): the world direction of the pelvis's own up
   axis and of the pelvis-to-head vector, averaged over the clip, must agree on one
   signed axis by a clear margin, else the file is refused in one line naming
-  ``up_axis=`` / ``--up-axis``. The rotation to mrlib's Y-up frame is applied to the
+  ``up_axis=`` / ``--up-axis``. A clip that lies or crawls on every frame points its
+  body along the floor, so it is read standing: give its ``up_axis``. The rotation to mrlib's Y-up frame is applied to the
   global orientation and to the translation (about the body's rest pelvis:
   ``mrlib.io.axes.change_up_axis``).
 * The floor: files without ``up_axis`` place the body as *their* body model does
@@ -50,6 +53,16 @@ import torch
 from mrlib.errors import MotionFileError, MotionValueError
 from mrlib.io.axes import change_up_axis, up_axis_rotation
 from mrlib.io.bodyfit import default_body, rest_pelvis
+from mrlib.io.npz_arrays import (
+    FPS_KEYS,
+    POSE_KEYS,
+    POSE_WIDTHS,
+    body_poses,
+    frame_rate,
+    root_translation,
+)
+from mrlib.io.npz_arrays import array as _array
+from mrlib.io.npz_arrays import text_value as _text_value
 from mrlib.io.outputs import atomic_write
 from mrlib.io.paths import read_text_bounded
 from mrlib.io.placement import FLOOR_TOLERANCE_M, detect_npz_up_axis, floor_height
@@ -72,15 +85,11 @@ class BodyModelWarning(UserWarning):
     ``gender`` key): its shape parameters are read on the neutral body."""
 
 
-# Pose vector widths and the body model they come from.
-POSE_WIDTHS = {72: "SMPL", 156: "SMPL-H", 165: "SMPL-X"}
-_FPS_KEYS = ("mocap_framerate", "mocap_frame_rate", "fps")
 _USED_KEYS = frozenset(
     (
-        "poses",
-        "trans",
+        *POSE_KEYS,
         "betas",
-        *_FPS_KEYS,
+        *FPS_KEYS,
         "up_axis",
         "contacts",
         "label",
@@ -133,36 +142,6 @@ def _read_used_keys(path: Path, z) -> dict[str, Any]:
             )
         data[key] = z[key]
     return data
-
-
-def _finite(path, key: str, arr: np.ndarray) -> np.ndarray:
-    if not np.isfinite(arr).all():
-        bad = np.argwhere(~np.isfinite(arr.reshape(len(arr), -1) if arr.ndim else arr[None]))[0, 0]
-        raise MotionFileError(path, f"'{key}' has NaN or inf values (first at index {bad})")
-    return arr
-
-
-def _array(path, data, key: str, ndim: int | None = None) -> np.ndarray:
-    if key not in data:
-        raise MotionFileError(path, f"missing key '{key}' (keys: {sorted(data.keys())})")
-    raw = np.asarray(data[key])
-    if raw.dtype.kind not in "biuf":
-        raise MotionFileError(path, f"'{key}' must hold real numbers, got dtype {raw.dtype}")
-    arr = raw.astype(np.float64)
-    if ndim is not None and arr.ndim != ndim:
-        raise MotionFileError(path, f"'{key}' must have {ndim} dimensions, got shape {arr.shape}")
-    return _finite(path, key, arr)
-
-
-def _text_value(data, key: str, path=None) -> str | None:
-    if key not in data:
-        return None
-    v = np.asarray(data[key])
-    if v.size == 0:
-        return None
-    if v.dtype.kind not in "USiuf":
-        raise MotionFileError(path, f"'{key}' must be text, got an array of {v.dtype}")
-    return str(v.item() if v.ndim == 0 else v.reshape(-1)[0])
 
 
 def _to_y_up(poses, trans, betas, up_axis, body) -> tuple[np.ndarray, np.ndarray]:
@@ -240,39 +219,20 @@ def load_npz(
         RuntimeError,
     ) as e:
         raise MotionFileError(path, f"cannot read npz ({type(e).__name__}: {e})") from None
-    poses = _array(path, data, "poses", ndim=2)
-    T, width = poses.shape
-    if width not in POSE_WIDTHS:
-        raise MotionFileError(
-            path,
-            f"'poses' has shape {poses.shape}; expected (T, 72) SMPL, (T, 156) SMPL-H or "
-            f"(T, 165) SMPL-X axis-angle",
-        )
-    if T == 0:
-        raise MotionFileError(path, "'poses' has no frames")
-    meta: dict[str, Any] = {"source": str(path), "format": f"npz ({POSE_WIDTHS[width]} poses)"}
-    if width == 72:
-        poses = poses.reshape(T, NUM_JOINTS, 3)
-    else:  # SMPL-H / SMPL-X: 22 shared joints, SMPL's hand joints 22, 23 set to zero
-        poses = np.concatenate([poses[:, :66], np.zeros((T, 6))], axis=1).reshape(T, NUM_JOINTS, 3)
+    poses, kind = body_poses(path, data)
+    T = len(poses)
+    meta: dict[str, Any] = {"source": str(path), "format": f"npz ({kind} poses)"}
+    if kind != "SMPL":  # SMPL's hand joints 22, 23: zero where the model has fingers
         meta["dropped_hand_pose"] = True
-    trans = _array(path, data, "trans", ndim=2)
-    if trans.shape != (T, 3):
-        raise MotionFileError(
-            path, f"'trans' must have shape ({T}, 3) like 'poses', got {trans.shape}"
-        )
+    trans = root_translation(path, data, T)
     betas = np.zeros(NUM_BETAS)
     if "betas" in data:
         b = _array(path, data, "betas").reshape(-1)
         betas = b[:NUM_BETAS]
-    file_fps = next((k for k in _FPS_KEYS if k in data), None)
-    if file_fps is not None:
-        rates = _array(path, data, file_fps).reshape(-1)
-        if rates.size == 0:
-            raise MotionFileError(path, f"'{file_fps}' is empty")
-        rate = float(rates[0])
-        if not rate > 0:
-            raise MotionFileError(path, f"'{file_fps}' must be positive, got {rate}")
+    found = frame_rate(path, data)
+    file_fps = None if found is None else found[0]
+    if found is not None:
+        rate = found[1]
     elif fps is None:
         raise MotionFileError(
             path,

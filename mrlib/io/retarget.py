@@ -96,6 +96,7 @@ import numpy as np
 
 from mrlib.errors import ArgumentError, JointMapError, MotionFileError, shown
 from mrlib.io.axes import (
+    UNITS,
     file_unit,
     source_up_axis,
     up_axis_rotation,
@@ -187,6 +188,7 @@ def retarget_bvh(
             best = min(fits, key=lambda r: r.error_mean_cm)
             if best.warning and warn:
                 warnings.warn(best.warning, RetargetWarning, stacklevel=2)
+            _warn_unit(best, bvh.source, unit, warn)
             return best
     src = validate_map(jmap, sk.names, sk.parents, bvh.source)
 
@@ -197,6 +199,7 @@ def retarget_bvh(
     placed = compared_joints(src, bones, J_tmpl)
     # 2. units and axes
     unit_m = file_unit(unit, bones.smpl_lengths(J_tmpl), bones.kept_lengths)
+    size = unit_m * bones.kept_lengths.sum() / max(bones.smpl_lengths(J_tmpl).sum(), 1e-12)
     up_axis = source_up_axis(src, P) if up_axis == "auto" else up_axis
     A = up_axis_rotation(up_axis)
     # 3.-5. what the fit is given and what it fits; the source in mrlib's frame
@@ -219,6 +222,7 @@ def retarget_bvh(
         poses=poses, trans=trans, betas=b, offsets=C_all, joint_map=jmap, unit=unit_m,
         up_axis=up_axis, scale=scale_used, pelvis_offset=delta, recognition=recognition,
         mode=mode, betas_at_bound=fit.at_bound(b), implausible_joints=implausible_joints(poses),
+        size=float(size),
         **clip_errors(source, G, J, trans, scale_used, leg_src, mode, delta),
     )  # fmt: skip
     if not result.error_mean_cm <= MAX_RETARGET_ERROR_CM:  # NaN included
@@ -233,7 +237,31 @@ def retarget_bvh(
         result = replace(result, warning=text)
         if warn:
             warnings.warn(text, RetargetWarning, stacklevel=2)
+    _warn_unit(result, bvh.source, unit, warn)
     return result
+
+
+# A skeleton read at the guessed unit this much larger or smaller than SMPL's average
+# body (a 2.3 m or a 1.3 m person) may have been read at the wrong unit: a 0.9 m child
+# written in centimetres is nearer in size to an adult written in inches.
+UNIT_SIZE_WARN = 4 / 3
+
+
+def _warn_unit(r: RetargetResult, source, unit, warn: bool) -> None:
+    """A ``RetargetWarning`` when the unit was guessed (``unit="auto"``) and the skeleton
+    comes out more than ``UNIT_SIZE_WARN`` times larger or smaller than SMPL's average."""
+    guessed = warn and isinstance(unit, str) and unit == "auto" and np.isfinite(r.size)
+    if not guessed or 1 / UNIT_SIZE_WARN <= r.size <= UNIT_SIZE_WARN:
+        return
+    name = next((k for k, v in UNITS.items() if v == r.unit), f"{r.unit:g} m")
+    warnings.warn(
+        f"{source}: read in unit '{name}' ({r.unit:g} m, the unit its bone lengths "
+        f"suggest), the skeleton is {r.size:.2f}x the size of SMPL's average body; if the "
+        "person is not that size, give the file's unit (unit= 'm', 'cm', 'mm', 'inch', "
+        "'cmu' or metres per unit in Python, --unit on the command line)",
+        RetargetWarning,
+        stacklevel=3,
+    )
 
 
 def _joint_map_for(

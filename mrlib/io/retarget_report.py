@@ -87,6 +87,8 @@ class RetargetResult:
         betas_at_bound: indices of the fitted betas that reached ``shape_bound``.
         leg_ratio: SMPL's leg length (hip to ankle, for the fitted betas) over the
             source's (scaled).
+        size: the source's mapped bones, in metres at ``unit``, over SMPL's average
+            body's (1: SMPL's size).
         implausible_joints: SMPL joints whose median local rotation over the clip is
             beyond a person's (``_ANGLE_LIMITS``), with that median in degrees.
         warning: the ``RetargetWarning`` text when the error is above
@@ -111,6 +113,7 @@ class RetargetResult:
     position_error_cm: float = float("nan")
     betas_at_bound: tuple[int, ...] = ()
     leg_ratio: float = float("nan")
+    size: float = float("nan")
     implausible_joints: dict[str, float] = field(default_factory=dict, repr=False)
     warning: str | None = field(default=None, repr=False)
 
@@ -140,6 +143,7 @@ class RetargetResult:
             "retarget_position_error_cm": _rounded(self.position_error_cm, 3),
             "retarget_betas_at_bound": list(self.betas_at_bound),
             "retarget_leg_ratio": _rounded(self.leg_ratio, 4),
+            "retarget_source_size": _rounded(self.size, 4),
             "retarget_joint_error_cm": per_joint,
             **(
                 {"retarget_implausible_joints": self.implausible_joints}

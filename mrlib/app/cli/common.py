@@ -157,7 +157,33 @@ def joint_map_option(p) -> None:
         help="BVH only: a shipped map name or a JSON file {smpl_joint: bvh_joint} (default: "
         "the shipped map that fits, else one recognised from the skeleton)",
     )
+    p.add_argument(
+        "--unit",
+        type=parse_unit,
+        default="auto",
+        metavar="UNIT",
+        help="BVH only: the file's length unit: m, cm, mm, inch, cmu (CMU's 0.45 in) or "
+        "metres per unit [default: auto, the unit that gives the bones a person's length]",
+    )
     up_axis_option(p)
+
+
+def parse_unit(text: str) -> str | float:
+    """``--unit``: a unit's name, ``auto``, or a positive number of metres per unit."""
+    from mrlib.io.axes import UNITS
+
+    if text == "auto" or text in UNITS:
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (value > 0 and value < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"expected auto, {', '.join(UNITS)} or metres per unit (a positive number), "
+            f"got {text!r}"
+        )
+    return value
 
 
 UP_AXES = ("auto", "x", "y", "z", "-x", "-y", "-z")

@@ -30,7 +30,9 @@ def cmd_export(args) -> int:
     from mrlib.io.outputs import check_writable
 
     check_writable(args.dst, overwrite=args.overwrite)  # before reading anything
-    m = load_motion(args.src, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis)
+    m = load_motion(
+        args.src, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis, unit=args.unit
+    )
     save_motion(m, args.dst, overwrite=args.overwrite)
     print(f"wrote {args.dst} ({m.num_frames} frames @ {m.fps:g} fps)")
     return 0

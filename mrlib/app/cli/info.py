@@ -47,7 +47,9 @@ def cmd_info(args) -> int:
         from mrlib.io.outputs import check_writable
 
         check_writable(args.write_map, overwrite=args.overwrite)
-    m = load_motion(args.path, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis)
+    m = load_motion(
+        args.path, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis, unit=args.unit
+    )
     print(m)
     print(f"  duration     {m.duration:.2f} s")
     print(f"  label        {m.label}")

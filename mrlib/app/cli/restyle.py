@@ -104,7 +104,7 @@ def cmd_restyle(args) -> int:
         )
     warn_unfinished(model, args.checkpoint)
     level = restyle_level(model, args.level)
-    clip = load_motion(args.clip, joint_map=args.joint_map, up_axis=args.up_axis)
+    clip = load_motion(args.clip, joint_map=args.joint_map, up_axis=args.up_axis, unit=args.unit)
     if clip.duration > MAX_SAMPLE_SECONDS:
         raise MrlibError(
             f"{args.clip}: {clip.duration:.0f} s is longer than the {MAX_SAMPLE_SECONDS:.0f} s "

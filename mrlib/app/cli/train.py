@@ -270,7 +270,7 @@ def cmd_train(args) -> int:
         # TrainingSet.from_files, with the clips' lengths checked before they are resampled
         maps = joint_maps_for(args.clips, args.joint_map)  # BVH files only
         motions = [
-            load_motion(p, joint_map=m, up_axis=args.up_axis)
+            load_motion(p, joint_map=m, up_axis=args.up_axis, unit=args.unit)
             for p, m in zip(args.clips, maps, strict=True)
         ]
         # the preset's frame rate (TrainConfig.fps), unless --fps; None: the first clip's

@@ -213,7 +213,9 @@ def parse_bvh(text: str, *, source: str | Path = "<string>") -> BVH:
     """Parse the text of a BVH file.
 
     Args:
-        text: the whole file.
+        text: the whole file (a leading byte-order mark is skipped; a ``Frame Time:``
+            written with a decimal comma, and no point, is read with the frame lines
+            that follow it the same way).
         source: a name for error messages (the path when reading a file).
 
     Returns:
@@ -225,7 +227,7 @@ def parse_bvh(text: str, *, source: str | Path = "<string>") -> BVH:
             non-finite values, a ``Frames:`` count that disagrees with the frame lines).
     """
     source = str(source)
-    lines = text.splitlines()
+    lines = text.removeprefix("\ufeff").splitlines()  # a byte-order mark (Windows tools)
     tk = _Tokens(lines, source)
     if tk.peek() is None:
         raise BVHFormatError(source, "line 1: expected 'HIERARCHY', the file is empty")
@@ -285,13 +287,18 @@ def parse_bvh(text: str, *, source: str | Path = "<string>") -> BVH:
             source,
             f"line {i - 1}: 'Frames:' must be a non-negative integer, got '{header['Frames']}'",
         )
+    ft = header["Frame Time"]
+    # a decimal comma (a locale's export: "0,0333333"): the frame lines are written so too
+    comma = "," in ft and "." not in ft
     try:
-        frame_time = float(header["Frame Time"])
+        frame_time = float(ft.replace(",", ".") if comma else ft)
     except ValueError:
         frame_time = float("nan")
     problem = frame_time_problem(frame_time)
     if problem is not None:
         raise BVHFormatError(source, f"line {i}: {problem}, got '{header['Frame Time']}'")
+    if comma:
+        lines = lines[:i] + [ln.replace(",", ".") for ln in lines[i:]]
     motion = _parse_frames(lines, i, n_frames, skeleton.num_channels, source)
     return BVH(skeleton=skeleton, motion=motion, frame_time=frame_time, source=source)
 
