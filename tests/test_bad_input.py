@@ -238,6 +238,14 @@ def test_a_zip_that_is_not_a_checkpoint(tmp_path):
         load_checkpoint(path)
 
 
+@pytest.mark.parametrize("content", [b"", b'{"seed": 0}', bytes(range(256)) * 4])
+def test_a_file_that_is_no_pytorch_checkpoint_says_so(tmp_path, content):
+    path = tmp_path / "x.pt"
+    path.write_bytes(content)
+    with pytest.raises(CheckpointError, match="not a PyTorch checkpoint"):
+        load_checkpoint(path)
+
+
 # -- the command line -----------------------------------------------------------------------
 def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], int, str]]:
     (tmp / "a_file").write_text("x")

@@ -128,11 +128,12 @@ def test_an_error_naming_a_file_with_a_control_character_is_one_line(name, shown
     assert err.count("\n") == 1 and err.startswith("error: ") and shown in err, err
 
 
-def test_a_bom_is_shown_escaped(tmp_path, capsys):
+def test_a_bom_is_skipped_and_what_follows_judged(tmp_path, capsys):
     bvh = tmp_path / "bom.bvh"
     bvh.write_bytes(b"\xef\xbb\xbfHIERARCHY\nROOT Hips\n")
     code, err = _run(["info", bvh], capsys)
-    assert code == 1 and err.count("\n") == 1 and "\\ufeff" in err, err
+    assert code == 1 and err.count("\n") == 1 and "truncated hierarchy" in err, err
+    assert "ufeff" not in err, err
 
 
 @pytest.fixture
@@ -225,3 +226,17 @@ def test_the_sampler_bounds_hold_in_python_too():
     for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
         with pytest.raises(MotionValueError, match=f"{name} must be in"):
             Sampler(**{name: bound * 10})
+
+
+def test_write_map_on_a_skeleton_no_map_fits_writes_a_template(tmp_path, capsys):
+    import json
+
+    bvh = tmp_path / "odd.bvh"
+    bvh.write_text(
+        "HIERARCHY\nROOT Hips\n{\n OFFSET 0 0 0\n CHANNELS 3 Zrotation Xrotation Yrotation\n"
+        " End Site\n {\n OFFSET 0 1 0\n }\n}\nMOTION\nFrames: 1\nFrame Time: 0.0333\n0 0 0\n"
+    )
+    code, err = _run(["info", bvh, "--write-map", tmp_path / "map.json"], capsys)
+    assert code == 1 and "no joint map fits" in err, err
+    data = json.loads((tmp_path / "map.json").read_text())
+    assert "Hips" in data["description"] and set(data["map"]) >= {"pelvis", "left_ankle"}

@@ -118,8 +118,13 @@ def _cases(tmp: Path, ckpt: Path) -> dict[str, tuple[list[str], int, str]]:
         "train --levels 1000": ([*train_, "--levels", "1000"], 2, "--levels: must be in [1, 32]"),
         "train --levels 50": ([*train_, "--levels", "50"], 2, "--levels: must be in [1, 32]"),
         "train --levels 0": ([*train_, "--levels", "0"], 2, "--levels: must be in [1, 32]"),
-        "sample --seconds 86400": ([*sample, "--seconds", "86400"], 1, "--seconds: 86400 s"),
-        "sample --seconds 700": ([*sample, "--seconds", "700"], 1, "join them with --continue"),
+        "sample --seconds 86400": ([*sample, "--seconds", "86400"], 2, "in (0, 600]"),
+        "sample --seconds 700": ([*sample, "--seconds", "700"], 2, "join longer motion with"),
+        "sample --seconds 500 --fps 1000": (
+            [*sample, "--seconds", "500", "--fps", "1000"],
+            1,
+            "--num: 1 samples of 500000 frames",
+        ),
         "sample --num 1000 --seconds 300": (
             [*sample, "--num", "1000", "--seconds", "300"],
             1,

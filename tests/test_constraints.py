@@ -122,6 +122,17 @@ def test_a_walk_bent_onto_a_path_follows_it_with_feet_planted(walk, body, spec):
     assert np.median(np.abs(d)) < 10.0
 
 
+def test_walking_past_the_end_of_an_open_path_warns(walk, body):
+    walked = C.ground_track(walk, body)["arc"][-1]
+    short = C.GroundPath(np.array([[0.0, 0.0], [0.0, walked / 2]]), name="short")
+    with pytest.warns(UserWarning, match="'short' is .* m long, and this motion walks"):
+        C.follow_path(walk, short, body=body, clean=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # its own length, and a closed path: no warning
+        C.follow_path(walk, C.GroundPath(short.points * 2.02), body=body, clean=False)
+        C.follow_path(walk, "circle:0.3", body=body, clean=False)
+
+
 def test_a_timed_path_sets_the_pace_and_warns_when_it_is_far_from_the_motions(walk, body):
     own = C.ground_track(walk, body)["arc"][-1] / walk.duration
     pts = np.array([[0.0, 0.0], [0.0, 3 * own * walk.duration]])

@@ -123,6 +123,22 @@ def test_path_loop_and_part_samples_come_at_the_clips_rate(run, tmp_path, capsys
     assert m.fps == 15.0 and m.num_frames == frames // 2
 
 
+@pytest.mark.parametrize(
+    "flags, seconds, frames",
+    [
+        ([], 2.1, 63),  # 31.5 frames of the 15-fps model: 63 at 30 fps, not 64
+        (["--fps", "60"], 1.5, 90),
+        (["--fps", "100", "--path", "line:3"], 2.03, 203),
+        (["--continue", "PREFIX", "--fit-steps", "2"], 2.1, 72 + 63),
+    ],
+)
+def test_seconds_count_at_the_output_rate(run, tmp_path, flags, seconds, frames):
+    flags = [str(run.parent / "walk_sad.npz") if f == "PREFIX" else f for f in flags]
+    argv = ["sample", str(run / "checkpoint.pt"), *flags, "--seconds", str(seconds)]
+    assert main([*argv, "--out", str(tmp_path / "a"), "--no-progress"]) == 0
+    assert load_motion(next((tmp_path / "a").glob("*.npz"))).num_frames == frames
+
+
 def test_continuations_and_keyframes_come_at_the_clips_rate(run, tmp_path, capsys):
     from mrlib.sampling.constraints import Keyframe, keyframe_errors, save_keyframes
 
@@ -142,7 +158,7 @@ def test_continuations_and_keyframes_come_at_the_clips_rate(run, tmp_path, capsy
     argv60 = [*argv[:3], str(fast), *argv[4:-3], "--out", str(tmp_path / "a60"), "--no-progress"]
     assert main(argv60) == 0
     m60, p60 = load_motion(next((tmp_path / "a60").glob("*.npz"))), load_motion(fast)
-    assert m60.fps == 60.0 and abs(m60.num_frames - (p60.num_frames + 60)) <= 1  # 1 s more
+    assert m60.fps == 60.0 and m60.num_frames == p60.num_frames + 60  # 1 s more
     np.testing.assert_allclose(m60.poses[: p60.num_frames], p60.poses, atol=1e-6)
     # keyframes at frames of 30 fps: frame 50 of 60 (2 s)
     keys = [Keyframe.from_motion(prefix, 0, 0), Keyframe.from_motion(prefix, 50, 50)]

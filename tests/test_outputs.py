@@ -248,6 +248,17 @@ def test_resume_in_its_own_folder_needs_no_flag(run, tmp_path):
     assert load_checkpoint(out / "checkpoint.pt")["progress"]["done"]
 
 
+def test_resume_without_out_continues_in_the_checkpoints_folder(run, tmp_path, monkeypatch, capsys):
+    out = _copy_run(run, tmp_path / "r")
+    monkeypatch.chdir(tmp_path)  # not into ./runs/model, train's default for a new run
+    assert main(["train", "--resume", str(out / "checkpoint.pt"), "--no-progress"]) == 0
+    assert not (tmp_path / "runs").exists()
+    assert "nothing to do" in capsys.readouterr().out  # the run is finished
+    # a missing checkpoint is named before any folder's state
+    assert main(["train", "--resume", "nosuch.pt", "--out", str(out), "--no-progress"]) == 1
+    assert "nosuch.pt: no such checkpoint file" in capsys.readouterr().err
+
+
 def test_resume_into_a_folder_of_another_run_is_refused(run, clips, tmp_path, capsys):
     other = tmp_path / "other"
     assert main(["train", str(clips[1]), *TRAIN, "--out", str(other)]) == 0

@@ -182,6 +182,15 @@ def test_the_restyled_root_stays_on_the_clips_path_raw_and_cleaned(model, clip, 
     np.testing.assert_array_equal(cleaned.trans[:, [0, 2]], raw.trans[:, [0, 2]])
 
 
+def test_a_restyle_at_a_rate_too_low_for_the_sway_lays_the_root_on_the_path(model, clip, body):
+    """Output rates under twice the path filter's cutoff hold no sway: the root is the
+    clip's ground path itself, at 5 fps as at 8."""
+    for fps in (5.0, 8.0):
+        m = restyle(model, clip, model.labels[0], seed=0, body=body, sampler=Sampler(fps=fps))
+        assert m.fps == fps and m.num_frames == clip.resampled_frames(fps)
+        assert _on_path(_path_cm(m, clip)), (fps, _path_cm(m, clip))
+
+
 def test_relay_root_path_keeps_the_sway_within_its_bound_and_drops_the_drift():
     """What ``restyle`` does to the generated root: a path that drifts 40 cm off the
     clip's and starts 10 cm beside it (the un-re-laid output of a trained model, in

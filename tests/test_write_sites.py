@@ -44,6 +44,7 @@ ALLOWED: dict[tuple[str, str], str] = {
         "atomic_write(path, lambda f: np.savez(f, **out)",
     ): "np.savez into the atomic writer's temporary file object",
     ("io/npz.py", 'with open(path, "rb") as f:'): "reads the first bytes of the file to load",
+    ("model/checkpoint.py", 'with open(path, "rb") as fh:'): "reads a checkpoint's first bytes",
     ("io/npz.py", "# a file object: np.savez would append"): "a comment",
     ("io/npz.py", "with z.zip.open(member) as fh:"): "reads an archive member",
     (

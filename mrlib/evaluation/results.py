@@ -91,6 +91,11 @@ class EvaluationSettings:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise MotionValueError(f"{name} must be a positive number, got {v!r}")
+        if self.tight_eps > self.eps:
+            raise MotionValueError(
+                f"tight_eps (--tight-eps) {self.tight_eps:g} is looser than eps (--eps) "
+                f"{self.eps:g}: the tighter coverage threshold must not exceed it"
+            )
         if self.num_samples > MAX_EVAL_SAMPLES:
             raise MotionValueError(
                 f"num_samples (--samples): {self.num_samples} samples per sequence are more "

@@ -169,6 +169,12 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         raise CheckpointError(path, f"is a folder, not a checkpoint file{hint}")
     if not path.is_file():
         raise CheckpointError(path, "no such checkpoint file")
+    with open(path, "rb") as fh:
+        head = fh.read(2)
+    if not head.startswith((b"PK", b"\x80")):  # torch.save's zip, or an old pickle
+        raise CheckpointError(
+            path, "not a PyTorch checkpoint (neither a zip archive nor a pickle): not mrlib's"
+        )
     try:
         with warnings.catch_warnings():  # torch's advice on files mrlib never writes
             warnings.filterwarnings("ignore", message="Detected pickle protocol")

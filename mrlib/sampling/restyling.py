@@ -301,7 +301,8 @@ def relay_root_path(
         )
     T = len(trans)
     d = trans[:, [0, 2]] - path[:, [0, 2]]
-    d = d - lowpass(d, fps, cutoff_hz) if T > 1 else np.zeros_like(d)
+    # at a rate that cannot hold cutoff_hz (under 2 cutoff_hz fps) there is no sway to keep
+    d = d - lowpass(d, fps, cutoff_hz) if T > 1 and cutoff_hz < fps / 2 else np.zeros_like(d)
     n = max(1, min(round(PATH_EASE_S * fps), T // 4))
     ramp = np.sin(0.5 * np.pi * np.arange(n) / n) ** 2  # 0 at the end frame itself
     w = np.ones(T)

@@ -15,6 +15,7 @@ from mrlib.representation.motion import MAX_FPS
 __all__ = [
     "Sampler",
     "raw_sampler",
+    "model_frames",
     "FINE_NOISE",
     "GUIDANCE",
     "CANDIDATES",
@@ -143,3 +144,12 @@ def raw_sampler(sampler: Sampler | None = None) -> Sampler:
 
         raise ArgumentError(f"sampler must be a mrlib.Sampler or None, got {shown(sampler)}")
     return sampler
+
+
+def model_frames(seconds: float, model_fps: float, least: int = 2) -> int:
+    """Frames a model at ``model_fps`` draws for ``seconds`` of motion: enough that the
+    draw raised or lowered to any output rate ``fps`` (``Sampler.fps``) holds at least
+    ``round(seconds * fps)`` frames, to which the command line and ``generate_on_path``
+    cut it (``ceil``; ``round`` at the model's rate would give 64 frames at 30 fps for
+    2.1 s of a 15-fps model)."""
+    return max(least, math.ceil(seconds * model_fps - 1e-9))

@@ -235,9 +235,29 @@ def run_options(p, *, out: Path, out_help: str, overwrite_help: str) -> None:
         "--seed", type=parse_seed, default=None, help="random seed (default: the preset's)"
     )
     device_option(p, resume=True)
-    p.add_argument("--out", type=Path, default=out, help=out_help)
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help=f"{out_help} [default: {out}; with --resume, the checkpoint's own folder]",
+    )
     p.add_argument("--resume", type=Path, default=None, help="continue from this checkpoint")
+    p.set_defaults(default_out=out)
     overwrite_option(p, overwrite_help)
+
+
+def run_folder(args) -> Path:
+    """``--out`` of ``train`` / ``train-speech``: as given, else the folder of the
+    checkpoint ``--resume`` continues, else the command's default."""
+    if args.resume is not None and not args.resume.is_file():  # before any folder's state
+        from mrlib.model.checkpoint import CheckpointError
+
+        what = "is a folder, not a checkpoint file" if args.resume.is_dir() else (
+            "no such checkpoint file")  # fmt: skip
+        raise CheckpointError(args.resume, what)
+    if args.out is None:
+        args.out = args.resume.parent if args.resume is not None else args.default_out
+    return args.out
 
 
 def sampler_options(p, candidates: bool = True) -> None:

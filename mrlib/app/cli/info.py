@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -40,16 +41,44 @@ def add_info(sub) -> argparse.ArgumentParser:
     return p
 
 
+def _write_map_template(args) -> None:
+    """``--write-map`` for a skeleton no map fits: every SMPL joint with an empty source
+    joint, the file's joints listed in the description, to fill in."""
+    import json
+
+    from mrlib.io.bvh import read_bvh
+    from mrlib.io.outputs import write_text
+    from mrlib.representation.skeleton import JOINT_NAMES
+
+    names = read_bvh(args.path).skeleton.names
+    data = {
+        "name": "custom",
+        "description": f"fill in the joint of {Path(args.path).name} each SMPL joint follows "
+        f"(leave out those it has none for); its joints: {', '.join(names)}",
+        "map": {n: "" for n in JOINT_NAMES},
+    }
+    write_text(args.write_map, json.dumps(data, indent=2) + "\n", overwrite=args.overwrite)
+    print(f"wrote {args.write_map}: a template to fill in, then pass it back with --joint-map")
+
+
 def cmd_info(args) -> int:
+    from mrlib.errors import JointMapError
     from mrlib.io import JointMap, load_motion
 
     if args.write_map is not None:  # before reading anything
         from mrlib.io.outputs import check_writable
 
         check_writable(args.write_map, overwrite=args.overwrite)
-    m = load_motion(
-        args.path, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis, unit=args.unit
-    )
+    try:
+        m = load_motion(
+            args.path, fps=args.fps, joint_map=args.joint_map, up_axis=args.up_axis, unit=args.unit
+        )
+    except JointMapError as e:
+        if args.write_map is None or args.joint_map is not None:
+            raise
+        print(f"error: {e}", file=sys.stderr)
+        _write_map_template(args)  # written: the command ends here without an error
+        return 1
     print(m)
     print(f"  duration     {m.duration:.2f} s")
     print(f"  label        {m.label}")

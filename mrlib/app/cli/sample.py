@@ -22,6 +22,7 @@ from mrlib.app.cli.common import (
 )
 from mrlib.errors import MAX_SEED, MrlibError
 from mrlib.sampling.generation import MAX_SAMPLE_FRAMES, MAX_SAMPLE_SECONDS
+from mrlib.sampling.sampler import model_frames
 
 MAX_SAMPLES = 1000  # --num: each sample is generated, cleaned up and written (2-4 files)
 
@@ -65,8 +66,11 @@ def _seconds(text: str) -> float:
         v = float(text)
     except ValueError:
         v = float("nan")
-    if not (math.isfinite(v) and 0 < v <= 24 * 3600):
-        raise argparse.ArgumentTypeError(f"must be a number of seconds in (0, 86400], got {text!r}")
+    if not (math.isfinite(v) and 0 < v <= MAX_SAMPLE_SECONDS):
+        raise argparse.ArgumentTypeError(
+            f"must be a number of seconds in (0, {MAX_SAMPLE_SECONDS:g}] (the most mrlib "
+            f"generates in one sample; join longer motion with --continue), got {text!r}"
+        )
     return v
 
 
@@ -128,8 +132,8 @@ def add_sample(sub) -> argparse.ArgumentParser:
         type=_parse_parts,
         default=None,
         metavar="PART=LABEL,...",
-        help="a label per body part (upper, lower, left_arm, right_arm), e.g. "
-        "upper=walk_happy,lower=walk_sad",
+        help="a label per body part (upper, lower, left_arm, right_arm, or an SMPL joint "
+        "name such as head or left_wrist), e.g. upper=walk_happy,lower=walk_sad",
     )
     p.add_argument(
         "--in-step",
@@ -180,7 +184,7 @@ def add_sample(sub) -> argparse.ArgumentParser:
         "--seconds",
         type=_seconds,
         default=None,
-        help="length in seconds (default: a training clip's)",
+        help=f"length in seconds, at most {MAX_SAMPLE_SECONDS:g} (default: a training clip's)",
     )
     p.add_argument(
         "--fps",
@@ -254,6 +258,16 @@ def _constrained(model, condition, sampler, length: int | None, args) -> list:
             if length is None:
                 raise MrlibError("--keyframes needs --seconds (the length of the motion)")
             kfs = C.load_keyframes(args.keyframes)
+            if not kfs:
+                raise MrlibError(f"{args.keyframes}: holds no keyframes")
+            fps = sampler.fps or model.fps
+            frames = max(2, round(args.seconds * fps))
+            late = sorted(k.frame for k in kfs if k.frame >= frames)
+            if late:
+                raise MrlibError(
+                    f"{args.keyframes}: keyframes at frames {late} are beyond the motion's "
+                    f"{frames} frames ({args.seconds:g} s at {fps:g} fps)"
+                )
             m = C.generate_with_keyframes(
                 model, kfs, length, seed=seed, fit=C.KeyframeFit(**fit), **kw
             )
@@ -267,7 +281,13 @@ def _constrained(model, condition, sampler, length: int | None, args) -> list:
             if args.seconds is None:
                 raise MrlibError("--continue needs --seconds (how much to add)")
             prefix = load_motion(args.prefix, up_axis=args.up_axis)
-            frames = max(1, round(args.seconds * model.fps))
+            if prefix.num_frames < 2 or prefix.resampled_frames(model.fps) < 2:
+                raise MrlibError(
+                    f"{args.prefix}: {prefix.num_frames} frame(s) at {prefix.fps:g} fps are "
+                    f"fewer than two at the model's {model.fps:g} fps; --continue needs a "
+                    "longer clip"
+                )
+            frames = model_frames(args.seconds, model.fps, least=1)
             # the prefix is resampled to the model's rate: its duration counts, not its frames
             _check_sample_frames(round(prefix.duration * model.fps) + frames, model.fps, args)
             cont = replace(C.keyframes.CONTINUE_FIT, **fit)
@@ -289,6 +309,8 @@ def cmd_sample(args) -> int:
         raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
+    if args.up_axis is not None and args.prefix is None:
+        raise MrlibError("--up-axis applies to --continue only (the one file sample reads)")
     if args.fps is not None and args.audio is not None:
         raise MrlibError("--fps applies to label models' samples (speech samples come at the "
                          "model's rate)")  # fmt: skip
@@ -318,9 +340,11 @@ def cmd_sample(args) -> int:
     if model.generator.cond_dim != len(model.labels):
         raise MrlibError(f"{args.checkpoint} is a speech-conditioned model: pass --audio FILE")
     warn_unfinished(model, args.checkpoint)
-    length = None if args.seconds is None else max(2, round(args.seconds * model.fps))
+    length = None if args.seconds is None else model_frames(args.seconds, model.fps)
     if length is not None:
         _check_sample_frames(length, model.fps, args)
+        out_fps = args.fps or model.source_fps or model.fps  # what is written, at most
+        _check_sample_frames(round(args.seconds * out_fps), out_fps, args)
     if args.parts:
         if constrained:
             raise MrlibError("--parts cannot be combined with --path/--keyframes/--loop/--continue")
@@ -334,6 +358,7 @@ def cmd_sample(args) -> int:
         motions = generate_parts(model, parts, length=length, seed=args.seed, num=args.num,
                                  sampler=sampler, sharpen=Sharpening(
                                      steps=steps, progress=not args.no_progress))  # fmt: skip
+        motions = _as_long_as(motions, args.seconds)
         return write_samples(motions, ",".join(f"{k}={v}" for k, v in args.parts.items()), args)
     if args.crossover:
         condition = Condition.levels(args.crossover)
@@ -369,13 +394,28 @@ def cmd_sample(args) -> int:
         if args.prefix is None:  # a continuation comes at its prefix's rate
             sampler = _output_rate(model, sampler, args)
         motions = _constrained(model, condition, sampler, length, args)
+        if not args.loop:  # a loop keeps its cycle whole
+            motions = _as_long_as(motions, args.seconds)
         return write_samples(motions, f"{tag}_{what}", args)
     label_weights(model, condition)  # an unknown label is refused before the notice
     sampler = _output_rate(model, sampler, args)
     motions = generate(
         model, condition, length=length, seed=args.seed, num=args.num, sampler=sampler
     )
-    return write_samples(motions, tag, args)
+    return write_samples(_as_long_as(motions, args.seconds), tag, args)
+
+
+def _as_long_as(motions: list, seconds: float | None) -> list:
+    """Each motion cut to ``round(seconds * fps)`` frames at its own rate (the model
+    drew ``model_frames`` frames, enough for that at any output rate); a continuation
+    keeps its prefix and adds that many."""
+    if seconds is None:
+        return motions
+    out = []
+    for m in motions:
+        n = m.meta.get("prefix_frames", 0) + max(2, round(seconds * m.fps))
+        out.append(m.slice(0, n) if m.num_frames > n else m)
+    return out
 
 
 def _output_rate(model, sampler, args):

@@ -19,6 +19,7 @@ from mrlib.app.cli.common import (
     preset_help,
     progress_option,
     read_number,
+    run_folder,
     run_options,
     up_axis_option,
 )
@@ -137,7 +138,7 @@ def add_train(sub) -> argparse.ArgumentParser:
         [
             "mrlib train data_samples/*.npz --out runs/samples",
             "mrlib train a.bvh b.bvh --labels calm angry --preset paper --device cuda --out runs/ab",
-            "mrlib train --resume runs/ab/checkpoint.pt --out runs/ab",
+            "mrlib train --resume runs/ab/checkpoint.pt",
             "mrlib train data_samples/*.npz --preset demo --out runs/demo",
         ],
         preset_help("labels"),
@@ -189,7 +190,7 @@ def add_train(sub) -> argparse.ArgumentParser:
     run_options(
         p,
         out=Path("runs/model"),
-        out_help="output folder [default: runs/model]",
+        out_help="output folder",
         overwrite_help="replace a run already in --out (refused otherwise; --resume in the "
         "checkpoint's own folder needs no flag)",
     )
@@ -231,6 +232,7 @@ def cmd_train(args) -> int:
 
     if args.resume is None and not args.clips:
         raise MrlibError("give clips to train on, or --resume a checkpoint")
+    run_folder(args)
     if not args.per_clip:  # before loading anything (checked again under the run's lock)
         check_run_folder(args.out, resume=args.resume, overwrite=args.overwrite)
     if args.resume is not None:
@@ -414,6 +416,7 @@ def cmd_train_speech(args) -> int:
     from mrlib.speech import SpeechFeatureExtractor, SpeechTrainer, SpeechTrainingSet, speech_train
     from mrlib.training.run import check_run_folder
 
+    run_folder(args)
     if args.resume is not None:
         return _resume(
             args,

@@ -3,6 +3,7 @@ a label model's inputs and outputs, the body's rest pelvis."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -23,7 +24,12 @@ __all__ = [
     "features_motion",
     "fitted_motion",
     "pelvis_rest",
+    "warn_past_the_end",
 ]
+
+# An open path walked further than its length by more than this (metres, or share of
+# the length, whichever is more) warns: past its end the motion goes straight on.
+PAST_THE_END_M, PAST_THE_END_SHARE = 1.0, 0.1
 
 
 def joint_ids(joints) -> tuple[int, ...]:
@@ -177,3 +183,17 @@ def fitted_motion(
     with torch.no_grad():
         x = model.generator.run_batch(noises, conds)
     return features_motion(model, x, label, name, rate_of)
+
+
+def warn_past_the_end(path, walked: float, pace: float) -> None:
+    """A warning when an open ``path`` (a ``GroundPath``) is walked ``walked`` metres,
+    beyond its length by more than ``PAST_THE_END_M`` / ``PAST_THE_END_SHARE``."""
+    over = walked - path.length
+    if path.closed or over <= max(PAST_THE_END_M, PAST_THE_END_SHARE * path.length):
+        return
+    warnings.warn(
+        f"path {path.name!r} is {path.length:.1f} m long, and this motion walks "
+        f"{walked:.1f} m at its pace of {pace:.2f} m/s: past the end it goes straight on "
+        f"(give about {path.length / max(pace, 1e-9):.1f} s, or a longer path)",
+        stacklevel=3,
+    )

@@ -384,7 +384,8 @@ def continue_motion(
     plants the feet of the new frames after the ease, the prefix held as it is:
     ``PlantOptions.hold``). The noise is fitted to the prefix resampled to the model's
     frame rate; the output holds the prefix at the output's rate (itself, frame for frame,
-    when that is its own) and ``frames`` model frames more at that rate. A prefix and
+    when that is its own) and ``frames`` model frames more, as many at that rate as last as
+    long (``round(frames * fps / model.fps)``). A prefix and
     ``frames`` longer together than ``MAX_SAMPLE_SECONDS`` are refused before."""
     from mrlib.representation.body import resolve_body
     from mrlib.representation.rotations import axis_angle_to_matrix
@@ -437,7 +438,7 @@ def continue_motion(
     m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
     # the fit done: at the output's rate, the prefix as kept there, the new frames after it
     prefix, K = kept, kept.num_frames
-    T = max(K + 1, round(T * fps / model.fps)) if fps != model.fps else T
+    T = K + max(1, round(frames * fps / model.fps)) if fps != model.fps else T
     m = _raised(m, fps, T)  # the feet are planted after the ease, the prefix held
     anchors = [Keyframe(f, prefix.poses[f], (0,), prefix.trans[f]) for f in range(K)]
     m = align_to_keyframes(m, anchors, body)

@@ -35,8 +35,8 @@ from scipy.ndimage import gaussian_filter1d
 from mrlib.errors import ArgumentError, MotionValueError, check_number, shown
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
-from mrlib.sampling.constraints.common import pelvis_rest
-from mrlib.sampling.sampler import Sampler
+from mrlib.sampling.constraints.common import pelvis_rest, warn_past_the_end
+from mrlib.sampling.sampler import Sampler, model_frames
 
 __all__ = [
     "GroundPath",
@@ -380,6 +380,7 @@ def follow_path(
             )
     else:
         s = tr["arc"]
+        warn_past_the_end(path, float(s[-1] - s[0]), own_pace)
     target, h_path = path.at(s)
     dtheta = h_path - tr["heading"]
     Ry = yaw_matrix(dtheta)  # (T, 3, 3)
@@ -487,10 +488,10 @@ def generate_on_path(
             f"{max_seconds:.0f} s generated in one piece; give a shorter length (seconds=, "
             "--seconds) or a shorter path, and join pieces with continue_motion (--continue)"
         )
-    length = max(2, round(seconds * model.fps))
-    sampler = sampler or Sampler()
+    sampler, length = sampler or Sampler(), model_frames(seconds, model.fps)
     m = generate(model, condition, length=length, seed=seed,
                  sampler=replace(sampler, fix_contacts=False))  # fmt: skip
+    m = m.slice(0, min(m.num_frames, max(2, round(seconds * m.fps))))  # seconds at its rate
     # at sampler.fps the raw draw is already raised; the clean-up's filter spans the same time
     from mrlib.sampling.cleanup import jitter_at
 
