@@ -30,7 +30,8 @@ the take's rate).
 
 ``--continue``: the first 2 s of each development walk's ``_002`` take continued by 2 s
 under its label (``continue_motion``; ``--samples`` seeds), the new frames
-(from the prefix's last) scored the same ways.
+(from the prefix's last) scored the same ways; then where they slide (the first
+``JOIN_S`` after the join, and after) and how many of their frames are in contact.
 
 ``--preset demo --clip-fps 24``: the other direction, clips at a lower rate than the model's
 (the 30-fps captures resampled to 24 fps by splines stand in for 24-fps captures; the
@@ -160,7 +161,7 @@ def continued(model, args, body) -> None:
     print("| take | take jerk | take skating % | "
           + " | ".join(f"{w}: jerk ratio | skating %" for w in ways) + " |")  # fmt: skip
     print("|---|---:|---:|" + "---:|---:|" * len(ways))
-    ratio, extra = {w: [] for w in ways}, {w: [] for w in ways}
+    ratio, extra, joins = {w: [] for w in ways}, {w: [] for w in ways}, {}
     for path in takes.paths:
         take = mrlib.load_motion(path, body=body)
         if take.duration < 2.0:
@@ -170,6 +171,7 @@ def continued(model, args, body) -> None:
         cj, cs = scores(take, body)
         prefix, got = take.slice(0, round(2 * take.fps)), {w: [] for w in ways}
         frames = round(2 * model.fps)
+        join = {"share": [], "near": [0, 0], "after": [0, 0]}  # the Sampler(fps) way
         for seed in seeds:
             kw = dict(seed=seed, body=body, fit=NoiseFit(progress=False))
             low = continue_motion(model, prefix, frames, take.label,
@@ -179,10 +181,38 @@ def continued(model, args, body) -> None:
             k = prefix.num_frames - 1  # from the prefix's last frame on
             got["spline"].append(scores(low.resample(take.fps, smooth=True).slice(k), body))
             got["Sampler(fps)"].append(scores(high.slice(k), body))
+            near_join(high.slice(k), body, join)
         cells = tally(got, ways, cj, cs, ratio, extra)
         print(f"| {take.name} | {cj:.1f} | {100 * cs:.1f} | {cells} |")
+        joins[take.name] = (100 * take.contacts.mean(), join)
     print("\nmean over takes, jerk over the take's and skating minus the take's (points): "
           + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
+    print(f"\nWhere the new frames slide (Sampler(fps)): contact vertex-frames in the first "
+          f"{JOIN_S:g} s after the join and after it, and the share of frames in contact\n")  # fmt: skip
+    print("| take | in contact %, take / new frames | skating % first 0.25 s (contacts) | after |")
+    print("|---|---|---|---|")
+    for name, (take_share, j) in joins.items():
+        near, after = (100 * a / max(n, 1) for a, n in (j["near"], j["after"]))
+        print(f"| {name} | {take_share:.0f} / {100 * np.mean(j['share']):.0f} | {near:.0f} "
+              f"({j['near'][1]}) | {after:.0f} ({j['after'][1]}) |")  # fmt: skip
+
+
+JOIN_S = 0.25  # the new frames next to the prefix's last: where a continuation slides
+
+
+def near_join(m, body, acc: dict) -> None:
+    """Add ``m``'s (from the prefix's last frame on) sliding contact vertex-frames within
+    ``JOIN_S`` of the join and after, and its share of frames in contact, to ``acc``."""
+    from mrlib.metrics.plausibility import SKATE_SPEED_THRESHOLD, horizontal_speed
+
+    _, feet = motion_kinematics(m, body)
+    c = np.asarray(m.contacts) > 0.5
+    slide = (horizontal_speed(np.asarray(feet), m.fps) > SKATE_SPEED_THRESHOLD) & c
+    n = round(JOIN_S * m.fps)
+    for key, part in (("near", slice(0, n)), ("after", slice(n, None))):
+        acc[key][0] += int(slide[part].sum())
+        acc[key][1] += int(c[part].sum())
+    acc["share"].append(float(c[1:].mean()))
 
 
 def restyled(model, args, body) -> None:
