@@ -31,7 +31,8 @@ the take's rate).
 ``--continue``: the first 2 s of each development walk's ``_002`` take continued by 2 s
 under its label (``continue_motion``; ``--samples`` seeds), the new frames
 (from the prefix's last) scored the same ways; then where they slide (the first
-``JOIN_S`` after the join, and after) and how many of their frames are in contact.
+``JOIN_S`` after the join, and after) and how many of their frames are in contact
+(``--match-contact-rate``: labelled at the label's contact rate).
 
 ``--preset demo --clip-fps 24``: the other direction, clips at a lower rate than the model's
 (the 30-fps captures resampled to 24 fps by splines stand in for 24-fps captures; the
@@ -42,6 +43,7 @@ the clips' 24 fps the same three ways.
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 
 import numpy as np
 
@@ -71,6 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--restyle", action="store_true", help="restyled unseen takes, not samples")
     ap.add_argument("--path", action="store_true", help="samples on a path (circle:2, 10 s)")
     ap.add_argument("--continue", dest="cont", action="store_true", help="continued takes")
+    ap.add_argument("--match-contact-rate", action="store_true",
+                    help="--continue: contact labels at the label's rate (Sampler option)")  # fmt: skip
     ap.add_argument("--clip-fps", type=float, default=None,
                     help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)
@@ -174,10 +178,11 @@ def continued(model, args, body) -> None:
         join = {"share": [], "near": [0, 0], "after": [0, 0]}  # the Sampler(fps) way
         for seed in seeds:
             kw = dict(seed=seed, body=body, fit=NoiseFit(progress=False))
+            rate = mrlib.Sampler(match_contact_rate=args.match_contact_rate)
             low = continue_motion(model, prefix, frames, take.label,
-                                  sampler=mrlib.Sampler(fps=model.fps), **kw)  # fmt: skip
+                                  sampler=replace(rate, fps=model.fps), **kw)  # fmt: skip
             high = continue_motion(model, prefix, frames, take.label,
-                                   sampler=mrlib.Sampler(fps=take.fps), **kw)  # fmt: skip
+                                   sampler=replace(rate, fps=take.fps), **kw)  # fmt: skip
             k = prefix.num_frames - 1  # from the prefix's last frame on
             got["spline"].append(scores(low.resample(take.fps, smooth=True).slice(k), body))
             got["Sampler(fps)"].append(scores(high.slice(k), body))
