@@ -259,6 +259,17 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             "shorter than this model draws: at least",
         ),
         "sample --fine-noise -1": (["sample", str(ckpt), "--fine-noise", "-1"], 2, "--fine-noise"),
+        "sample --loop --candidates 2": (
+            ["sample", str(ckpt), "--loop", "--candidates", "2"],
+            1,
+            "--candidates applies to label",
+        ),
+        "sample --up-axis z": (["sample", str(ckpt), "--up-axis", "z"], 1, "applies to --continue"),
+        "evaluate --tight-eps 3": (
+            ["evaluate", str(ckpt), "--tight-eps", "3", "--samples", "1"],
+            1,
+            "tight_eps (--tight-eps) 3 is looser than eps (--eps) 2",
+        ),
         "sample --guidance nan": (["sample", str(ckpt), "--guidance", "nan"], 2, "--guidance"),
         "sample --candidates 0": (["sample", str(ckpt), "--candidates", "0"], 2, "--candidates"),
         "sample --candidates 2.5": (

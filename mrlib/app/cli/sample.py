@@ -309,6 +309,9 @@ def cmd_sample(args) -> int:
         raise MrlibError(f"--seed: the samples' seeds run to --seed + --num - 1, past {MAX_SEED}")
     if args.in_step and not args.parts:
         raise MrlibError("--in-step applies to --parts only")
+    if args.candidates is not None and (args.keyframes or args.loop or args.prefix):
+        raise MrlibError("--candidates applies to label, crossover, blend, --path and --parts "
+                         "samples (keyframes, loops and continuations draw once)")  # fmt: skip
     if args.up_axis is not None and args.prefix is None:
         raise MrlibError("--up-axis applies to --continue only (the one file sample reads)")
     if args.fps is not None and args.audio is not None:
