@@ -265,6 +265,11 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             "--candidates applies to label",
         ),
         "sample --up-axis z": (["sample", str(ckpt), "--up-axis", "z"], 1, "applies to --continue"),
+        "sample --label twice": (
+            ["sample", str(ckpt), "--label", "a", "--label", "b"],
+            2,
+            "--label: given twice",
+        ),
         "evaluate --tight-eps 3": (
             ["evaluate", str(ckpt), "--tight-eps", "3", "--samples", "1"],
             1,

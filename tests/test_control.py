@@ -439,3 +439,14 @@ def test_the_band_claim_fails_on_an_untrained_model(tmp_path, body):
     clips = tm.detail_clips(BANDAI, body)
     model = tm.train_recipe(clips, tm.detail_config(seed=0, iterations=2), tmp_path, body)
     assert not _detail_claim(tm.band_log_ratios(model))
+
+
+@pytest.mark.parametrize(
+    "weight, match", [(True, "numbers in"), ("0.5", "numbers in"), ([], "got none")]
+)
+def test_blend_weights_that_are_not_numbers_are_refused(weight, match):
+    from mrlib.errors import MotionValueError
+    from mrlib.sampling.conditions import Condition
+
+    with pytest.raises(MotionValueError, match=match):
+        Condition.blend("a", "b", weight)

@@ -96,12 +96,16 @@ class Condition:
     def blend(cls, a: Label, b: Label, weight: float | Sequence[float]) -> Condition:
         """``(1 - w) a + w b`` at every level, ``w`` in [0, 1], one value or one per level."""
         try:
+            if np.asarray(weight).dtype.kind not in "iuf":  # True, "0.5", []: not weights
+                raise TypeError
             w = np.atleast_1d(np.asarray(weight, dtype=float)).reshape(-1)
         except (TypeError, ValueError):
             raise MotionValueError(
                 f"blend weights must be numbers in [0, 1], got {weight!r}"
             ) from None
-        if w.size == 0 or not np.isfinite(w).all() or ((w < 0) | (w > 1)).any():
+        if w.size == 0:
+            raise MotionValueError("blend weights: give one weight, or one per level, got none")
+        if not np.isfinite(w).all() or ((w < 0) | (w > 1)).any():
             raise MotionValueError(
                 f"blend weights must be in [0, 1], got {np.asarray(weight).tolist()}; to "
                 "exaggerate a label beyond its clips use the sampler's guidance"

@@ -61,6 +61,17 @@ def _sample_count(text: str) -> int:
     return v
 
 
+class _Once(argparse.Action):
+    """An option that may be given once (a second ``--label`` is refused, not the last
+    one silently kept)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if getattr(namespace, self.dest) is not None:
+            raise argparse.ArgumentError(self, "given twice: pass one (--crossover or "
+                                         "--blend mix labels)")  # fmt: skip
+        setattr(namespace, self.dest, values)
+
+
 def _seconds(text: str) -> float:
     try:
         v = float(text)
@@ -106,7 +117,10 @@ def add_sample(sub) -> argparse.ArgumentParser:
     p.add_argument("checkpoint", type=Path, help="a trained model (a run's checkpoint.pt)")
     g = p.add_mutually_exclusive_group()
     g.add_argument(
-        "--label", default=None, help="condition for every level (default: the first label)"
+        "--label",
+        default=None,
+        action=_Once,
+        help="condition for every level (default: the first label)",
     )
     g.add_argument(
         "--crossover",
