@@ -188,6 +188,22 @@ def test_generate_on_path_with_a_model(model, body):
     assert C.path_error(m, "circle:2", body)["lateral_mean_m"] < 0.10
 
 
+def test_an_open_path_without_a_length_is_walked_to_its_end(model, body):
+    """Timed by the label's 10-s pace, a draw walks a little faster or slower: it is drawn
+    longer and cut where it reaches the end (a closed path keeps its implied lap)."""
+    import warnings
+
+    pace = C.natural_pace(model, "walk_sad")
+    path = C.GroundPath(np.array([[0.0, 0.0], [0.0, 4 * pace]]), name="four seconds")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # not past the end
+        m = C.generate_on_path(model, path, "walk_sad", seed=1, body=body)
+    assert C.path_error(m, path, body)["progress"] == pytest.approx(1.0, abs=0.05)
+    seconds, _ = C.path_seconds(model, "circle:2", "walk_sad")
+    lap = C.generate_on_path(model, "circle:2", "walk_sad", seed=1, body=body)
+    assert lap.num_frames == max(2, round(seconds * model.fps))
+
+
 # -- keyframes ----------------------------------------------------------------------------
 def test_keyframes_hold_exactly_and_without_a_pop(walk, body, clips):
     m = walk.slice(0, 90)

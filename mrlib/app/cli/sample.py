@@ -267,7 +267,8 @@ def _constrained(model, condition, sampler, length: int | None, args) -> list:
     for b in range(args.num):
         seed = args.seed + b
         if args.path is not None:
-            m = C.generate_on_path(model, args.path, seconds=seconds, seed=seed, **kw)
+            # without --seconds: the path's own length (an open one walked to its end)
+            m = C.generate_on_path(model, args.path, seconds=args.seconds, seed=seed, **kw)
         elif args.keyframes is not None:
             if length is None:
                 raise MrlibError("--keyframes needs --seconds (the length of the motion)")

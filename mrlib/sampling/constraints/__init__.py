@@ -29,16 +29,9 @@ from mrlib.sampling.constraints.keyframe_files import Keyframe, load_keyframes, 
 from mrlib.sampling.constraints.keyframes import *  # noqa: F403 (its __all__, below)
 from mrlib.sampling.constraints.loop import generate_loop, loop_seam, roll_loop, tile_loop
 from mrlib.sampling.constraints.optimise import NoiseFit
-from mrlib.sampling.constraints.path import (
-    GroundPath,
-    follow_path,
-    generate_on_path,
-    ground_track,
-    natural_pace,
-    parse_path,
-    path_seconds,
-)
+from mrlib.sampling.constraints.path import GroundPath, follow_path, ground_track, parse_path
 from mrlib.sampling.constraints.path_measure import path_error
+from mrlib.sampling.constraints.path_sample import generate_on_path, natural_pace, path_seconds
 from mrlib.sampling.constraints.sharpen import (
     MARGIN,
     SHARPEN_STEPS,

@@ -24,7 +24,7 @@ left at +X), so a path that turns left curves towards +X. Path files are read by
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -36,12 +36,10 @@ from mrlib.errors import ArgumentError, MotionValueError, check_number, shown
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.constraints.common import pelvis_rest, warn_past_the_end
-from mrlib.sampling.sampler import Sampler, model_frames
 
 __all__ = [
     "GroundPath",
     "parse_path",
-    "path_seconds",
     "MAX_PATH_SECONDS",
     "follow_path",
     "ground_track",
@@ -409,91 +407,3 @@ def follow_path(
         sigma = JITTER_SIGMA if jitter is None else float(jitter)
         out = cleanup_foot_contacts(out, body, keep_path=True, jitter=sigma)
     return out
-
-
-@checked()
-def natural_pace(model, condition=None, *, seed: int = 0, sampler=None) -> float:
-    """Ground speed (m/s) of the model's own motion under a condition (a label or a
-    ``mrlib.Condition``): the travel speed of a 10 s raw sample drawn with the
-    ``sampler``'s fine noise and guidance."""
-    from mrlib.sampling.generation import generate
-
-    n = max(2, round(10 * model.fps))
-    raw = replace(sampler or Sampler(), fix_contacts=False)
-    m = generate(model, condition, length=n, seed=seed, sampler=raw)
-    return float(ground_track(m)["arc"][-1] / m.duration)
-
-
-@checked(path=check_path_spec)
-def path_seconds(
-    model, path: GroundPath | str, condition=None, *, sampler=None
-) -> tuple[float, float | None]:
-    """How long a walk of ``path`` lasts without an explicit length: the path's times,
-    else its length at the condition's own pace (:func:`natural_pace`, returned too;
-    None for a timed path)."""
-    path = parse_path(path)
-    if path.times is not None:
-        return float(path.duration), None
-    pace = natural_pace(model, condition, sampler=sampler)
-    return float(path.length / max(pace, MIN_TRAVEL_SPEED)), pace
-
-
-@checked(
-    path=check_path_spec,
-    max_seconds=lambda n, v: check_number(n, v, low=0, open_low=True, optional=True),
-)
-def generate_on_path(
-    model,
-    path: GroundPath | str,
-    condition=None,
-    *,
-    seconds: float | None = None,
-    seed: int | None = None,
-    sampler=None,
-    body=None,
-    max_seconds: float | None = MAX_PATH_SECONDS,
-) -> Motion:
-    """A motion of a label model that walks ``path``: generated, then bent onto it
-    (:func:`follow_path`).
-
-    Args:
-        path: a :class:`GroundPath` or a spec (``"circle:2"``, ``"eight:2"``, a CSV).
-        condition: a label or a ``mrlib.Condition`` (None: the first label).
-        seconds: length; default: the path's times, else one lap / the whole path at
-            the condition's own pace (:func:`natural_pace`).
-        sampler: a ``mrlib.Sampler``: the draw's fine noise and guidance, the output's
-            frame rate (``fps``; None: the model's; ``seconds`` and the path's times are
-            kept), and whether the feet are planted after the bend (``fix_contacts``,
-            ``mrlib.sampling.cleanup``).
-        max_seconds: refuse (before generating) a walk longer than this, given or
-            implied by the path (None: no limit).
-    """
-    from mrlib.sampling.generation import generate
-
-    path = parse_path(path)
-    implied = seconds is None
-    if implied:
-        seconds, _ = path_seconds(model, path, condition, sampler=sampler)
-    if not (np.isfinite(seconds) and seconds > 0):
-        raise MotionValueError(f"seconds must be a positive number, got {seconds}")
-    if max_seconds is not None and seconds > max_seconds:
-        if not implied:
-            how = "as asked"
-        elif path.times is not None:
-            how = "from its times"
-        else:
-            how = f"{path.length:.0f} m at the condition's pace"
-        raise MotionValueError(
-            f"path {path.name!r}: {seconds:.0f} s of motion ({how}) is longer than the "
-            f"{max_seconds:.0f} s generated in one piece; give a shorter length (seconds=, "
-            "--seconds) or a shorter path, and join pieces with continue_motion (--continue)"
-        )
-    sampler, length = sampler or Sampler(), model_frames(seconds, model.fps)
-    m = generate(model, condition, length=length, seed=seed,
-                 sampler=replace(sampler, fix_contacts=False))  # fmt: skip
-    m = m.slice(0, min(m.num_frames, max(2, round(seconds * m.fps))))  # seconds at its rate
-    # at sampler.fps the raw draw is already raised; the clean-up's filter spans the same time
-    from mrlib.sampling.cleanup import jitter_at
-
-    jitter = jitter_at(m.fps, model.fps)
-    return follow_path(m, path, clean=sampler.fix_contacts, body=body, jitter=jitter)
