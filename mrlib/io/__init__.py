@@ -211,11 +211,11 @@ def load_bvh(
 
 
 def _root_on_the_floor(bvh: BVH, r, body, meta: dict) -> np.ndarray:
-    """The retargeted root translation; for a root without position channels, whose
-    height is only its OFFSET (often 0: the body would stand below the floor), moved
-    vertically so the feet stand on ``y = 0`` as npz files without an up axis are
+    """The retargeted root translation; for a file without position channels, whose
+    body's height is only its OFFSETs (often 0: the body would stand below the floor),
+    moved vertically so the feet stand on ``y = 0`` as npz files without an up axis are
     (``meta["floor_shift_m"]``)."""
-    if any(c.endswith("position") for c in bvh.skeleton.channels[0]):
+    if any(c.endswith("position") for chs in bvh.skeleton.channels for c in chs):
         return r.trans
     from mrlib.io.placement import FLOOR_TOLERANCE_M, floor_height
 
