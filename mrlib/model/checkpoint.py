@@ -60,6 +60,7 @@ __all__ = [
     "FORMAT_VERSION",
     "save_checkpoint",
     "load_checkpoint",
+    "check_checkpoint_file",
     "state_checksum",
     "clip_rates",
     "reading",
@@ -161,14 +162,20 @@ def reading(path: str | Path) -> Iterator[None]:
         raise CheckpointError(Path(path), f"inconsistent checkpoint: {first}") from e
 
 
-def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
-    """Read a checkpoint with ``weights_only=True`` and check its format."""
+def check_checkpoint_file(path: str | Path) -> Path:
+    """``path`` if it is a file, else a :class:`CheckpointError` (a folder, or nothing)."""
     path = Path(path)
     if path.is_dir():
         hint = " (a run folder: its checkpoint.pt)" if (path / "checkpoint.pt").is_file() else ""
         raise CheckpointError(path, f"is a folder, not a checkpoint file{hint}")
     if not path.is_file():
         raise CheckpointError(path, "no such checkpoint file")
+    return path
+
+
+def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") -> dict[str, Any]:
+    """Read a checkpoint with ``weights_only=True`` and check its format."""
+    path = check_checkpoint_file(path)
     with open(path, "rb") as fh:
         head = fh.read(2)
     if not head.startswith((b"PK", b"\x80")):  # torch.save's zip, or an old pickle

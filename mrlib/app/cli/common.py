@@ -249,12 +249,10 @@ def run_options(p, *, out: Path, out_help: str, overwrite_help: str) -> None:
 def run_folder(args) -> Path:
     """``--out`` of ``train`` / ``train-speech``: as given, else the folder of the
     checkpoint ``--resume`` continues, else the command's default."""
-    if args.resume is not None and not args.resume.is_file():  # before any folder's state
-        from mrlib.model.checkpoint import CheckpointError
+    if args.resume is not None:  # before any folder's state
+        from mrlib.model.checkpoint import check_checkpoint_file
 
-        what = "is a folder, not a checkpoint file" if args.resume.is_dir() else (
-            "no such checkpoint file")  # fmt: skip
-        raise CheckpointError(args.resume, what)
+        check_checkpoint_file(args.resume)
     if args.out is None:
         args.out = args.resume.parent if args.resume is not None else args.default_out
     return args.out
