@@ -14,7 +14,7 @@ import pytest
 import torch
 
 from mrlib.datasets.synthetic import synthetic_walk
-from mrlib.errors import MotionFileError, MotionValueError
+from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError
 from mrlib.sampling import constraints as C
 from mrlib.sampling.cleanup import contact_skating
 from mrlib.sampling.conditions import Condition
@@ -120,6 +120,18 @@ def test_a_walk_bent_onto_a_path_follows_it_with_feet_planted(walk, body, spec):
     near = np.argmin(((track["travel"][:, None] - grid[None]) ** 2).sum(-1), axis=1)
     d = np.degrees(np.angle(np.exp(1j * (track["heading"] - h[near]))))
     assert np.median(np.abs(d)) < 10.0
+
+
+def test_a_path_too_short_for_the_model_names_the_path_and_its_time(model, tmp_path):
+    timed = tmp_path / "dash.csv"  # 3 m in 0.1 s
+    np.savetxt(timed, np.c_[np.linspace(0, 3, 5), np.zeros(5), np.linspace(0, 0.1, 5)],
+               delimiter=",")  # fmt: skip
+    with pytest.raises(
+        ClipTooShortError, match=r"path 'dash': 0\.1 s of motion \(from its times\)"
+    ):
+        C.generate_on_path(model, timed, "walk_sad", seed=0)
+    with pytest.raises(ClipTooShortError, match=r"0\.05 s of motion \(as asked\).*at least"):
+        C.generate_on_path(model, "circle:2", "walk_sad", seconds=0.05, seed=0)
 
 
 def test_walking_past_the_end_of_an_open_path_warns(walk, body):
@@ -285,6 +297,19 @@ def test_the_noise_fit_weighs_jitter_near_keyframes_only(model, clips):
         C.keyframe_objective(model, kfs, T, still=-1.0)
 
 
+def test_a_lone_root_keyframe_leaves_the_body_moving(model, clips):
+    # nothing to fit the noise to: the jerk term alone would fit the body to stillness
+    walk, T = clips[0], 40
+    lone = [C.Keyframe(T // 2, trans=walk.trans[5])]
+    assert C.keyframe_objective(model, lone, T) is None
+    facing = [C.Keyframe(T // 2, walk.poses[5], joints=(0,), trans=walk.trans[5])]
+    assert C.keyframe_objective(model, facing, T) is None
+    free = generate(model, "walk_sad", length=T, seed=3)
+    m = C.generate_with_keyframes(model, lone, T, "walk_sad", seed=3)
+    assert m.poses.std(0).max() > 0.5 * free.poses.std(0).max()
+    assert C.keyframe_errors(m, lone)["trans_cm"] < 0.5
+
+
 def test_the_jerk_term_weighs_the_joints_jitter_too(model, clips, body, monkeypatch):
     walk = clips[0]
     smooth = model.normalizer.normalize(model.features[0])[None].transpose(1, 2)  # (1, C, T)
@@ -326,6 +351,31 @@ def test_continuation_keeps_the_prefix_and_joins_it_smoothly(model, clips, body)
         contacts=None,
     )
     assert _steps(glued, body)[19] > 2 * steps[19]
+
+
+def test_a_continuation_keeps_the_prefixs_body_on_its_floor(model, clips, body):
+    """A prefix of another body shape: the output has its betas and its prefix frame for
+    frame, and the new frames' root stands as much higher as that body's soles are lower
+    than the model's (they were drawn on the model's body and came out with its betas,
+    the new frames 14 cm off the floor for a tall clip). The two prefixes below stand
+    alike, one on the model's body and one on a taller one."""
+    shapes = [np.float32(np.eye(body.num_betas)[i] * s) for i in range(body.num_betas)
+              for s in (-2.5, 2.5)]  # fmt: skip
+    tall = max(shapes, key=lambda b: C.common.sole_lift(body, model.betas, b))
+    lift = C.common.sole_lift(body, model.betas, tall)
+    assert lift > 0.05
+    same = clips[0].slice(0, 20).replace(betas=model.betas)
+    prefix = same.replace(betas=tall, trans=same.trans + np.float32([0, lift, 0]))
+    low = [body.motion_vertices(p)[..., 1].min(1) for p in (same, prefix)]
+    assert np.allclose(low[0], low[1], atol=0.01)
+    out = []
+    for p in (same, prefix):
+        m = C.continue_motion(model, p, 20, "walk_sad", seed=0, fit=C.NoiseFit(steps=5),
+                              body=body, sampler=Sampler(fix_contacts=False))  # fmt: skip
+        assert np.array_equal(m.betas, p.betas) and np.allclose(m.trans[:20], p.trans)
+        out.append(m)
+    assert np.allclose(out[1].poses, out[0].poses, atol=1e-4)
+    assert np.allclose(out[1].trans[20:, 1] - out[0].trans[20:, 1], lift, atol=1e-3)
 
 
 def test_a_continuation_of_a_faster_walk_never_walks_back(model, clips, body):
@@ -396,6 +446,23 @@ def test_periodic_upsampling_wraps_around():
     three = resample_linear(x.repeat(1, 1, 3), 48)[0, 0, 16:32]
     assert torch.allclose(up, three, atol=1e-12)
     assert not torch.allclose(resample_linear(x, 16)[0, 0], three, atol=1e-3)  # clamped ends
+
+
+def test_constrained_samples_carry_their_condition_and_what_made_them(model, clips):
+    """Loops, keyframes and continuations of a mix carry its name, as generate's
+    samples do (they carried the finest level's label), and record their seed."""
+    mix = Condition.crossover("walk_sad", "wave", 2)
+    fit = C.NoiseFit(steps=1)
+    made = [
+        C.generate_loop(model, mix, 30, seed=4),
+        C.generate_with_keyframes(
+            model, [C.Keyframe.from_motion(clips[0], 0, 5)], 30, mix, seed=4, fit=fit
+        ),  # fmt: skip
+        C.continue_motion(model, clips[0].slice(0, 12), 10, mix, seed=4, fit=fit),
+    ]
+    for m in made:
+        assert m.label == generate(model, mix, length=30, seed=4).label == "walk_sad+wave"
+        assert m.meta["sampler"]["seed"] == 4 and m.meta["sampler"]["labels"] == model.labels
 
 
 def test_generate_loop_tiles_seamlessly(model, body):

@@ -24,6 +24,7 @@ __all__ = [
     "features_motion",
     "fitted_motion",
     "pelvis_rest",
+    "sole_lift",
     "warn_past_the_end",
 ]
 
@@ -117,18 +118,21 @@ def parse_parts(spec: str) -> dict[str, str]:
 
 def label_setup(model, condition, length: int, seed: int | None, sampler):
     """Noise maps ``[(1, 1, T_i)]`` (the draw ``generate`` makes for ``seed``), checked
-    per-level conditions, the finest level's main label, and the condition's weights
-    ``W (L, K)`` where the sampler matches the contact rate (else None), for a label
-    condition (a label or a ``mrlib.Condition``; None: the first label) under ``sampler``."""
+    per-level conditions, the label a sample carries (``Condition.name``: ``a+b`` for a
+    mix), the condition's weights ``W (L, K)`` where the sampler matches the contact rate
+    (else None) and what made the sample (``meta["sampler"]``, as ``generate`` records
+    it), for a label condition (a label or a ``mrlib.Condition``; None: the first label)
+    under ``sampler``."""
     from mrlib.sampling.conditions import as_condition
-    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs
+    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, sampler_record
 
-    W = as_condition(0 if condition is None else condition).weights(model)
+    cond = as_condition(0 if condition is None else condition)
+    W = cond.weights(model)
     lengths, amp, conds = label_inputs(model, W, length, sampler)
     noises = draw_noise(lengths, amp, seed, 1, model.device)
-    label = model.labels[int(W[-1].argmax())]
     rate_of = W if sampler.match_contact_rate else None
-    return noises, check_conditions(model, conds, lengths), label, rate_of
+    record = sampler_record(model, sampler, seed, 0, W)
+    return noises, check_conditions(model, conds, lengths), cond.name(model), rate_of, record
 
 
 def planted(motion: Motion, sampler, body=None, model=None) -> Motion:
@@ -165,6 +169,16 @@ def pelvis_rest(motion: Motion, body) -> np.ndarray:
     from mrlib.io.bodyfit import rest_pelvis
 
     return rest_pelvis(body, motion.betas)
+
+
+def sole_lift(body, betas_from, betas_to) -> float:
+    """Metres to raise a root translation of a body of shape ``betas_from`` so that the
+    same poses on shape ``betas_to`` have their soles (the lowest foot vertex in the rest
+    pose) as high: positive when ``betas_to`` stands taller. None: the mean shape."""
+    ids = list(body.foot_vertex_ids)
+    with torch.no_grad():
+        soles = [float(body.rest_vertices(b)[ids, 1].min()) for b in (betas_from, betas_to)]
+    return soles[0] - soles[1]
 
 
 def fitted_motion(

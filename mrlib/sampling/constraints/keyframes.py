@@ -258,7 +258,8 @@ def keyframe_objective(
     and ``still`` times the jerk within ``STILL_S`` seconds of a keyframe: the mean
     squared third difference of the pose and root channels plus ``JOINT_JERK`` times the
     mean squared jerk of the joint positions on ``body`` over the training clips' mean
-    jerk squared. None when there is nothing to fit."""
+    jerk squared. None when there is nothing to fit: no joint rotation but the root's
+    and fewer than two root keyframes (a lone root keyframe is placed afterwards)."""
     from mrlib.representation.body import resolve_body
     from mrlib.representation.rotations import axis_angle_to_matrix
     from mrlib.sampling.constraints.optimise import decode
@@ -273,7 +274,9 @@ def keyframe_objective(
         near |= np.abs(centre - kf.frame) <= STILL_S * model.fps
     near_t = torch.from_numpy(near).to(model.device)
     still = float(still) if near.any() else 0.0
-    if not (posed or len(roots) >= 2 or still > 0):
+    # nothing the generator must be moved for: a root keyframe alone is placed afterwards
+    # (align_to_keyframes), and the jerk term by itself would fit the body to stillness
+    if not (any(j > 0 for kf in posed for j in kf.joints) or len(roots) >= 2):
         return None
     if still > 0:
         body = resolve_body(body, shared=True)
@@ -347,10 +350,11 @@ def generate_with_keyframes(
     # the fit at the model's rate: each keyframe at its nearest model frame
     at_model = [replace(kf, frame=min(round(kf.frame * model.fps / fps), length - 1))
                 for kf in keyframes]  # fmt: skip
-    noises, conds, label, rate_of = label_setup(model, condition, length, seed, sampler)
+    noises, conds, label, rate_of, record = label_setup(model, condition, length, seed, sampler)
     loss_fn = keyframe_objective(model, at_model, length, still, body)
     name = f"{label}_keyframes_seed{seed}"
     m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
+    m.meta["sampler"] = record
     m = planted(_raised(m, fps, n_out), sampler, body, model)
     m = align_to_keyframes(m, keyframes, body)
     return apply_keyframes(m, keyframes, blend_s=BLEND_S)
@@ -405,6 +409,7 @@ def continue_motion(
             "(prefix.slice) or ask for fewer frames"
         )
     from mrlib.model.trained import MIN_SOURCE_FPS
+    from mrlib.sampling.constraints.common import sole_lift
 
     body = resolve_body(body, shared=True)
     sampler = Sampler() if sampler is None else sampler
@@ -418,10 +423,12 @@ def continue_motion(
     if K < 2 or frames < 1 or kept.num_frames < 2:
         raise MotionValueError(f"need a prefix of >= 2 frames and frames >= 1, got {K}, {frames}")
     T = K + int(frames)
-    noises, conds, label, rate_of = label_setup(model, condition, T, seed, sampler)
+    noises, conds, label, rate_of, record = label_setup(model, condition, T, seed, sampler)
     six = _sixd(axis_angle_to_matrix(torch.from_numpy(prefix.poses[:, 1:].astype(np.float64))))
     six = six.float().to(model.device)  # (K, 23, 6)
-    height = torch.from_numpy(prefix.trans[:, 1].astype(np.float32)).to(model.device)
+    # fitted and drawn on the model's body, the output on the prefix's: soles as high
+    lift = sole_lift(body, model.betas, prefix.betas)
+    height = torch.from_numpy((prefix.trans[:, 1] - lift).astype(np.float32)).to(model.device)
     speed = torch.from_numpy(
         np.linalg.norm(np.gradient(prefix.trans[:, [0, 2]], axis=0), axis=1).astype(np.float32)
     ).to(model.device)
@@ -436,6 +443,8 @@ def continue_motion(
 
     name = f"{prefix.name or 'prefix'}_continued"
     m = fitted_motion(model, noises, conds, label, name, loss_fn, fit, rate_of)
+    m.meta["sampler"] = record
+    m = m.replace(betas=prefix.betas, trans=m.trans + np.float32([0.0, lift, 0.0]))
     # the fit done: at the output's rate, the prefix as kept there, the new frames after it
     prefix, K = kept, kept.num_frames
     T = K + max(1, round(frames * fps / model.fps)) if fps != model.fps else T

@@ -142,7 +142,7 @@ def generate_loop(
     seam to that rate, its duration kept; its ``fix_contacts`` plants the feet, across the
     seam)."""
     from mrlib.sampling.conditions import as_condition
-    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs
+    from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, sampler_record
     from mrlib.sampling.sampler import Sampler
 
     if method not in ("circular", "crossfade"):
@@ -150,8 +150,8 @@ def generate_loop(
     if start not in ("calm", "sample"):
         raise MotionValueError(f"start must be 'calm' or 'sample', got {start!r}")
     sampler = Sampler() if sampler is None else sampler
-    W = as_condition(0 if condition is None else condition).weights(model)
-    label = model.labels[int(W[-1].argmax())]
+    cond = as_condition(0 if condition is None else condition)
+    W, label = cond.weights(model), cond.name(model)
     if method == "circular":
         lengths, amp, conds = label_inputs(model, W, length, sampler)
         noises = draw_noise(lengths, amp, seed, 1, model.device)
@@ -177,6 +177,7 @@ def generate_loop(
 
         m = m.replace(contacts=output_contacts(model, x[None], W)[0])
     m.meta["loop_method"] = method
+    m.meta["sampler"] = sampler_record(model, sampler, seed, 0, W)
     if sampler.fps is not None and abs(sampler.fps - model.fps) > 1e-6:
         m = _raised_loop(m, sampler.fps)  # before the feet are planted, as generate raises
     if sampler.fix_contacts and m.contacts is not None:

@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from mrlib.errors import MotionValueError, check_number
+from mrlib.errors import ClipTooShortError, MotionValueError, check_number
 from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.constraints.path import (
@@ -96,13 +96,13 @@ def generate_on_path(
         seconds, _ = path_seconds(model, path, condition, sampler=sampler)
     if not (np.isfinite(seconds) and seconds > 0):
         raise MotionValueError(f"seconds must be a positive number, got {seconds}")
+    if not implied:
+        how = "as asked"
+    elif path.times is not None:
+        how = "from its times"
+    else:
+        how = f"{path.length:.0f} m at the condition's pace"
     if max_seconds is not None and seconds > max_seconds:
-        if not implied:
-            how = "as asked"
-        elif path.times is not None:
-            how = "from its times"
-        else:
-            how = f"{path.length:.0f} m at the condition's pace"
         raise MotionValueError(
             f"path {path.name!r}: {seconds:.0f} s of motion ({how}) is longer than the "
             f"{max_seconds:.0f} s generated in one piece; give a shorter length (seconds=, "
@@ -113,8 +113,13 @@ def generate_on_path(
     cut = implied and not path.closed and path.times is None
     drawn = min(seconds * OVERDRAW, MAX_SAMPLE_SECONDS) if cut else seconds
     sampler, length = sampler or Sampler(), model_frames(drawn, model.fps)
-    m = generate(model, condition, length=length, seed=seed,
-                 sampler=replace(sampler, fix_contacts=False))  # fmt: skip
+    try:
+        m = generate(model, condition, length=length, seed=seed,
+                     sampler=replace(sampler, fix_contacts=False))  # fmt: skip
+    except ClipTooShortError as e:  # a path timed faster than anyone walks, or seconds=0.1
+        raise ClipTooShortError(
+            f"path {path.name!r}: {seconds:.3g} s of motion ({how}): {e}"
+        ) from None
     m = m.slice(0, min(m.num_frames, max(2, round(drawn * m.fps))))  # seconds at its rate
     if cut:
         arc = ground_track(m, body)["arc"]
