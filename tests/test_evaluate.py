@@ -152,6 +152,37 @@ def test_evaluate_with_extra_models_reconstruction_and_fixed_seeds(body, tmp_pat
     assert len(rows) == 4 and rows[1]["recon_error"] == "" and float(rows[0]["recon_error"]) == 0.0
 
 
+def test_rows_far_less_in_contact_than_their_clip_are_noted(body):
+    """Skating counts contact frames: samples of a model that never labels a contact, or
+    a clip without labels whose feet slide (contacts where feet are slow: none), read
+    0 % and are named in the notes; samples in contact as often as the clip are not."""
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.representation.contacts import foot_contacts
+
+    w = synthetic_walk("walk_sad", seconds=3.0, fps=30.0, body=body)
+    refs = {"walk": w.replace(contacts=foot_contacts(w, body))}
+    crops = noisy_crops(refs, 0.0)
+
+    def never(label, n, seed):
+        m = crops(label, n, seed)
+        return m.replace(contacts=np.zeros((m.num_frames, 6), np.float32))
+
+    def dragged(label, n, seed):  # the whole body slid forward at 1 m/s more
+        m = crops(label, n, seed)
+        return m.replace(trans=m.trans + np.outer(np.arange(n) / m.fps, [0, 0, 1.0]))
+
+    res = ev.evaluate(
+        {"crops": crops, "never": never, "dragged": dragged}, refs,
+        settings=ev.EvaluationSettings(num_samples=2), body=body, progress=False,
+        calibration=ev.CalibrationOptions(others=None),
+    )  # fmt: skip
+    by = {r["method"]: r for r in res.rows}
+    assert by["never"]["skate_pct"] == 0.0 and by["crops"]["contact_share"] > 0.2
+    named = {n.split(",")[0] for n in res.notes}
+    assert named == {"never", "dragged"}, res.notes
+    assert any("(slow feet)" in n for n in res.notes) and "Notes:" in res.to_markdown()
+
+
 def test_evaluate_validates_its_inputs(body):
     ref = turning_walk(70)
     kw = dict(

@@ -55,16 +55,13 @@ from mrlib.errors import (
     check_text,
     shown,
 )
-from mrlib.evaluation.calibration import (
-    CALIBRATION_METHODS,
-    CalibrationOptions,
-    calibration_rows,
-)
+from mrlib.evaluation.calibration import CALIBRATION_METHODS, CalibrationOptions, calibration_rows
 from mrlib.evaluation.results import (
     CALIB_PREFIX,
     MAX_EVAL_FRAMES,
     EvaluationResult,
     EvaluationSettings,
+    rare_contact_notes,
 )
 from mrlib.metrics import plausibility as pl
 from mrlib.model.trained import check_label_model
@@ -139,6 +136,7 @@ def score_motions(
         and ``frames`` (mean length).
     """
     s = settings or EvaluationSettings()
+    motions = [motions] if isinstance(motions, Motion) else motions
     if not motions:
         raise MotionValueError("score_motions: no motions")
     body = resolve_body(body)
@@ -330,6 +328,7 @@ def evaluate(
         order += [k for k in calib_rows if k not in CALIBRATION_METHODS]
         for key in order:
             rows.extend(calib_rows[key])
+    notes += rare_contact_notes(rows, references)
     return EvaluationResult(rows=rows, settings=settings, notes=notes)
 
 

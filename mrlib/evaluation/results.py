@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import numbers
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,8 @@ __all__ = [
     "CSV_COLUMNS",
     "PLOT_COLUMNS",
     "EvaluationResult",
+    "RARE_CONTACT",
+    "rare_contact_notes",
 ]
 
 # Bounds checked before anything is drawn: 1000 samples is the most `mrlib sample --num`
@@ -89,7 +92,8 @@ class EvaluationSettings:
                 raise MotionValueError(f"{name} must be a positive integer, got {v!r}")
         for name in ("length_factor", "eps", "tight_eps", "skate_threshold"):
             v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
+            real = isinstance(v, numbers.Real) and not isinstance(v, (bool, np.bool_))
+            if not (real and np.isfinite(v) and v > 0):
                 raise MotionValueError(f"{name} must be a positive number, got {v!r}")
         if self.tight_eps > self.eps:
             raise MotionValueError(
@@ -184,6 +188,33 @@ PLOT_COLUMNS = (
     "coverage_pct", "global_div", "local_div", "skate_pct",
     "jerk_ratio", "penetration_cm", "w_root_speed", "w_angspeed_legs",
 )  # fmt: skip
+
+
+# a row in contact on less than this share of its clip's contact vertex-frames gets a note:
+# its skating (over its contact frames) measures little of its motion
+RARE_CONTACT = 1.0 / 3.0
+
+
+def rare_contact_notes(rows: list[dict[str, Any]], references: dict[str, Any]) -> list[str]:
+    """Notes for the ``rows`` whose motions are labelled in contact far less often than
+    their sequence's clip (under ``RARE_CONTACT`` of its share): skating is the share of
+    contact vertex-frames that slide, so it reads low where few frames are in contact,
+    as in samples of a model that has not learnt its contacts, or a clip without labels,
+    whose contacts are where its feet are slow (a foot that slides is never one)."""
+    notes = []
+    for r in rows:
+        ref = references.get(r["sequence"])
+        if ref is None or ref.contacts is None or not math.isfinite(r.get("contact_share", 0)):
+            continue
+        share = float((np.asarray(ref.contacts) > 0.5).mean())
+        if r["contact_share"] < RARE_CONTACT * share:
+            own = "their own labels" if r.get("contacts_from_motion", 1) > 0.5 else "slow feet"
+            notes.append(
+                f"{r['method']}, {r['sequence']}: in contact ({own}) on "
+                f"{100 * r['contact_share']:.1f} % of foot vertex-frames against the clip's "
+                f"{100 * share:.1f} %, so its Skating % counts few frames"
+            )
+    return notes
 
 
 def _fmt(value: Any, fmt: str) -> str:

@@ -14,6 +14,7 @@ import torch
 from mrlib.errors import ArgumentError, MotionValueError, check_args, check_path, shown
 from mrlib.model.checkpoint import clip_rates, load_checkpoint, reading
 from mrlib.model.config import TrainConfig, config_from_json
+from mrlib.model.config import check_device as usable_device
 from mrlib.model.critic import build_critics
 from mrlib.model.generator import MultiResGenerator, build_generator
 from mrlib.representation.features import FeatureNormalizer
@@ -153,8 +154,10 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
 
 
 def check_device(name: str, value) -> str | torch.device:
-    """``value`` if it is a device name (``"cpu"``, ``"cuda:0"``) or a ``torch.device``."""
+    """``value`` if it is a device name (``"cpu"``, ``"cuda:0"``) or a ``torch.device``
+    that PyTorch can run on here (``mrlib.model.config.check_device``)."""
     if isinstance(value, (str, torch.device)) and str(value):
+        usable_device(str(value))
         return value
     raise ArgumentError(
         f"{name} must be a device ('cpu', 'cuda', a torch.device), got {shown(value)}"

@@ -109,9 +109,12 @@ class Motion:
                 "capture that long, raise mrlib.representation.motion.MAX_TRANSLATION_M)"
             )
         try:
-            betas = np.asarray(self.betas, dtype=np.float32).reshape(-1)
+            betas = np.asarray(self.betas, dtype=np.float32)
         except (TypeError, ValueError):
             raise ArgumentError(f"Motion.betas must be numbers, got {shown(self.betas)}") from None
+        if betas.ndim > 1 and betas.size != betas.shape[-1]:  # (1, NB) is one shape
+            raise MotionValueError(f"Motion.betas must be one shape (NB,), got {betas.shape}")
+        betas = betas.reshape(-1)
         if not np.isfinite(betas).all():
             raise MotionValueError("Motion.betas has NaN or inf values")
         self.betas = betas
@@ -134,6 +137,11 @@ class Motion:
             c = _as_array("contacts", self.contacts, (NUM_CONTACTS,), "foot contact labels")
             if len(c) != T:
                 raise MotionValueError(f"Motion.contacts has {len(c)} frames, poses has {T}")
+            if c.size and not (c.min() >= 0 and c.max() <= 1):
+                raise MotionValueError(
+                    f"Motion.contacts are labels in [0, 1] (1: in contact), got values from "
+                    f"{c.min():g} to {c.max():g}"
+                )
             self.contacts = c
 
     # -- basic properties -------------------------------------------------------------

@@ -28,6 +28,7 @@ batch of draws). Speech conditions are per-frame features rather than label weig
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -39,6 +40,11 @@ from mrlib.errors import MotionValueError
 __all__ = ["Condition", "as_condition", "crossover_table", "label_weights"]
 
 Label = str | int
+
+
+def _whole(v) -> bool:
+    """A whole number (a numpy integer too), not a bool."""
+    return isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_))
 
 
 def _check_label(label) -> Label:
@@ -83,7 +89,14 @@ class Condition:
         """Labels assigned to 1-based inclusive level ranges that together cover every
         level once: ``[("walk_normal", (1, 4)), ("walk_happy", (5, 8))]``."""
         try:
-            ranges = tuple((_check_label(lab), int(lo), int(hi)) for lab, (lo, hi) in assignment)
+            if isinstance(assignment, (str, bytes)) or any(
+                isinstance(r, (str, bytes)) for _, r in assignment
+            ):  # "18" would unpack as (1, 8)
+                raise TypeError
+            ranges = tuple((_check_label(lab), lo, hi) for lab, (lo, hi) in assignment)
+            if not all(_whole(v) for _, lo, hi in ranges for v in (lo, hi)):
+                raise TypeError
+            ranges = tuple((lab, int(lo), int(hi)) for lab, lo, hi in ranges)
         except (TypeError, ValueError):
             raise MotionValueError(
                 f"levels take [(label, (first, last)), ...], got {assignment!r}"

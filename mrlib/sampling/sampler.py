@@ -9,6 +9,8 @@ import math
 import numbers
 from dataclasses import dataclass
 
+import numpy as np
+
 from mrlib.errors import MotionValueError
 from mrlib.representation.motion import MAX_FPS
 
@@ -101,8 +103,9 @@ class Sampler:
     def __post_init__(self):
         for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
                 raise MotionValueError(f"{name} must be a number, got {v!r}")
+            v = float(v)
             if not (math.isfinite(v) and 0 <= v <= bound):
                 raise MotionValueError(f"{name} must be in [0, {bound:g}], got {v!r}")
             object.__setattr__(self, name, float(v))
@@ -117,13 +120,14 @@ class Sampler:
             )
         object.__setattr__(self, "candidates", int(c))
         for name in ("fix_contacts", "match_contact_rate"):
-            if not isinstance(getattr(self, name), bool):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise MotionValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, bool(getattr(self, name)))
         if self.fps is not None:
             v = self.fps
             if (
-                isinstance(v, bool)
-                or not isinstance(v, (int, float))
+                isinstance(v, (bool, np.bool_))
+                or not isinstance(v, numbers.Real)
                 or not (math.isfinite(v) and 0 < v <= MAX_FPS)
             ):
                 raise MotionValueError(
