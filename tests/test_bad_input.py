@@ -265,6 +265,16 @@ def _cli_cases(tmp: Path, ckpt: Path, clip: Path) -> dict[str, tuple[list[str], 
             "--candidates applies to label",
         ),
         "sample --up-axis z": (["sample", str(ckpt), "--up-axis", "z"], 1, "applies to --continue"),
+        "sample --wavlm": (
+            ["sample", str(ckpt), "--wavlm", str(tmp)],
+            1,
+            "--wavlm applies to --audio",
+        ),
+        "train-speech --wavlm": (  # the default features are log-mel: the folder is unused
+            ["train-speech", str(tmp), "--wavlm", str(tmp), "--out", str(tmp / "sp")],
+            1,
+            "--wavlm applies with --features wavlm",
+        ),
         "sample --label twice": (
             ["sample", str(ckpt), "--label", "a", "--label", "b"],
             2,

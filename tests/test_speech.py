@@ -19,6 +19,7 @@ from mrlib.speech import (
     SpeechModelError,
     SpeechNormalizer,
     align_to_levels,
+    autocorrelation_pitch,
     beat_alignment_score,
     detect_onsets,
     energy_envelope,
@@ -143,6 +144,16 @@ def test_log_mel_features_on_a_chirp():
         log_mel_features(np.zeros(300, np.float32), SR)
 
 
+def test_pitch_and_voicing_ignore_a_dc_offset():
+    # a voiced glide with breath noise; an offset 30 dB under it moves neither
+    wav = _tone(2.0, 100.0, 300.0, 0.3) + rng.normal(0, 0.02, 2 * SR).astype(np.float32)
+    f0, voicing = autocorrelation_pitch(torch.from_numpy(wav))
+    for dc in (0.01, 0.05):
+        f0_dc, voicing_dc = autocorrelation_pitch(torch.from_numpy(wav + np.float32(dc)))
+        assert (voicing_dc - voicing).abs().max() < 0.05
+        assert (torch.log2(f0_dc / f0)).abs().max() < 0.05
+
+
 def _tiny_wavlm(path):
     from transformers import WavLMConfig, WavLMModel
 
@@ -222,6 +233,17 @@ def test_missing_wavlm_weights_say_what_to_do(tmp_path, monkeypatch):
         load_wavlm(None)
 
 
+@pytest.mark.parametrize(
+    "kw",
+    [dict(chunk_seconds=0), dict(chunk_seconds=-5.0), dict(layer=True), dict(layer=-1),
+     dict(n_mels=2.5), dict(n_mels=400), dict(n_mels=0), dict(kind="mfcc")],
+)  # fmt: skip
+def test_feature_settings_that_break_extraction_are_refused(kw):
+    # chunk_seconds=0 ran one WavLM pass per frame; n_mels=400 left 88 bands empty
+    with pytest.raises(MotionValueError):
+        SpeechFeatureConfig(**kw)
+
+
 def test_extractor_config_round_trip():
     c = SpeechFeatureConfig(kind="logmel", n_mels=40, pitch=False)
     assert SpeechFeatureConfig.from_dict(c.to_dict()) == c
@@ -259,6 +281,28 @@ def test_load_audio_mixes_down_and_resamples(tmp_path):
         with pytest.raises(AudioFileError, match=why) as e:
             load_audio(tmp_path / f"{name}.wav")
         assert e.value.path == tmp_path / f"{name}.wav"
+
+
+def test_audio_arrays_in_memory_are_read_as_files_are():
+    """What scipy's wav reader gives (integer PCM) and torchaudio's layout (channels
+    first) give the samples a file gives; a rate the reader refuses is refused."""
+    from mrlib.speech.audio import check_rate, fit_audio_length, to_mono
+
+    x = _tone(0.5, 200)
+    pcm = np.round(x * 32767).astype(np.int16)
+    assert np.abs(to_mono(pcm) - x).max() < 1e-4
+    u8 = np.round(x * 127 + 128).astype(np.uint8)
+    assert np.abs(to_mono(u8) - x).max() < 1e-2
+    assert np.array_equal(to_mono(np.stack([x, x])), to_mono(np.stack([x, x], 1)))
+    assert check_rate(np.int64(44100)) == check_rate(44100.0) == 44100
+    for bad in (4000, 0, float("nan"), 44100.5, "44100", True):
+        with pytest.raises(MotionValueError, match="sample rate"):
+            check_rate(bad)
+    stereo = np.stack([x, -x], 1)  # cut or repeated along time, the channels kept
+    longer = fit_audio_length(stereo, 3 * len(x) + 7)
+    assert longer.shape == (3 * len(x) + 7, 2) and np.array_equal(
+        longer[len(x) :][: len(x)], stereo
+    )
 
 
 def test_shipped_espeak_sample():

@@ -190,6 +190,13 @@ def test_corpus_round_trip(tmp_path):
         assert abs(p.features.shape[0] / 50 - p.duration) < 0.05
     clips = load_unpaired_folder(tmp_path / "unpaired", LOGMEL)
     assert len(clips) == 1 and clips[0].duration > 2.0
+    wav = next((tmp_path / "unpaired").glob("*.wav"))
+    data, sr = soundfile.read(str(wav))
+    soundfile.write(str(tmp_path / "unpaired" / "other.ogg"), data, sr)  # read as a .wav is
+    assert [c.name for c in load_unpaired_folder(tmp_path / "unpaired", LOGMEL)] == [
+        "other",
+        wav.stem,
+    ]
 
 
 def _write_pair(folder, stem, seconds=2.0, motion_seconds=None, ext=".npz", sr=SR):
@@ -219,6 +226,11 @@ def test_paired_loader_errors(tmp_path):
     with pytest.raises(MotionFileError, match="ambiguous"):
         load_paired_folder(d, LOGMEL)
     (d / "a.bvh").unlink()
+    data, sr = soundfile.read(str(d / "a.wav"))
+    soundfile.write(str(d / "a.flac"), data, sr)  # a.wav and a.flac: which is the take's?
+    with pytest.raises(AudioFileError, match="ambiguous partner: a.flac and a.wav"):
+        load_paired_folder(d, LOGMEL)
+    (d / "a.flac").unlink()
     _write_pair(d, "long", seconds=2.0, motion_seconds=4.0)
     with pytest.raises(MotionFileError, match="lasts 4.00 s but long.wav lasts 2.00 s"):
         load_paired_folder(d, LOGMEL)

@@ -24,6 +24,7 @@ from mrlib.sampling.sampler import Sampler
 from mrlib.speech import (
     SpeechClip,
     SpeechFeatureExtractor,
+    SpeechModelError,
     SpeechMotionPair,
     SpeechTrainer,
     SpeechTrainingSet,
@@ -557,6 +558,20 @@ def test_wavlm_features_plumbing(tmp_path, body):
     assert model.feature_config.kind == "wavlm" and model.dim == 16
     m = generate_from_audio(model, bursts(2.6, 3), seed=0, sr=SR)
     assert m.num_frames == round(2.6 * FPS)
+    # the weights moved (the run copied to another machine): $MRLIB_WAVLM_PATH finds
+    # them, as the error says; wavlm_path= and mrlib sample --wavlm name them
+    (tmp_path / "wavlm").rename(tmp_path / "moved")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.delenv("MRLIB_WAVLM_PATH", raising=False)
+        with pytest.raises(SpeechModelError, match="MRLIB_WAVLM_PATH"):
+            generate_from_audio(load_speech_model(res.checkpoint), bursts(2.6, 3), seed=0, sr=SR)
+        mp.setenv("MRLIB_WAVLM_PATH", str(tmp_path / "moved"))
+        again = generate_from_audio(
+            load_speech_model(res.checkpoint), bursts(2.6, 3), seed=0, sr=SR
+        )
+        assert np.allclose(again.poses, m.poses, atol=1e-5)
+    named = load_speech_model(res.checkpoint, wavlm_path=tmp_path / "moved")
+    assert named.feature_config.wavlm_path == str(tmp_path / "moved")
 
 
 def test_cli_sample_audio(trained, tmp_path, capsys):

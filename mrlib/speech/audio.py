@@ -13,6 +13,8 @@ by every speech feature in mrlib (WavLM's convolutional front end fixes them):
 
 from __future__ import annotations
 
+import math
+import numbers
 from math import gcd
 from pathlib import Path
 
@@ -24,6 +26,8 @@ from scipy.signal import find_peaks, resample_poly
 from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError
 
 __all__ = [
+    "as_float_samples",
+    "check_rate",
     "SAMPLE_RATE",
     "HOP",
     "WINDOW",
@@ -66,14 +70,45 @@ class AudioFileError(MotionFileError):
 
 
 # -- reading and resampling ---------------------------------------------------------------
+MAX_CHANNELS = 8  # a 2-D array with at most this many rows and more columns is (channels, N)
+
+
+def as_float_samples(wav) -> np.ndarray:
+    """Samples as float32 in [-1, 1]: integer PCM (what ``scipy.io.wavfile.read``
+    returns) scaled by its type's range (unsigned 8-bit about 128), floats as they are;
+    ``(channels, N)`` (torchaudio's layout) turned to ``(N, channels)``."""
+    a = np.asarray(wav)
+    if a.dtype.kind == "b" or a.dtype.kind not in "iuf":
+        raise MotionValueError(f"audio samples must be numbers, got {a.dtype} values")
+    if a.dtype.kind in "iu":
+        info = np.iinfo(a.dtype)
+        mid = (int(info.max) + int(info.min) + 1) / 2  # 128 for uint8, 0 for signed
+        a = (a.astype(np.float64) - mid) / (int(info.max) + 1 - mid)
+    if a.ndim == 2 and a.shape[0] <= MAX_CHANNELS < a.shape[1]:
+        a = a.T
+    return a.astype(np.float32)
+
+
 def to_mono(wav: np.ndarray) -> np.ndarray:
-    """Average the channels: ``(N,)`` or ``(N, channels)`` -> ``(N,)`` float32."""
-    wav = np.asarray(wav, dtype=np.float32)
+    """Average the channels: ``(N,)``, ``(N, channels)`` or ``(channels, N)`` (up to
+    ``MAX_CHANNELS``) -> ``(N,)`` float32; integer PCM scaled to [-1, 1]."""
+    wav = as_float_samples(wav)
     if wav.ndim == 2:
         wav = wav.mean(axis=1)
     if wav.ndim != 1:
         raise MotionValueError(f"audio must be (N,) or (N, channels), got shape {wav.shape}")
     return wav
+
+
+def check_rate(sr, what: str = "sr") -> int:
+    """``sr`` as a whole number of Hz from ``MIN_INPUT_RATE`` on, else a ``MotionValueError``."""
+    whole = isinstance(sr, numbers.Real) and not isinstance(sr, (bool, np.bool_))
+    if not (whole and math.isfinite(sr) and float(sr) == int(sr)) or sr < MIN_INPUT_RATE:
+        raise MotionValueError(
+            f"{what} must be the sample rate in Hz, a whole number from {MIN_INPUT_RATE} on, "
+            f"got {sr!r}"
+        )
+    return int(sr)
 
 
 def resample_audio(wav: np.ndarray, sr_in: int, sr_out: int = SAMPLE_RATE) -> np.ndarray:
@@ -150,6 +185,9 @@ def audio_duration(path: str | Path) -> float:
     return float(info.frames) / float(info.samplerate)
 
 
+HEADER_BYTES = 44  # a canonical WAV header: more bytes than this and no samples is a bad header
+
+
 def load_audio(
     path: str | Path,
     sr: int = SAMPLE_RATE,
@@ -181,7 +219,17 @@ def load_audio(
             f"{SAMPLE_RATE} Hz audio (resample the recording, not this file)",
         )
     if len(data) == 0:
-        raise AudioFileError(path, "the file has no samples")
+        extra = path.stat().st_size - HEADER_BYTES
+        raise AudioFileError(
+            path,
+            "the file has no samples"
+            + (
+                f" by its header, though {extra} bytes follow it: a recording that was not "
+                "finalised? Write it again with a tool that fixes the header (sox, ffmpeg)"
+                if extra > 1024
+                else ""
+            ),
+        )
     wav = resample_audio(to_mono(data), sr_in, sr)
     if not np.isfinite(wav).all():
         raise AudioFileError(path, "audio has NaN or inf samples")
@@ -250,12 +298,13 @@ def log_mel_spectrogram(
 
 
 def fit_audio_length(wav: np.ndarray, num_samples: int) -> np.ndarray:
-    """``wav (N,)`` cut or repeated (from its start) to ``num_samples`` samples."""
+    """``wav (N,)`` or ``(N, channels)`` cut or repeated (from its start) to
+    ``num_samples`` samples."""
     wav = np.asarray(wav, np.float32)
     if num_samples < 1 or len(wav) == 0:
         raise MotionValueError(f"need a non-empty waveform and num_samples >= 1, got {num_samples}")
     reps = -(-num_samples // len(wav))
-    return np.tile(wav, reps)[:num_samples]
+    return np.tile(wav, (reps,) + (1,) * (wav.ndim - 1))[:num_samples]  # along time only
 
 
 def energy_envelope(
@@ -281,12 +330,21 @@ def energy_envelope(
     Returns:
         ``(num_frames,)`` float32 in ``[floor_db, 0]`` dB.
     """
+    sr = check_rate(sr)
     wav = check_waveform(wav, sr, min_samples=1)
     if not fps > 0:
         raise MotionValueError(f"fps must be positive, got {fps}")
     n = len(wav)
     if num_frames is None:
         num_frames = int(np.floor((n - 1) / sr * fps)) + 1
+    if (
+        isinstance(num_frames, bool)
+        or not isinstance(num_frames, numbers.Integral)
+        or num_frames < 1
+    ):
+        raise MotionValueError(
+            f"num_frames must be a whole number >= 1 or None, got {num_frames!r}"
+        )
     half = max(1, int(round(sr / fps)))
     win = np.hanning(2 * half + 1)
     win /= win.sum()

@@ -43,7 +43,7 @@ SPEECH_LABEL = "speech"  # the one label every paired clip carries (sigma is ave
 
 
 # -- folders -------------------------------------------------------------------------------
-AUDIO_EXTENSIONS = (".wav", ".flac")
+AUDIO_EXTENSIONS = (".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif")  # what load_audio reads
 MOTION_EXTENSIONS = (".npz", ".bvh")
 
 
@@ -152,7 +152,11 @@ def load_paired_folder(
     mdir = folder if motion_dir is None else Path(motion_dir)
     if not mdir.is_dir():
         raise MotionFileError(mdir, "no such folder")
-    audio = {p.stem: p for p in _audio_files(folder)}
+    audio: dict[str, Path] = {}
+    for p in _audio_files(folder):
+        if p.stem in audio:  # c.wav and c.flac: which one is the take's?
+            raise AudioFileError(p, f"ambiguous partner: {audio[p.stem].name} and {p.name}")
+        audio[p.stem] = p
     motions: dict[str, list[Path]] = {}
     for p in sorted(mdir.iterdir()):
         if p.suffix.lower() in MOTION_EXTENSIONS:

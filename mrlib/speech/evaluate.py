@@ -48,7 +48,13 @@ from scipy.signal import find_peaks
 from mrlib.errors import ClipTooShortError, MotionValueError
 from mrlib.representation.body import resolve_body
 from mrlib.representation.motion import Motion
-from mrlib.speech.audio import detect_onsets, energy_envelope, fit_audio_length, resample_audio
+from mrlib.speech.audio import (
+    check_rate,
+    detect_onsets,
+    energy_envelope,
+    fit_audio_length,
+    resample_audio,
+)
 
 if TYPE_CHECKING:
     from mrlib.speech.sample import SpeechModel
@@ -436,6 +442,11 @@ def evaluate_speech_sync(
     sampler = raw_sampler(sampler)
     if len(utterances) < 2:
         raise MotionValueError("the shuffled control needs at least two utterances")
+    utterances = [
+        (wav, check_rate(sr, f"utterance {k}'s sr")) for k, (wav, sr) in enumerate(utterances)
+    ]
+    if len(seeds) == 0:
+        raise MotionValueError("seeds: give at least one seed")
     body = resolve_body(body)
 
     def score(motion: Motion, wav, sr, onsets, tag: str) -> dict[str, float]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +27,7 @@ import torch
 
 from mrlib.errors import (
     ArgumentError,
+    ClipTooShortError,
     MotionValueError,
     check_args,
     check_flag,
@@ -46,11 +48,12 @@ from mrlib.speech.align import SpeechNormalizer, level_lengths, speech_condition
 from mrlib.speech.audio import (
     MAX_AUDIO_SECONDS,
     check_audio_seconds,
+    check_rate,
     check_waveform,
     load_audio,
 )
 from mrlib.speech.data import SPEECH_LABEL
-from mrlib.speech.features import SpeechFeatureConfig, SpeechFeatureExtractor
+from mrlib.speech.features import WAVLM_PATH_ENV, SpeechFeatureConfig, SpeechFeatureExtractor
 
 __all__ = [
     "SpeechModel",
@@ -107,6 +110,13 @@ def _speech_model_from_state(state: dict, device, wavlm_path: str | None) -> Spe
         )
     sp = state["speech"]
     cfg = SpeechFeatureConfig.from_dict(json.loads(sp["feature_config"]))
+    recorded = cfg.wavlm_path
+    if (
+        wavlm_path is None
+        and recorded
+        and not (Path(recorded).expanduser() / "config.json").is_file()
+    ):
+        wavlm_path = os.environ.get(WAVLM_PATH_ENV) or None  # the folder moved: this machine's
     if wavlm_path is not None:
         cfg = dataclasses.replace(cfg, wavlm_path=str(wavlm_path))
     return SpeechModel(
@@ -123,7 +133,8 @@ def load_speech_model(
     path: str | Path, device: str | torch.device = "cpu", *, wavlm_path: str | Path | None = None
 ) -> SpeechModel:
     """Load a checkpoint written by :func:`speech_train` for generation from audio.
-    ``wavlm_path`` replaces the WavLM folder recorded at training time."""
+    ``wavlm_path`` replaces the WavLM folder recorded at training time; where that folder
+    is gone (another machine), ``$MRLIB_WAVLM_PATH`` does when set."""
     state = load_checkpoint(path)
     with reading(path):
         return _speech_model_from_state(state, device, wavlm_path)
@@ -145,9 +156,10 @@ def _read_audio(audio, sr: int | None) -> tuple[np.ndarray, int]:
         return load_audio(audio)
     if sr is None:
         raise MotionValueError("pass sr= with an audio array (its sample rate in Hz)")
-    wav = check_waveform(audio, int(sr))
-    check_audio_seconds(len(wav) / int(sr), "the audio array", MAX_AUDIO_SECONDS)
-    return wav, int(sr)
+    sr = check_rate(sr)
+    wav = check_waveform(audio, sr)
+    check_audio_seconds(len(wav) / sr, "the audio array", MAX_AUDIO_SECONDS)
+    return wav, sr
 
 
 def audio_conditions(
@@ -173,7 +185,14 @@ def audio_conditions(
             f"trained on {model.dim} ({model.feature_config})"
         )
     T = max(2, int(round(len(wav) / rate * model.fps)))
-    lengths = level_lengths(T, model.model.config.model)
+    try:
+        lengths = level_lengths(T, model.model.config.model)
+    except ClipTooShortError as e:
+        what = str(audio) if isinstance(audio, (str, Path)) else "the audio array"
+        raise ClipTooShortError(
+            f"{what}: {len(wav) / rate:.2f} s of audio are {T} frames at the model's "
+            f"{model.fps:g} fps, too few for it: {e}"
+        ) from None
     conds = speech_conditions(
         feats,
         model.audio_fps,

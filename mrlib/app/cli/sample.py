@@ -139,7 +139,14 @@ def add_sample(sub) -> argparse.ArgumentParser:
         "--audio",
         type=Path,
         default=None,
-        help="speech-conditioned models: gestures for this audio file (.wav/.flac), as long as it",
+        help="speech-conditioned models: gestures for this audio file (.wav, .flac, .ogg, .mp3, .aiff), as long as it",
+    )
+    p.add_argument(
+        "--wavlm",
+        type=Path,
+        default=None,
+        help="--audio with a WavLM model: the folder of its weights here, where the one "
+        "recorded at training is not (default: that one, else $MRLIB_WAVLM_PATH)",
     )
     g.add_argument(
         "--parts",
@@ -334,6 +341,8 @@ def cmd_sample(args) -> int:
                          "model's rate)")  # fmt: skip
     if args.sharpen != 0 and not args.parts:
         raise MrlibError("--sharpen applies to --parts only")
+    if args.wavlm is not None and args.audio is None:
+        raise MrlibError("--wavlm applies to --audio only (a speech model's WavLM weights)")
     if args.fit_steps is not None and args.keyframes is None and args.prefix is None:
         raise MrlibError("--fit-steps applies to --keyframes and --continue only")
     from mrlib.sampling.constraints.optimise import check_fit_steps
@@ -461,7 +470,7 @@ def _audio_samples(args):
 
     seconds = audio_duration(args.audio)  # the header only: refused before any work
     check_audio_seconds(seconds, args.audio, MAX_AUDIO_SECONDS)
-    model = load_speech_model(args.checkpoint, device=args.device)
+    model = load_speech_model(args.checkpoint, device=args.device, wavlm_path=args.wavlm)
     warn_unfinished(model, args.checkpoint, "train-speech")
     frames = round(seconds * model.fps)
     if frames * args.num > MAX_SAMPLE_FRAMES:

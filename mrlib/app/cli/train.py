@@ -338,8 +338,9 @@ def add_train_speech(sub) -> argparse.ArgumentParser:
         "Train the multi-resolution GAN with speech as the control signal (paper "
         "Sec. 6): the reconstruction loss on paired clips (PAIRED holds <stem>.wav next to "
         "<stem>.npz or <stem>.bvh), random generations on unpaired audio (--unpaired, a folder "
-        "of .wav/.flac). Speech FiLM modulates the upper body only. Writes checkpoint.pt, "
-        "checkpoint.pt.json and losses.csv to --out; generate with 'mrlib sample --audio'.",
+        "of .wav, .flac, .ogg, .mp3 or .aiff). Speech FiLM modulates the upper body only. "
+        "Writes checkpoint.pt, checkpoint.pt.json and losses.csv to --out; generate with "
+        "'mrlib sample --audio'.",
         [
             "mrlib train-speech talks/paired --unpaired talks/audio --out runs/speech",
             "mrlib train-speech talks/paired --unpaired talks/audio --features wavlm "
@@ -447,6 +448,8 @@ def cmd_train_speech(args) -> int:
     if args.seed is not None:
         cfg = cfg.replace(seed=args.seed)
     cfg = cfg.replace(device=args.device or "cpu")
+    if args.wavlm is not None and args.features != "wavlm":
+        raise MrlibError("--wavlm applies with --features wavlm (the default features are logmel)")
     wavlm = None if args.wavlm is None else str(args.wavlm)
     extractor = SpeechFeatureExtractor(
         kind=args.features or "logmel",
