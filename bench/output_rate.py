@@ -12,7 +12,7 @@ clips at 15 fps.
 Uses the ``preview`` model of the four Bandai walks (``walk_{normal,happy,sad,angry}_001``,
 ``train_cached``: from mrlib's model cache, trained there first when missing, ~4 min), cleaned
 samples (the default sampler), ``--samples`` per label of twice the clip's length.
-``--split heldout``: ``preview`` models of the five held-out styles of ``bench/heldout.py``
+``--split heldout``: ``--preset`` models of the five held-out styles of ``bench/heldout.py``
 (training seeds ``--seeds``), for figures from walks no setting of
 the raised output was chosen on.
 
@@ -28,7 +28,7 @@ the take's rate).
 ``--path``: samples that walk a path (``mrlib.sampling.constraints.generate_on_path``,
 ``circle:2``, 10 s), the same ways as the plain samples.
 
-``--continue``: the first 2 s of each development walk's ``_002`` take continued by 2 s
+``--continue``: the first 2 s of each training walk's ``_002`` take continued by 2 s
 under its label (``continue_motion``; ``--samples`` seeds), the new frames
 (from the prefix's last) scored the same ways; then where they slide (the first
 ``JOIN_S`` after the join, and after) and how many of their frames are in contact
@@ -78,8 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--clip-fps", type=float, default=None,
                     help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)
-    if args.split == "heldout" and (args.preset != "preview" or args.clip_fps):
-        ap.error("--split heldout uses the preview models of bench/heldout.py at the clips' rate")
+    if args.split == "heldout" and args.clip_fps:
+        ap.error("--split heldout uses the models of bench/heldout.py at the clips' rate")
     mrlib.threads.use()
     body = mrlib.load_body_model()
     names = CLIPS if args.split == "dev" else [f"walk_{s}_001" for s in HELDOUT_STYLES]
@@ -109,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
         elif args.path:
             on_path(model, full, args, body)
         elif args.cont:
-            continued(model, args, body)
+            continued(model, names, args, body)
         else:
             table(model, full, low, args, body)
     return 0
@@ -154,11 +154,11 @@ def on_path(model, full: dict, args, body) -> None:
           + "; ".join(f"{w} {np.mean(ratio[w]):.2f}x, {np.mean(extra[w]):+.1f}" for w in ways))  # fmt: skip
 
 
-def continued(model, args, body) -> None:
+def continued(model, names, args, body) -> None:
     """Unseen takes' first 2 s continued by 2 s, the ways of reaching the take's rate."""
     from mrlib.sampling.constraints import NoiseFit, continue_motion
 
-    takes = mrlib.datasets.bandai.tutorial_clips([n.replace("_001", "_002") for n in CLIPS])
+    takes = mrlib.datasets.bandai.tutorial_clips([n.replace("_001", "_002") for n in names])
     ways = ("spline", "Sampler(fps)")
     seeds = range(args.seed, args.seed + args.samples)
     print(f"model at {model.fps:g} fps; {len(seeds)} continuations per take\n")
