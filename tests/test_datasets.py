@@ -261,6 +261,18 @@ def test_the_cli_reports_a_dead_server_in_one_line(cache):
     assert "127.0.0.1:9/x/" in errors[0]
 
 
+@needs_mirror
+def test_a_failed_fetch_beside_a_local_copy_says_the_copy_is_read(cache):
+    # the error's advice (set $MRLIB_DATA_DIR to a copy) is already followed: say so
+    env = dict(os.environ, MRLIB_DATA_URL="http://127.0.0.1:9/x", MRLIB_DATA_DIR=str(MIRROR))
+    r = subprocess.run(
+        [sys.executable, "-m", "mrlib", "data", "fetch", "bandai"],
+        env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert r.returncode != 0 and "Traceback" not in r.stderr
+    assert f"meanwhile mrlib reads the local copy at {MIRROR}" in r.stderr
+
+
 def _run_notebook(path: Path, env: dict) -> dict:
     """Execute a notebook in a fresh kernel with ``env`` and return it."""
     import nbformat

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from mrlib.app.cli.common import add_command, progress_option
+from mrlib.errors import MrlibError
 
 
 def add_data(sub) -> argparse.ArgumentParser:
@@ -46,7 +47,6 @@ def add_data(sub) -> argparse.ArgumentParser:
 def _cache_dir(cache):
     """The dataset's cache folder, refused (one line) where no folder can be: a file in
     its place, or a file above it (``$MRLIB_CACHE_DIR`` set to a file)."""
-    from mrlib.errors import MrlibError
     from mrlib.io.paths import CACHE_ENV, folder_problem
 
     problem = folder_problem(cache)
@@ -75,8 +75,13 @@ def _act(args, names, local_dir, cache_dir, fetch) -> int:
 
     # the cache is no output of this command: each file is kept once it arrives and its
     # hash is checked (the downloader reads it back), not held for the command's end
-    with outside_transactions():
-        print(fetch())
+    try:
+        with outside_transactions():
+            print(fetch())
+    except MrlibError as e:
+        if local is None:
+            raise
+        raise MrlibError(f"{e} (meanwhile mrlib reads the local copy at {local})") from None
     return 0
 
 
