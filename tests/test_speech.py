@@ -272,11 +272,13 @@ def test_load_audio_mixes_down_and_resamples(tmp_path):
     soundfile.write(str(tmp_path / "low.wav"), np.zeros(4000), 4000)
     soundfile.write(str(tmp_path / "short.wav"), np.zeros(100), SR)
     (tmp_path / "junk.wav").write_bytes(b"not audio")
+    (tmp_path / "folder.wav").mkdir()
     for name, why in [
         ("low", "below 8000"),
         ("short", "at least"),
         ("junk", "cannot read"),
         ("missing", "no such file"),
+        ("folder", "a folder, not an audio file"),
     ]:
         with pytest.raises(AudioFileError, match=why) as e:
             load_audio(tmp_path / f"{name}.wav")

@@ -174,7 +174,9 @@ def audio_duration(path: str | Path) -> float:
     """
     path = Path(path)
     if not path.is_file():
-        raise AudioFileError(path, "no such file")
+        raise AudioFileError(
+            path, "a folder, not an audio file" if path.is_dir() else "no such file"
+        )
     soundfile = _soundfile(path)
     try:
         info = soundfile.info(str(path))
