@@ -59,7 +59,7 @@ def soft_reach(d: np.ndarray, d0: np.ndarray, length: np.ndarray) -> np.ndarray:
     """The hip-ankle distance IK aims for when asked for ``d``: ``d`` itself up to
     ``base = max(d0, (1 - SOFT_REACH) length)`` (``d0`` the leg's own, ``length`` its
     straight length), beyond it ``base + room (1 - exp(-(d - base) / room))`` with
-    ``room = length - base``: continuous with its slope, below ``length`` for any ``d``."""
+    ``room = length - base``: continuous with its slope, never above ``length``."""
     base = np.maximum(d0, (1.0 - SOFT_REACH) * length)
     room = np.maximum(length - base, _EPS)
     return np.where(d > base, base - room * np.expm1(-np.maximum(d - base, 0.0) / room), d)
