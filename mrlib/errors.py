@@ -18,6 +18,7 @@ from typing import Any, TypeVar
 F = TypeVar("F", bound=Callable[..., Any])
 
 __all__ = [
+    "is_whole",
     "check_count",
     "check_seed",
     "check_path",
@@ -99,6 +100,21 @@ def shown(value: Any, limit: int = 60) -> str:
     if value is None or isinstance(value, bool):
         return text
     return f"{text} ({type(value).__name__})"
+
+
+def is_whole(value: Any, *, integral_floats: bool = False) -> bool:
+    """Whether ``value`` is a whole number: an int or numpy integer, never a bool (True is
+    no count); with ``integral_floats`` also a finite real equal to one (``44100.0``)."""
+    if isinstance(value, bool):  # (numpy's bool_ is neither Integral nor Real)
+        return False
+    if isinstance(value, Integral):
+        return True
+    return (
+        integral_floats
+        and isinstance(value, Real)
+        and math.isfinite(value)
+        and float(value) == int(value)
+    )
 
 
 def _bad(name: str, value: Any, expected: str) -> ArgumentError:

@@ -28,23 +28,17 @@ batch of draws). Speech conditions are per-frame features rather than label weig
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from mrlib.errors import MotionValueError
+from mrlib.errors import MotionValueError, is_whole
 
 __all__ = ["Condition", "as_condition", "crossover_table", "label_weights"]
 
 Label = str | int
-
-
-def _whole(v) -> bool:
-    """A whole number (a numpy integer too), not a bool."""
-    return isinstance(v, numbers.Integral) and not isinstance(v, (bool, np.bool_))
 
 
 def _check_label(label) -> Label:
@@ -94,7 +88,7 @@ class Condition:
             ):  # "18" would unpack as (1, 8)
                 raise TypeError
             ranges = tuple((_check_label(lab), lo, hi) for lab, (lo, hi) in assignment)
-            if not all(_whole(v) for _, lo, hi in ranges for v in (lo, hi)):
+            if not all(is_whole(v) for _, lo, hi in ranges for v in (lo, hi)):
                 raise TypeError
             ranges = tuple((lab, int(lo), int(hi)) for lab, lo, hi in ranges)
         except (TypeError, ValueError):

@@ -13,7 +13,6 @@ by every speech feature in mrlib (WavLM's convolutional front end fixes them):
 
 from __future__ import annotations
 
-import math
 import numbers
 from math import gcd
 from pathlib import Path
@@ -23,7 +22,7 @@ import torch
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks, resample_poly
 
-from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError
+from mrlib.errors import ClipTooShortError, MotionFileError, MotionValueError, is_whole
 
 __all__ = [
     "as_float_samples",
@@ -102,8 +101,7 @@ def to_mono(wav: np.ndarray) -> np.ndarray:
 
 def check_rate(sr, what: str = "sr") -> int:
     """``sr`` as a whole number of Hz from ``MIN_INPUT_RATE`` on, else a ``MotionValueError``."""
-    whole = isinstance(sr, numbers.Real) and not isinstance(sr, (bool, np.bool_))
-    if not (whole and math.isfinite(sr) and float(sr) == int(sr)) or sr < MIN_INPUT_RATE:
+    if not is_whole(sr, integral_floats=True) or sr < MIN_INPUT_RATE:
         raise MotionValueError(
             f"{what} must be the sample rate in Hz, a whole number from {MIN_INPUT_RATE} on, "
             f"got {sr!r}"

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import torch
 
-from mrlib.errors import MotionValueError, MrlibError
+from mrlib.errors import MotionValueError, MrlibError, is_whole
 from mrlib.speech.audio import (
     FEATURE_FPS,
     FRAME_OFFSET_S,
@@ -314,14 +314,11 @@ class SpeechFeatureConfig:
     per_utterance: bool = False
 
     def __post_init__(self):
-        def whole(v) -> bool:
-            return isinstance(v, numbers.Integral) and not isinstance(v, bool)
-
         if self.kind not in ("wavlm", "logmel"):
             raise MotionValueError(f"kind must be 'wavlm' or 'logmel', got {self.kind!r}")
-        if self.layer != "mean" and not (whole(self.layer) and self.layer >= 0):
+        if self.layer != "mean" and not (is_whole(self.layer) and self.layer >= 0):
             raise MotionValueError(f"layer must be a layer number or 'mean', got {self.layer!r}")
-        if not (whole(self.n_mels) and 1 <= self.n_mels <= MAX_MELS):
+        if not (is_whole(self.n_mels) and 1 <= self.n_mels <= MAX_MELS):
             raise MotionValueError(
                 f"n_mels must be a whole number in [1, {MAX_MELS}] (more bands than the "
                 f"512-point spectrum fills), got {self.n_mels!r}"
