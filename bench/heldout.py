@@ -17,8 +17,10 @@ cache when there); their ``_002`` takes, captured separately, are restyled.
 ``--split fresh``: a third set of five styles, ``FRESH_STYLES``, first run after the number
 of critic-ranked candidates was chosen on the other two (docs/notes/2026-12-07-critic-ranking.md).
 
-``--match-contact-rate``: the samples' contact labels at each label's contact rate
-(``mrlib.sampling.contact_labels``) instead of the paper's cut at 0.5.
+Contact labels are read as each model chose per label when its training ended
+(``mrlib.sampling.contact_choice``); ``--match-contact-rate``: every label's at its
+contact rate (``mrlib.sampling.contact_labels``), ``--cut-contacts``: every label's cut
+at 0.5 (the paper's).
 
 ``--features paper``: every window distance on the paper's features (local rotation
 matrices, no contact labels); coverage thresholds are then on another scale, and only the
@@ -142,9 +144,13 @@ def main(argv=None) -> int:
                    help="window distances on mrlib's features or the paper's (rotation "
                         "matrices, no contact labels; its coverage eps has another scale, "
                         "the fidelity none) [mrlib]")  # fmt: skip
-    p.add_argument("--match-contact-rate", action="store_true",
-                   help="contact labels at each label's contact rate, as mrlib evaluate "
-                        "--match-contact-rate [the paper's cut at 0.5]")  # fmt: skip
+    reading = p.add_mutually_exclusive_group()
+    reading.add_argument("--match-contact-rate", action="store_const", const=True, default=None,
+                         help="every label's contact labels at its contact rate, as mrlib "
+                              "evaluate --match-contact-rate [the model's choice]")  # fmt: skip
+    reading.add_argument("--cut-contacts", dest="match_contact_rate", action="store_const",
+                         const=False, help="every label's contact labels cut at 0.5 (the "
+                                           "paper's) [the model's choice]")  # fmt: skip
     p.add_argument("--threads", type=int, default=None, help="torch threads [mrlib's default]")
     a = p.parse_args(argv)
     set_threads(a.threads)
@@ -154,7 +160,7 @@ def main(argv=None) -> int:
     from mrlib.datasets.bandai import tutorial_clips
     from mrlib.errors import ClipTooShortError
     from mrlib.evaluation import EvaluationSettings, evaluate_model
-    from mrlib.evaluation.results import FEATURE_SETS
+    from mrlib.evaluation.results import FEATURE_SETS, contact_reading
     from mrlib.model.presets import get_preset, training_config
     from mrlib.sampling.restyling import restyle, restyle_lengths, restyle_level
     from mrlib.training.data import TrainingSet
@@ -197,13 +203,12 @@ def main(argv=None) -> int:
             windows["candidates"] = a.candidates
         if a.features == "paper":
             windows.update(FEATURE_SETS["paper"])
-        if a.match_contact_rate:
-            windows["match_contact_rate"] = True
+        windows["match_contact_rate"] = a.match_contact_rate
         settings = EvaluationSettings(num_samples=a.samples, seed=seed, **windows)
-        labels_at = "each label's rate" if settings.match_contact_rate else "0.5"
+        labels_at = contact_reading(model, settings.sampler())
         print(f"windows: coverage {settings.coverage_window} frames = "
               f"{settings.coverage_window / base.fps:g} s at {base.fps:g} fps; best of "
-              f"{settings.candidates} draw(s) per sample; contact labels at {labels_at}\n",
+              f"{settings.candidates} draw(s) per sample; contact labels: {labels_at}\n",
               flush=True)  # fmt: skip
         result = evaluate_model(model, settings=settings, body=body, progress=False)
         real = unseen_take(result)

@@ -32,7 +32,8 @@ the take's rate).
 under its label (``continue_motion``; ``--samples`` seeds), the new frames
 (from the prefix's last) scored the same ways; then where they slide (the first
 ``JOIN_S`` after the join, and after) and how many of their frames are in contact
-(``--match-contact-rate``: labelled at the label's contact rate).
+(as the model chose per label; ``--match-contact-rate`` / ``--cut-contacts``: every label
+at its contact rate / cut at 0.5).
 
 ``--preset demo --clip-fps 24``: the other direction, clips at a lower rate than the model's
 (the 30-fps captures resampled to 24 fps by splines stand in for 24-fps captures; the
@@ -73,8 +74,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--restyle", action="store_true", help="restyled unseen takes, not samples")
     ap.add_argument("--path", action="store_true", help="samples on a path (circle:2, 10 s)")
     ap.add_argument("--continue", dest="cont", action="store_true", help="continued takes")
-    ap.add_argument("--match-contact-rate", action="store_true",
-                    help="--continue: contact labels at the label's rate (Sampler option)")  # fmt: skip
+    reading = ap.add_mutually_exclusive_group()
+    reading.add_argument("--match-contact-rate", action="store_const", const=True, default=None,
+                         help="--continue: every label's contact labels at its rate (Sampler "
+                              "option) [the model's choice]")  # fmt: skip
+    reading.add_argument("--cut-contacts", dest="match_contact_rate", action="store_const",
+                         const=False, help="--continue: every label's contact labels cut at "
+                                           "0.5 [the model's choice]")  # fmt: skip
     ap.add_argument("--clip-fps", type=float, default=None,
                     help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)

@@ -204,6 +204,14 @@ CHECKPOINT_CASES = {
         lambda s: s.update(labels=[7]),
         "'labels' must be a list of label names",
     ),
+    "a contact choice that is a string": (
+        lambda s: s.update(contact_at_rate="walk_sad"),
+        "'contact_at_rate' must be a list of the model's labels",
+    ),
+    "a contact choice of an unknown label": (
+        lambda s: s.update(contact_at_rate=["walk_giant"]),
+        "'contact_at_rate' must be a list of the model's labels",
+    ),
 }
 
 
@@ -436,7 +444,9 @@ def test_cli_evaluate_names_its_sampler_settings(tmp_path, capsys):
             "--fine-noise", "0.5", "--guidance", "0.25", "--candidates", "2",
             "--match-contact-rate", "--out", str(tmp_path / "eval")]  # fmt: skip
     assert main(argv) == 0
-    said = "sampler: fine_noise=0.5, guidance=0.25, candidates=2, match_contact_rate=True"
+    said = (
+        "sampler: fine_noise=0.5, guidance=0.25, candidates=2, contact labels: at each label's rate"
+    )
     assert said in capsys.readouterr().out
     # a second evaluation into the same folder replaces nothing without --overwrite, and
     # is refused before it samples
@@ -486,15 +496,29 @@ def test_cli_candidates_reach_the_sampler(checkpoint, tmp_path, monkeypatch):
     assert seen == [mrlib.sampling.sampler.CANDIDATES, 3]
 
 
-def test_cli_match_contact_rate_reaches_the_sampler(checkpoint, tmp_path):
+def test_cli_contact_reading_reaches_the_sampler(checkpoint, tmp_path, capsys):
+    from mrlib.model.trained import load_model
+
+    assert load_model(checkpoint).contact_at_rate == ()  # its clip is too short to choose
+    checkpoint = _rewrite(
+        checkpoint, tmp_path / "chose.pt", lambda s: s.update(contact_at_rate=["walk_sad"])
+    )
     out = {}
-    for name, extra in (("a", []), ("b", ["--match-contact-rate"])):
+    for name, extra in (("a", []), ("b", ["--match-contact-rate"]), ("c", ["--cut-contacts"])):
         argv = ["sample", str(checkpoint), "--raw", "--seed", "2", *extra]
         assert main([*argv, "--out", str(tmp_path / name)]) == 0
         out[name] = load_motion(sorted((tmp_path / name).glob("*.npz"))[0])
-    assert out["a"].meta["sampler"]["match_contact_rate"] is False
+    assert load_model(checkpoint).contact_at_rate == ("walk_sad",)
+    assert out["a"].meta["sampler"]["match_contact_rate"] is True  # the model's choice
     assert out["b"].meta["sampler"]["match_contact_rate"] is True
+    assert out["c"].meta["sampler"]["match_contact_rate"] is False
     np.testing.assert_array_equal(out["a"].poses, out["b"].poses)  # the same draw
+    np.testing.assert_array_equal(out["b"].poses, out["c"].poses)
+    capsys.readouterr()
+    argv = ["sample", str(checkpoint), "--match-contact-rate", "--cut-contacts"]
+    with pytest.raises(SystemExit):
+        main([*argv, "--out", str(tmp_path / "d")])
+    assert "not allowed with" in capsys.readouterr().err
 
 
 API_CASES = {

@@ -133,3 +133,98 @@ def test_constrained_samples_read_their_labels_at_the_rate(model, monkeypatch, b
     np.testing.assert_array_equal(made["loop"].contacts, calls[2][1][0])
     np.testing.assert_array_equal(made["sharpened"].contacts, calls[4][1][0])
     assert made["sharpened"].meta["sampler"]["match_contact_rate"] is True
+
+
+def test_a_sampler_setting_overrules_the_models_choice(model, monkeypatch):
+    from mrlib.sampling.contact_labels import reads_at_rate
+
+    W = Condition.blend("walk_normal", "walk_sad", 0.25).weights(model)  # mostly normal
+    monkeypatch.setattr(model, "contact_at_rate", ("walk_normal",))
+    assert reads_at_rate(model, Sampler(), W) is True
+    assert reads_at_rate(model, Sampler(match_contact_rate=False), W) is False
+    W_sad = Condition.label("walk_sad").weights(model)
+    assert reads_at_rate(model, Sampler(), W_sad) is False
+    assert reads_at_rate(model, Sampler(match_contact_rate=True), W_sad) is True
+    monkeypatch.setattr(model, "contact_at_rate", None)  # a checkpoint without a choice
+    assert reads_at_rate(model, Sampler(), W) is False
+    # generate follows the choice, and records what it did
+    monkeypatch.setattr(model, "contact_at_rate", ("walk_sad",))
+    chose = generate(model, "walk_sad", length=60, seed=4, sampler=Sampler(fix_contacts=False))
+    forced = Sampler(fix_contacts=False, match_contact_rate=True)
+    rate = generate(model, "walk_sad", length=60, seed=4, sampler=forced)
+    np.testing.assert_array_equal(chose.contacts, rate.contacts)
+    assert chose.meta["sampler"]["match_contact_rate"] is True
+
+
+def test_the_rate_is_chosen_where_it_wins_by_the_margin(model, monkeypatch):
+    """The choice compares the two readings of the same draws by their fidelity to the
+    training clips: a label is read at its rate only where that wins by the margin."""
+    import mrlib.sampling.contact_choice as cc
+
+    gains = {"walk_normal": 2 * cc.CHOICE_MARGIN, "walk_sad": cc.CHOICE_MARGIN / 2}
+    seen = []
+
+    read = []
+
+    def fidelity(motions, refs, window):
+        label, rated = motions[0].label, len(seen) % 2 == 1
+        seen.append((label, rated, sorted(refs)))
+        read.append(np.stack([m.contacts for m in motions]))
+        return 0.5 + (gains[label] if rated else 0.0)
+
+    monkeypatch.setattr(cc, "condition_fidelity", fidelity)
+    assert cc.choose_contact_reading(model, num=2) == ("walk_normal",)
+    for i, label in enumerate(("walk_normal", "walk_sad")):  # one draw, read both ways
+        cut, rated = read[2 * i], read[2 * i + 1]
+        W = Condition.label(label).weights(model)
+        lengths, amp, conds = label_inputs(model, W, cut.shape[1], Sampler())
+        out = sample_ranked(model, conds, lengths, amp, cc.CHOICE_SEED, 2, Sampler().candidates)
+        raw = model.normalizer.denormalize(out[-1].transpose(1, 2))[..., -6:]
+        np.testing.assert_array_equal(cut, (raw > 0.5).float().numpy())
+        np.testing.assert_array_equal(rated, cc.output_contacts(model, out[-1], W))
+    assert [s[:2] for s in seen] == [
+        ("walk_normal", False),
+        ("walk_normal", True),
+        ("walk_sad", False),
+        ("walk_sad", True),
+    ]
+    assert all(s[2] == ["walk_normal", "walk_sad"] for s in seen)  # every label's clips
+
+
+def test_a_finished_run_records_its_choice_in_the_checkpoint(tmp_path, monkeypatch):
+    """Training ends by choosing (once: a resumed finished run keeps its choice); a
+    checkpoint written before models chose loads without one and reads at 0.5; a run
+    reused from the cache chooses when loaded."""
+    import mrlib.sampling.contact_choice as cc
+    from mrlib.datasets.synthetic import synthetic_walk
+    from mrlib.model.checkpoint import load_checkpoint, save_checkpoint
+    from mrlib.model.config import ModelConfig, TrainConfig
+    from mrlib.model.trained import load_model
+    from mrlib.training.data import TrainingSet
+    from mrlib.training.trainer import train, train_or_reuse
+
+    tiny = TrainConfig(
+        model=ModelConfig(num_levels=2, gen_hidden=(24,), disc_hidden=(24,)),
+        block_iterations=(1,), n_critic=1, checkpoint_every=0,
+    )  # fmt: skip
+    calls = []
+    monkeypatch.setattr(cc, "choose_contact_reading", lambda m: calls.append(m) or ("walk_sad",))
+    data = TrainingSet.from_motions([synthetic_walk("walk_sad", seconds=3.0, fps=10.0)])
+    ckpt = train(data, tiny, tmp_path / "run", progress=False).checkpoint
+    assert len(calls) == 1
+    assert load_checkpoint(ckpt)["contact_at_rate"] == ["walk_sad"]
+    assert load_model(ckpt).contact_at_rate == ("walk_sad",)
+    train(None, None, tmp_path / "run", resume=ckpt, progress=False)
+    assert len(calls) == 1  # kept, not chosen again
+    state = load_checkpoint(ckpt)
+    del state["contact_at_rate"], state["checksum"]
+    save_checkpoint(ckpt, state)
+    old = load_model(ckpt)
+    assert old.contact_at_rate is None
+    drawn = generate(old, "walk_sad", length=30, seed=0, sampler=Sampler(fix_contacts=False))
+    assert drawn.meta["sampler"]["match_contact_rate"] is False
+    reused, rec = train_or_reuse(data, tiny, tmp_path / "run", progress=False)
+    assert rec.reused and reused.contact_at_rate == ("walk_sad",) and len(calls) == 2
+    assert load_checkpoint(ckpt)["contact_at_rate"] == ["walk_sad"]  # written, once
+    train_or_reuse(data, tiny, tmp_path / "run", progress=False)
+    assert len(calls) == 2

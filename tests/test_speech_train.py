@@ -222,6 +222,8 @@ def test_conditional_critics_see_each_real_clip_with_its_own_speech(data, body, 
     again = SpeechTrainer.from_checkpoint(res.checkpoint)
     saved = load_checkpoint(res.checkpoint)["critics"]
     assert torch.equal(again.critics[1].project.weight, saved["1.project.weight"])
+    # a speech model's samples follow audio: it chooses no contact reading
+    assert "contact_at_rate" not in load_checkpoint(res.checkpoint)
 
 
 def test_random_audio_default_follows_the_critics(data, body, tmp_path):

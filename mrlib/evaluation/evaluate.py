@@ -61,6 +61,7 @@ from mrlib.evaluation.results import (
     MAX_EVAL_FRAMES,
     EvaluationResult,
     EvaluationSettings,
+    contact_reading,
     rare_contact_notes,
 )
 from mrlib.metrics import plausibility as pl
@@ -464,15 +465,10 @@ def evaluate_model(
             recons[mname + suffix] = recon
     if len(samplers) != len(methods) * len(variants[contacts]):
         raise MotionValueError(f"method names clash with the ' (raw)' rows: {sorted(methods)}")
-    return evaluate(
-        samplers,
-        refs,
-        settings,
-        reconstructions=recons,
-        calibration=calibration,
-        body=body,
-        progress=progress,
-    )
+    out = evaluate(samplers, refs, settings, reconstructions=recons, calibration=calibration,
+                   body=body, progress=progress)  # fmt: skip
+    out.notes.insert(0, f"{name}: contact labels {contact_reading(model, s.sampler())}")
+    return out
 
 
 def _per_key_sample_fns(per_key: Mapping[str, Any], sampler: Any) -> dict[bool, SampleFn]:

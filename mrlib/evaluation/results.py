@@ -32,6 +32,7 @@ __all__ = [
     "EvaluationResult",
     "RARE_CONTACT",
     "rare_contact_notes",
+    "contact_reading",
 ]
 
 # Bounds checked before anything is drawn: 1000 samples is the most `mrlib sample --num`
@@ -82,7 +83,8 @@ class EvaluationSettings:
     fine_noise: float = FINE_NOISE
     guidance: float = GUIDANCE
     candidates: int = CANDIDATES
-    match_contact_rate: bool = False  # contact labels at each label's rate, not at 0.5
+    # contact labels at each label's rate (True), at 0.5 (False), as the model chose (None)
+    match_contact_rate: bool | None = None
 
     def __post_init__(self) -> None:
         self.sampler()  # the sampler's settings within their bounds
@@ -152,8 +154,26 @@ class EvaluationSettings:
             "per method are over sequences (population std). Sampler of the trained model: "
             f"fine noise {self.fine_noise:g}, guidance {self.guidance:g}, best of "
             f"{self.candidates} candidate(s) by the critics"
-            + (", contact labels at each label's contact rate." if self.match_contact_rate else ".")
+            + {
+                True: ", contact labels at each label's contact rate.",
+                False: ", contact labels where the output exceeds 0.5.",
+                None: ", contact labels read as the model chose per label.",
+            }[self.match_contact_rate]
         )
+
+
+def contact_reading(model, sampler) -> str:
+    """How ``sampler`` reads the contact labels of ``model``'s label samples, in words."""
+    if sampler.match_contact_rate is not None:
+        return "at each label's rate" if sampler.match_contact_rate else "cut at 0.5"
+    chosen = getattr(model, "contact_at_rate", None)
+    if chosen is None:
+        return "cut at 0.5 (the checkpoint records no choice)"
+    if not chosen:
+        return "cut at 0.5 for every label (the model's choice)"
+    return (
+        f"at the label's rate for {', '.join(chosen)}, cut at 0.5 for the rest (the model's choice)"
+    )
 
 
 # ---------------------------------------------------------------------------------------

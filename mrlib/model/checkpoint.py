@@ -27,6 +27,9 @@ Keys (``FORMAT_VERSION`` 1)::
     rng                      {"torch", "numpy", "python", "trainer"} RNG states
     threads                  torch thread count the run trains with (kept on resume;
                              absent in checkpoints written before it was recorded)
+    contact_at_rate          labels whose samples read contacts at the label's rate,
+                             list[str], chosen when training ends
+                             (``mrlib.sampling.contact_choice``; absent before)
     checksum                 SHA-256 of everything above (``state_checksum``), checked
                              on load: a flipped byte is reported, not loaded
 
@@ -260,7 +263,8 @@ def _unreadable(path: Path) -> str:
 
 def _check_labels(path: Path, state: dict[str, Any]) -> None:
     """The checkpoint's ``labels``, where present, are distinct names (a label names one
-    condition: a second 'walk_sad' would make two conditions of one name)."""
+    condition: a second 'walk_sad' would make two conditions of one name), and the labels
+    it reads at their contact rate (``contact_at_rate``) are among them."""
     if "labels" not in state:
         return  # reported as missing where it is needed
     labels = state["labels"]
@@ -272,6 +276,14 @@ def _check_labels(path: Path, state: dict[str, Any]) -> None:
             path,
             f"invalid checkpoint: label {twice[0]!r} is listed twice in 'labels' "
             f"({list(labels)}); each label names one condition",
+        )
+    chosen = state.get("contact_at_rate")
+    if chosen is not None and (
+        not isinstance(chosen, (list, tuple))
+        or not all(isinstance(x, str) and x in labels for x in chosen)
+    ):
+        raise CheckpointError(
+            path, "invalid checkpoint: 'contact_at_rate' must be a list of the model's labels"
         )
 
 

@@ -39,7 +39,8 @@ MIN_SOURCE_FPS = 10.0
 class GenerativeModel:
     """A trained generator and what it needs to sample (see ``mrlib.model.checkpoint`` keys).
     How it is sampled (fine noise, guidance, the foot clean-up) is no part of it: each
-    sampling call takes a ``mrlib.Sampler``."""
+    sampling call takes a ``mrlib.Sampler``; only how each label's contact outputs are
+    read by default (``contact_at_rate``) was chosen when its training ended."""
 
     generator: MultiResGenerator
     config: TrainConfig
@@ -59,6 +60,10 @@ class GenerativeModel:
     # the patch critics, one per level (``mrlib.model.critic``), for critic-ranked sampling
     # (``mrlib.Sampler.candidates``); None where a model comes without them
     critics: torch.nn.ModuleList | None = None
+    # the labels whose samples read their contact labels at the label's contact rate
+    # (``mrlib.sampling.contact_choice``, chosen at the end of training); None: no choice
+    # recorded (a checkpoint written before models chose, a speech model): read at 0.5
+    contact_at_rate: tuple[str, ...] | None = None
 
     @property
     def source_fps(self) -> float | None:
@@ -150,6 +155,8 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
                   "done": bool(p["done"])},
         clip_fps=clip_rates(state),
         critics=critics,
+        contact_at_rate=None if state.get("contact_at_rate") is None
+        else tuple(map(str, state["contact_at_rate"])),
     )  # fmt: skip
 
 

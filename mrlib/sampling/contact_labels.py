@@ -14,9 +14,12 @@ rates by the condition's mean weights over levels). The cut this needs is kept w
 ``CONTACT_BAND``: an output above its upper end is always a contact, one below its lower
 end never, so that a confident output is not overruled to reach a rate. This is what
 ``Sampler(match_contact_rate=True)`` does to label samples (``mrlib.generate``, and the
-paths, keyframes, continuations, loops and body parts of ``mrlib.sampling.constraints``); the
-default is the paper's cut, because on the 15-fps ``preview`` models the happy walk's
-fidelity fell with it (the same note).
+paths, keyframes, continuations, loops and body parts of ``mrlib.sampling.constraints``) of
+the labels it is chosen for. Which reading serves a label is not the same on every model
+(on the 15-fps ``preview`` models the happy walk's fidelity fell with it, the same note),
+so each model chooses per label at the end of training (``mrlib.sampling.contact_choice``,
+``GenerativeModel.contact_at_rate``); ``Sampler(match_contact_rate=True / False)`` reads
+every label one way.
 
 Dimension letters (``mrlib`` glossary): B samples, T frames, K labels.
 """
@@ -37,6 +40,7 @@ __all__ = [
     "condition_contact_rates",
     "rate_matched_contacts",
     "output_contacts",
+    "reads_at_rate",
 ]
 
 # Outputs within 0.1 of a label are that label whatever the rate asks.
@@ -100,3 +104,18 @@ def output_contacts(model, x: torch.Tensor, W: torch.Tensor) -> np.ndarray:
     y = x.detach().cpu().transpose(1, 2)
     y = y if model.normalizer is None else model.normalizer.denormalize(y)
     return rate_matched_contacts(y[..., -_NC:], condition_contact_rates(model, W))
+
+
+def reads_at_rate(model, sampler, W: torch.Tensor) -> bool:
+    """Whether a label sample of condition ``W`` (``(L, K)``) drawn with ``sampler`` reads
+    its contacts at the condition's rate: ``sampler.match_contact_rate`` when set, else the
+    model's choice for the label of highest mean weight over levels
+    (``GenerativeModel.contact_at_rate``; a model without a choice, from a checkpoint
+    written before models chose, reads at 0.5)."""
+    if sampler.match_contact_rate is not None:
+        return bool(sampler.match_contact_rate)
+    chosen = getattr(model, "contact_at_rate", None)
+    if not chosen:
+        return False
+    k = int(torch.as_tensor(W).detach().cpu().float().mean(0).argmax())
+    return model.labels[k] in chosen

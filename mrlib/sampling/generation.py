@@ -26,7 +26,7 @@ from mrlib.representation.motion import Motion
 from mrlib.sampling.arguments import checked
 from mrlib.sampling.cleanup import cleanup_foot_contacts, jitter_at
 from mrlib.sampling.conditions import Condition, as_condition
-from mrlib.sampling.contact_labels import output_contacts
+from mrlib.sampling.contact_labels import output_contacts, reads_at_rate
 from mrlib.sampling.ranking import best_candidates, can_rank, critic_scores
 from mrlib.sampling.sampler import Sampler
 
@@ -282,7 +282,7 @@ def sampler_record(
     return {
         "seed": seed, "index": index, "fine_noise": sampler.fine_noise,
         "guidance": sampler.guidance, "candidates": sampler.candidates,
-        "match_contact_rate": sampler.match_contact_rate,
+        "match_contact_rate": reads_at_rate(model, sampler, W),
         "labels": list(model.labels),
         "label_weights": W.tolist(), "fps": sampler.fps or model.fps,
     }  # fmt: skip
@@ -354,7 +354,7 @@ def _label_samples(
     tag = "unseeded" if seed is None else f"seed{seed}"
     names = [f"{label}_{tag}_{b}" for b in range(num)]
     motions = _to_motions(model, outs[-1], model.fps, label, names)
-    if sampler.match_contact_rate:
+    if reads_at_rate(model, sampler, W):
         c = output_contacts(model, outs[-1], W)
         motions = [m.replace(contacts=c[b]) for b, m in enumerate(motions)]
     if sampler.fps is not None and sampler.fps != model.fps:  # raised before the feet are planted

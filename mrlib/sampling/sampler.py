@@ -83,13 +83,15 @@ class Sampler:
             highest is kept (``mrlib.sampling.ranking``; 1: the paper's sampler, every
             draw kept), in [1, ``MAX_CANDIDATES``]. Label samples of a model with critics
             (every checkpoint mrlib writes) only; speech samples and restyling draw once.
-        match_contact_rate: label each foot vertex in contact on as many frames as the
-            condition's training clips are (``mrlib.sampling.contact_labels``: the frames
-            of highest contact output) instead of where the output exceeds 0.5 (False,
-            the paper's sampler). Label samples only (``mrlib.generate`` and the paths,
-            keyframes, continuations, loops and body parts of
-            ``mrlib.sampling.constraints``). It raised the
-            lowest label's fidelity of the 30-fps ``demo`` models and lowered the happy
+        match_contact_rate: True: label each foot vertex in contact on as many frames
+            as the condition's training clips are (``mrlib.sampling.contact_labels``: the
+            frames of highest contact output); False: where the output exceeds 0.5 (the
+            paper's sampler); None (the default): as the model chose for the condition's
+            main label when its training ended (``GenerativeModel.contact_at_rate``,
+            ``mrlib.sampling.contact_choice``; 0.5 for a model without a choice). Label
+            samples only (``mrlib.generate`` and the paths, keyframes, continuations,
+            loops and body parts of ``mrlib.sampling.constraints``). The rate raised the
+            slow walks' fidelity of the 30-fps ``demo`` models and lowered the happy
             walk's of the 15-fps ``preview`` models (docs/notes/2026-12-07-contact-rate.md).
     """
 
@@ -98,7 +100,7 @@ class Sampler:
     fix_contacts: bool = True
     fps: float | None = None
     candidates: int = CANDIDATES
-    match_contact_rate: bool = False
+    match_contact_rate: bool | None = None
 
     def __post_init__(self):
         for name, bound in (("fine_noise", MAX_FINE_NOISE), ("guidance", MAX_GUIDANCE)):
@@ -120,9 +122,13 @@ class Sampler:
             )
         object.__setattr__(self, "candidates", int(c))
         for name in ("fix_contacts", "match_contact_rate"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise MotionValueError(f"{name} must be True or False, got {getattr(self, name)!r}")
-            object.__setattr__(self, name, bool(getattr(self, name)))
+            v = getattr(self, name)
+            if v is None and name == "match_contact_rate":
+                continue
+            if not isinstance(v, (bool, np.bool_)):
+                either = "True, False or None" if name == "match_contact_rate" else "True or False"
+                raise MotionValueError(f"{name} must be {either}, got {v!r}")
+            object.__setattr__(self, name, bool(v))
         if self.fps is not None:
             v = self.fps
             if (
@@ -138,11 +144,12 @@ class Sampler:
 
 def raw_sampler(sampler: Sampler | None = None) -> Sampler:
     """``sampler``, or for None the paper's sampler, one draw per sample and no
-    foot-contact clean-up (``Sampler(fix_contacts=False, candidates=1)``): what measurements
+    foot-contact clean-up (``Sampler(fix_contacts=False, candidates=1,
+    match_contact_rate=False)``): what measurements
     of the generator itself draw by default (crossover evidence, the nearest-sequence
-    strips). Anything else is an ``ArgumentError``."""
+    strips; contacts cut at 0.5). Anything else is an ``ArgumentError``."""
     if sampler is None:
-        return Sampler(fix_contacts=False, candidates=1)
+        return Sampler(fix_contacts=False, candidates=1, match_contact_rate=False)
     if not isinstance(sampler, Sampler):
         from mrlib.errors import ArgumentError, shown
 

@@ -28,7 +28,13 @@ from mrlib.model.config import config_from_json, config_to_json
 from mrlib.training.monitor import TrainingDivergedError
 from mrlib.training.run import progress_text
 
-__all__ = ["trainer_state", "load_trainer_state", "save_trainer", "trainer_from_checkpoint"]
+__all__ = [
+    "trainer_state",
+    "load_trainer_state",
+    "save_trainer",
+    "trainer_from_checkpoint",
+    "record_contact_reading",
+]
 
 
 def trainer_state(tr) -> dict:
@@ -56,6 +62,7 @@ def trainer_state(tr) -> dict:
         "optim_d": None if a is None else a.opt_d.state_dict(),
         "rng": {**global_rng_state(), "trainer": tr.rng.get_state()},
         "threads": None if tr.threads is None else int(tr.threads),
+        **({} if tr.contact_at_rate is None else {"contact_at_rate": list(tr.contact_at_rate)}),
     }
 
 
@@ -70,6 +77,8 @@ def load_trainer_state(tr, state: dict) -> None:
     tr.critics.load_state_dict(state["critics"])
     p = state["progress"]
     tr.block, tr.iteration, tr.done = int(p["block"]), int(p["iteration"]), bool(p["done"])
+    chosen = state.get("contact_at_rate")
+    tr.contact_at_rate = None if chosen is None else tuple(map(str, chosen))
     if not tr.done and tr.block < tr.config.num_blocks:
         tr.start_block()
         if state["optim_g"] is not None:
@@ -112,3 +121,18 @@ def trainer_from_checkpoint(cls, path: str | Path, out_dir, body, device):
         trainer.load_state_dict(state)
         trainer.folder.resumed_from = Path(path)
     return trainer
+
+
+def record_contact_reading(tr, interrupted: bool, progress: bool) -> None:
+    """When ``tr``'s run has just finished a label model: each label's reading of the
+    contact output (``mrlib.sampling.contact_choice``), kept in ``tr`` and saved."""
+    speech = tr.signal.dim != len(tr.data.labels)  # a speech model's samples follow audio
+    if interrupted or not tr.done or tr.contact_at_rate is not None or speech:
+        return
+    from mrlib.model.trained import model_from_trainer
+    from mrlib.sampling.contact_choice import settle_contact_reading
+
+    chosen = settle_contact_reading(model_from_trainer(tr), progress)
+    if chosen is not None:
+        tr.contact_at_rate = chosen
+        tr.save()

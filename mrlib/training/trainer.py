@@ -15,9 +15,8 @@
    the pure terms of ``objective``.
 
 Checkpoints are ``checkpoints``; at the end, the functions that train or reuse a model
-(:func:`train_or_reuse`, :func:`train_cached`, :func:`train_cached_many`).
-``mrlib.speech.SpeechTrainer`` is a Trainer with another :meth:`Trainer.control_signal`.
-(Module names are those of ``mrlib.training``.)
+(:func:`train_or_reuse`, :func:`train_cached`, :func:`train_cached_many`). Speech: a
+``mrlib.speech.SpeechTrainer`` (module names are those of ``mrlib.training``).
 """
 
 from __future__ import annotations
@@ -37,6 +36,7 @@ from mrlib.model.config import TrainConfig
 from mrlib.model.generator import MultiResGenerator
 from mrlib.model.trained import load_model
 from mrlib.representation.body import check_body
+from mrlib.sampling.contact_choice import settle_contact_reading
 from mrlib.threads import usable_cpus
 from mrlib.training import build, checkpoints, objective
 from mrlib.training.build import Batches, Kinematics, build_batches, build_networks, make_adam
@@ -155,6 +155,7 @@ class Trainer:
         self.generator, self.critics = build_networks(config.model, self.signal.dim, self.device)
         self.block, self.iteration, self.done = 0, 0, False
         self.active: BlockState | None = None
+        self.contact_at_rate: tuple[str, ...] | None = None  # chosen when the run ends
 
     def control_signal(self) -> LabelSignal:
         """The conditions of this run: labels (a subclass returns its own signal, see
@@ -208,15 +209,15 @@ class Trainer:
         *,
         overwrite: bool = False,
     ) -> TrainResult:
-        """Train every remaining block (:func:`run_blocks`); see :func:`train`. The run
-        uses the torch thread count the process has (it changes no count: the command
-        line and ``mrlib.threads.use`` do), records it in its checkpoints, and warns when
-        a resumed run continues on another count than it was started with."""
-        # (a finished run has nothing left to train: no warning about its count)
+        """Train every remaining block (:func:`run_blocks`; see :func:`train`) on the
+        process's torch thread count (recorded in the checkpoints; a resumed run on another
+        count warns, a finished one has nothing to train); then a finished label model
+        chooses each label's contact reading (``mrlib.sampling.contact_choice``)."""
         self.threads = thread_count_of_fit(None if self.done else self.threads)
         ckpt = self.out_dir / "checkpoint.pt"
         with self.folder.fitting(overwrite, progress_text(self)):
             result = run_blocks(self, progress, callback)
+            checkpoints.record_contact_reading(self, result.interrupted, progress)
             if self.folder.saves == 0 and not same_file(ckpt, self.folder.resumed_from or ckpt):
                 self.save()  # resumed from a finished run into another folder: copy it there
         return result
@@ -426,7 +427,8 @@ def train_or_reuse(
     """
     out = Path(out_dir)
     reused = reuse_finished_run(data, config, out)
-    if reused is not None:
+    if reused is not None:  # a run from before models chose their contact reading chooses now
+        settle_contact_reading(reused[0], checkpoint=reused[1].checkpoint)
         return reused
     # what was worth keeping moved aside; a loss log without its checkpoint is not
     res = train(data, config, out, body=body, progress=progress, overwrite=True)
@@ -447,16 +449,13 @@ def train_cached(
     ``cache_dir``, else ``$MRLIB_CACHE_DIR/models``, else the user's cache folder
     (``~/.cache/mrlib/models`` on Linux); delete a folder there to retrain.
 
-    Returns:
-        ``(model, record)`` as :func:`train_or_reuse`.
-    """
+    Returns ``(model, record)`` as :func:`train_or_reuse`."""
     out = cache_folder(models_root(cache_dir), data, config)
     out.mkdir(parents=True, exist_ok=True)
     return train_or_reuse(data, config, out, body=body, progress=progress)
 
 
-def _train_cached_in_worker(args) -> None:
-    """One :func:`train_cached` in a worker process, on one torch thread."""
+def _train_cached_in_worker(args) -> None:  # one train_cached in a worker, on one thread
     data, config, cache_dir = args
     torch.set_num_threads(1)
     train_cached(data, config, progress=False, cache_dir=cache_dir)

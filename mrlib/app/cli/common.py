@@ -259,8 +259,8 @@ def run_folder(args) -> Path:
 
 
 def sampler_options(p, candidates: bool = True) -> None:
-    """``--fine-noise``, ``--guidance`` and (``candidates``) ``--candidates`` and
-    ``--match-contact-rate`` (read by :func:`sampler_from_args`)."""
+    """``--fine-noise``, ``--guidance`` and (``candidates``) ``--candidates``,
+    ``--match-contact-rate`` and ``--cut-contacts`` (read by :func:`sampler_from_args`)."""
     p.add_argument(
         "--fine-noise",
         type=_sampler_setting("MAX_FINE_NOISE"),
@@ -291,12 +291,23 @@ def sampler_options(p, candidates: bool = True) -> None:
         "critics score highest [default: 8; 1: the paper's sampler, every draw kept]; "
         "more: closer to the labels' clips, less varied",
     )
-    p.add_argument(
+    reading = p.add_mutually_exclusive_group()
+    reading.add_argument(
         "--match-contact-rate",
-        action="store_true",
-        help="label models: each foot vertex in contact on as many frames as the label's "
-        "training clips, those of highest contact output [default: where the output "
-        "exceeds 0.5, the paper's sampler]; plants slow walks' feet longer",
+        action="store_const",
+        const=True,
+        default=None,
+        help="label models: every label's foot vertices in contact on as many frames as "
+        "the label's training clips, those of highest contact output [default: as the "
+        "model chose per label when its training ended]; plants slow walks' feet longer",
+    )
+    reading.add_argument(
+        "--cut-contacts",
+        dest="match_contact_rate",
+        action="store_const",
+        const=False,
+        help="label models: every label's contact labels where the generator's output "
+        "exceeds 0.5, the paper's sampler [default: as the model chose per label]",
     )
 
 
@@ -329,16 +340,17 @@ def sample_output_options(
 # -- helpers of the commands ---------------------------------------------------------------
 def sampler_from_args(args, *, label_model: bool = True):
     """The ``mrlib.Sampler`` of ``--fine-noise``, ``--guidance``, ``--candidates``,
-    ``--match-contact-rate`` and ``--raw`` (the sampler's defaults where one is not given);
+    ``--match-contact-rate`` / ``--cut-contacts`` and ``--raw`` (the sampler's defaults
+    where one is not given);
     the label models' options are refused for a speech model (``label_model=False``)."""
     from mrlib.sampling.sampler import CANDIDATES, FINE_NOISE, GUIDANCE, Sampler
 
     guidance = getattr(args, "guidance", None)
     candidates = getattr(args, "candidates", None)
-    matched = getattr(args, "match_contact_rate", False)
+    matched = getattr(args, "match_contact_rate", None)
+    reading = {True: "--match-contact-rate", False: "--cut-contacts", None: ""}[matched]
     for flag, value in (
-        ("--guidance", guidance), ("--candidates", candidates),
-        ("--match-contact-rate", matched or None),
+        ("--guidance", guidance), ("--candidates", candidates), (reading, matched),
     ):  # fmt: skip
         if value is not None and not label_model:
             raise MrlibError(f"{flag} applies to label models only")

@@ -17,6 +17,7 @@ from mrlib.app.cli.common import (
     warn_unfinished,
 )
 from mrlib.errors import MrlibError
+from mrlib.evaluation.results import contact_reading
 
 
 def add_evaluate(sub) -> argparse.ArgumentParser:
@@ -164,7 +165,7 @@ def cmd_evaluate(args) -> int:
         when_written(lambda: print(f"\nwrote {args.out}/"))
     print(
         f"sampler: fine_noise={sampler.fine_noise:g}, guidance={sampler.guidance:g}, "
-        f"candidates={sampler.candidates}, match_contact_rate={sampler.match_contact_rate}\n"
+        f"candidates={sampler.candidates}, contact labels: {contact_reading(model, sampler)}\n"
     )
     print(result.to_markdown())
     return 0

@@ -124,13 +124,14 @@ def label_setup(model, condition, length: int, seed: int | None, sampler):
     it), for a label condition (a label or a ``mrlib.Condition``; None: the first label)
     under ``sampler``."""
     from mrlib.sampling.conditions import as_condition
+    from mrlib.sampling.contact_labels import reads_at_rate
     from mrlib.sampling.generation import check_conditions, draw_noise, label_inputs, sampler_record
 
     cond = as_condition(0 if condition is None else condition)
     W = cond.weights(model)
     lengths, amp, conds = label_inputs(model, W, length, sampler)
     noises = draw_noise(lengths, amp, seed, 1, model.device)
-    rate_of = W if sampler.match_contact_rate else None
+    rate_of = W if reads_at_rate(model, sampler, W) else None
     record = sampler_record(model, sampler, seed, 0, W)
     return noises, check_conditions(model, conds, lengths), cond.name(model), rate_of, record
 

@@ -172,9 +172,9 @@ def generate_loop(
         x = y[:, :T].clone()
         x[:, :n] = (1 - w) * y[:, T:] + w * y[:, :n]
     m = _loop_motion(model, x.cpu(), label, f"{label}_loop_seed{seed}")
-    if sampler.match_contact_rate:  # the cycle's labels at the condition's contact rate
-        from mrlib.sampling.contact_labels import output_contacts
+    from mrlib.sampling.contact_labels import output_contacts, reads_at_rate
 
+    if reads_at_rate(model, sampler, W):  # the cycle's labels at the condition's contact rate
         m = m.replace(contacts=output_contacts(model, x[None], W)[0])
     m.meta["loop_method"] = method
     m.meta["sampler"] = sampler_record(model, sampler, seed, 0, W)

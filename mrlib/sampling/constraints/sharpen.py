@@ -252,9 +252,9 @@ def generate_sharpened(
     names = [f"{label}_sharp_seed{seed}_{b}" for b in range(num_samples)]
     motions = features_to_motions(x.transpose(1, 2), model.fps, betas=model.betas,
                                   normalizer=model.normalizer, label=label, names=names)  # fmt: skip
-    if sampler.match_contact_rate:  # as generate reads them
-        from mrlib.sampling.contact_labels import output_contacts
+    from mrlib.sampling.contact_labels import output_contacts, reads_at_rate
 
+    if reads_at_rate(model, sampler, W):  # as generate reads them
         c = output_contacts(model, x, W)
         motions = [m.replace(contacts=c[b]) for b, m in enumerate(motions)]
     for b, m in enumerate(motions):  # as generate records it, and the fit
