@@ -50,6 +50,7 @@ import numpy as np
 
 import mrlib
 from mrlib.errors import ClipTooShortError
+from mrlib.evaluation.results import contact_reading
 from mrlib.metrics.plausibility import foot_skating, mean_jerk, motion_kinematics
 from mrlib.sampling.restyling import restyle_lengths
 from mrlib.training.data import TrainingSet
@@ -110,6 +111,8 @@ def main(argv: list[str] | None = None) -> int:
         model, _ = train_cached(data, cfg, body=body, progress=False)
         if seed is not None:
             print(f"\n## training seed {seed}")
+        reading = mrlib.Sampler(match_contact_rate=args.match_contact_rate)
+        print(f"contact labels: {contact_reading(model, reading)}")
         if args.restyle:
             restyled(model, args, body)
         elif args.path:
