@@ -2,6 +2,8 @@
 ``Sampler.match_contact_rate``): how many frames are labelled, that confident outputs
 are kept, and that generation uses them on the same draw."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -228,3 +230,16 @@ def test_a_finished_run_records_its_choice_in_the_checkpoint(tmp_path, monkeypat
     assert load_checkpoint(ckpt)["contact_at_rate"] == ["walk_sad"]  # written, once
     train_or_reuse(data, tiny, tmp_path / "run", progress=False)
     assert len(calls) == 2
+    # a run stopped early chooses nothing; resumed to its end, it chooses
+    tiny3 = dataclasses.replace(tiny, block_iterations=(3,))
+
+    def stop(trainer, losses):
+        if (trainer.block, trainer.iteration) == (0, 1):
+            raise KeyboardInterrupt
+
+    res = train(data, tiny3, tmp_path / "stopped", progress=False, callback=stop)
+    assert res.interrupted and len(calls) == 2
+    assert "contact_at_rate" not in load_checkpoint(res.checkpoint)
+    assert load_model(res.checkpoint).contact_at_rate is None
+    train(None, None, tmp_path / "stopped", resume=res.checkpoint, progress=False)
+    assert len(calls) == 3 and load_checkpoint(res.checkpoint)["contact_at_rate"] == ["walk_sad"]
