@@ -243,3 +243,18 @@ def test_a_finished_run_records_its_choice_in_the_checkpoint(tmp_path, monkeypat
     assert load_model(res.checkpoint).contact_at_rate is None
     train(None, None, tmp_path / "stopped", resume=res.checkpoint, progress=False)
     assert len(calls) == 3 and load_checkpoint(res.checkpoint)["contact_at_rate"] == ["walk_sad"]
+
+
+def test_a_choice_that_fails_leaves_the_model_at_the_papers_cut(model, monkeypatch):
+    import mrlib.sampling.contact_choice as cc
+    from mrlib.errors import MrlibError
+    from mrlib.model.checkpoint import CheckpointWarning
+
+    def fail(m):
+        raise MrlibError("no draw")
+
+    monkeypatch.setattr(cc, "choose_contact_reading", fail)
+    monkeypatch.setattr(model, "contact_at_rate", None)
+    with pytest.warns(CheckpointWarning, match="no draw"):
+        assert cc.settle_contact_reading(model) == ()
+    assert model.contact_at_rate == ()

@@ -20,14 +20,15 @@ the answer in the checkpoint (``GenerativeModel.contact_at_rate``).
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from mrlib.errors import check_count
+from mrlib.errors import MrlibError, check_count
 from mrlib.metrics.coverage import condition_fidelity
 from mrlib.metrics.windows import model_references
-from mrlib.model.checkpoint import load_checkpoint, save_checkpoint
+from mrlib.model.checkpoint import CheckpointWarning, load_checkpoint, save_checkpoint
 from mrlib.representation.features import features_to_motions
 from mrlib.sampling.conditions import Condition
 from mrlib.sampling.contact_labels import output_contacts
@@ -74,7 +75,7 @@ def choose_contact_reading(
             continue
         W = Condition.label(label).weights(model)
         clips = zip(model.features, model.clip_labels, strict=True)
-        n = min(2 * int(max(len(x) for x, c in clips if c == k)), longest)
+        n = max(min(2 * int(max(len(x) for x, c in clips if c == k)), longest), window)
         lengths, amp, conds = label_inputs(model, W, n, sampler)
         out = sample_ranked(model, conds, lengths, amp, seed, num, sampler.candidates)[-1]
         cut = features_to_motions(
@@ -105,7 +106,15 @@ def settle_contact_reading(
         return None
     if progress:
         print(f"choosing the contact reading of {len(model.labels)} label(s)", flush=True)
-    model.contact_at_rate = choose_contact_reading(model)
+    try:
+        model.contact_at_rate = choose_contact_reading(model)
+    except MrlibError as e:  # the choice refines sampling; a model is never lost to it
+        warnings.warn(
+            f"could not choose the contact reading ({e}): every label is cut at 0.5",
+            CheckpointWarning,
+            stacklevel=2,
+        )
+        model.contact_at_rate = ()
     if checkpoint is not None:
         state = load_checkpoint(checkpoint)
         state["contact_at_rate"] = list(model.contact_at_rate)
