@@ -145,6 +145,18 @@ def trained_model(cfg, clips, out: Path, note: str | None = None):
     return model, record, body
 
 
+def add_contact_reading_args(ap: argparse.ArgumentParser, prefix: str = "") -> None:
+    """``--match-contact-rate`` / ``--cut-contacts`` into ``match_contact_rate`` (True /
+    False; None, the default: as each model chose), as ``mrlib evaluate`` takes them."""
+    reading = ap.add_mutually_exclusive_group()
+    reading.add_argument("--match-contact-rate", action="store_const", const=True, default=None,
+                         help=f"{prefix}every label's contact labels at its contact rate "
+                              "[the model's choice]")  # fmt: skip
+    reading.add_argument("--cut-contacts", dest="match_contact_rate", action="store_const",
+                         const=False, help=f"{prefix}every label's contact labels cut at 0.5 "
+                                           "(the paper's) [the model's choice]")  # fmt: skip
+
+
 def add_iterations_arg(ap: argparse.ArgumentParser, help: str) -> None:
     """``--iterations N[,N...]``: one count for every block, or one per block."""
     ap.add_argument("--iterations", type=lambda v: tuple(int(n) for n in v.split(",")),

@@ -42,7 +42,7 @@ import dataclasses
 import time
 
 import numpy as np
-from common import describe, set_threads
+from common import add_contact_reading_args, describe, set_threads
 from restyle_path import BOUNDS, holds, path_distances, summary
 
 DEV_STYLES = ("normal", "happy", "sad", "angry")
@@ -144,13 +144,7 @@ def main(argv=None) -> int:
                    help="window distances on mrlib's features or the paper's (rotation "
                         "matrices, no contact labels; its coverage eps has another scale, "
                         "the fidelity none) [mrlib]")  # fmt: skip
-    reading = p.add_mutually_exclusive_group()
-    reading.add_argument("--match-contact-rate", action="store_const", const=True, default=None,
-                         help="every label's contact labels at its contact rate, as mrlib "
-                              "evaluate --match-contact-rate [the model's choice]")  # fmt: skip
-    reading.add_argument("--cut-contacts", dest="match_contact_rate", action="store_const",
-                         const=False, help="every label's contact labels cut at 0.5 (the "
-                                           "paper's) [the model's choice]")  # fmt: skip
+    add_contact_reading_args(p)
     p.add_argument("--threads", type=int, default=None, help="torch threads [mrlib's default]")
     a = p.parse_args(argv)
     set_threads(a.threads)

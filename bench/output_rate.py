@@ -47,6 +47,7 @@ import argparse
 from dataclasses import replace
 
 import numpy as np
+from common import add_contact_reading_args
 
 import mrlib
 from mrlib.errors import ClipTooShortError
@@ -75,13 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--restyle", action="store_true", help="restyled unseen takes, not samples")
     ap.add_argument("--path", action="store_true", help="samples on a path (circle:2, 10 s)")
     ap.add_argument("--continue", dest="cont", action="store_true", help="continued takes")
-    reading = ap.add_mutually_exclusive_group()
-    reading.add_argument("--match-contact-rate", action="store_const", const=True, default=None,
-                         help="--continue: every label's contact labels at its rate (Sampler "
-                              "option) [the model's choice]")  # fmt: skip
-    reading.add_argument("--cut-contacts", dest="match_contact_rate", action="store_const",
-                         const=False, help="--continue: every label's contact labels cut at "
-                                           "0.5 [the model's choice]")  # fmt: skip
+    add_contact_reading_args(ap, "--continue: ")
     ap.add_argument("--clip-fps", type=float, default=None,
                     help="the clips' rate (resampled from the capture's) [the capture's]")  # fmt: skip
     args = ap.parse_args(argv)
