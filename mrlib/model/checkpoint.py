@@ -66,6 +66,7 @@ __all__ = [
     "check_checkpoint_file",
     "state_checksum",
     "clip_rates",
+    "contact_choice",
     "reading",
     "CheckpointError",
     "CheckpointWarning",
@@ -219,6 +220,13 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
         )
     _check_labels(path, state)
     return state
+
+
+def contact_choice(state: dict[str, Any]) -> tuple[str, ...] | None:
+    """The labels the checkpoint reads at their contact rate (``contact_at_rate``, checked
+    on load against its labels), None where it records no choice."""
+    chosen = state.get("contact_at_rate")
+    return None if chosen is None else tuple(map(str, chosen))
 
 
 def clip_rates(state: dict[str, Any]) -> list[float] | None:

@@ -12,7 +12,7 @@ import numpy as np
 import torch
 
 from mrlib.errors import ArgumentError, MotionValueError, check_args, check_path, shown
-from mrlib.model.checkpoint import clip_rates, load_checkpoint, reading
+from mrlib.model.checkpoint import clip_rates, contact_choice, load_checkpoint, reading
 from mrlib.model.config import TrainConfig, config_from_json
 from mrlib.model.config import check_device as usable_device
 from mrlib.model.critic import build_critics
@@ -26,6 +26,7 @@ __all__ = [
     "model_from_trainer",
     "check_model",
     "check_label_model",
+    "is_speech_model",
     "check_device",
     "MIN_SOURCE_FPS",
 ]
@@ -155,8 +156,7 @@ def model_from_state(state: dict, device: str | torch.device = "cpu") -> Generat
                   "done": bool(p["done"])},
         clip_fps=clip_rates(state),
         critics=critics,
-        contact_at_rate=None if state.get("contact_at_rate") is None
-        else tuple(map(str, state["contact_at_rate"])),
+        contact_at_rate=contact_choice(state),
     )  # fmt: skip
 
 
@@ -198,14 +198,18 @@ def check_model(name: str, value):
     )
 
 
+def is_speech_model(model) -> bool:
+    """Whether ``model``'s condition is audio (a speech model), not one-hot labels."""
+    return hasattr(model, "feature_config") or (
+        int(getattr(model.generator, "cond_dim", len(model.labels))) != len(model.labels)
+    )
+
+
 def check_label_model(name: str, value):
     """:func:`check_model` for the functions that condition on labels: a speech model
     (whose condition is audio) is refused with what to use instead."""
     value = check_model(name, value)
-    speech = hasattr(value, "feature_config") or (
-        int(getattr(value.generator, "cond_dim", len(value.labels))) != len(value.labels)
-    )
-    if speech:
+    if is_speech_model(value):
         raise ArgumentError(
             f"{name} is a speech-conditioned model (its condition is audio, not a label): "
             "generate from audio with mrlib.speech.generate_from_audio"

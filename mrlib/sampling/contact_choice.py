@@ -29,6 +29,7 @@ from mrlib.errors import MrlibError, check_count
 from mrlib.metrics.coverage import condition_fidelity
 from mrlib.metrics.windows import model_references
 from mrlib.model.checkpoint import CheckpointWarning, load_checkpoint, save_checkpoint
+from mrlib.model.trained import is_speech_model
 from mrlib.representation.features import features_to_motions
 from mrlib.sampling.conditions import Condition
 from mrlib.sampling.contact_labels import output_contacts
@@ -98,11 +99,8 @@ def settle_contact_reading(
     choice, set on it (``model.contact_at_rate``), written into ``checkpoint`` (the file
     it was loaded from) when given, and returned; None for a speech model (its samples
     follow audio), an unfinished one, or one that has a choice already."""
-    speech = hasattr(model, "feature_config") or (
-        int(getattr(model.generator, "cond_dim", len(model.labels))) != len(model.labels)
-    )
     done = model.trained_levels >= model.num_levels
-    if speech or not done or model.contact_at_rate is not None:
+    if is_speech_model(model) or not done or model.contact_at_rate is not None:
         return None
     if progress:
         print(f"choosing the contact reading of {len(model.labels)} label(s)", flush=True)

@@ -18,6 +18,7 @@ import torch
 
 from mrlib.model.checkpoint import (
     CheckpointError,
+    contact_choice,
     global_rng_state,
     load_checkpoint,
     reading,
@@ -77,8 +78,7 @@ def load_trainer_state(tr, state: dict) -> None:
     tr.critics.load_state_dict(state["critics"])
     p = state["progress"]
     tr.block, tr.iteration, tr.done = int(p["block"]), int(p["iteration"]), bool(p["done"])
-    chosen = state.get("contact_at_rate")
-    tr.contact_at_rate = None if chosen is None else tuple(map(str, chosen))
+    tr.contact_at_rate = contact_choice(state)
     if not tr.done and tr.block < tr.config.num_blocks:
         tr.start_block()
         if state["optim_g"] is not None:
@@ -123,11 +123,12 @@ def trainer_from_checkpoint(cls, path: str | Path, out_dir, body, device):
     return trainer
 
 
-def record_contact_reading(tr, interrupted: bool, progress: bool) -> None:
-    """When ``tr``'s run has just finished a label model: each label's reading of the
-    contact output (``mrlib.sampling.contact_choice``), kept in ``tr`` and saved."""
-    speech = tr.signal.dim != len(tr.data.labels)  # a speech model's samples follow audio
-    if interrupted or not tr.done or tr.contact_at_rate is not None or speech:
+def record_contact_reading(tr, progress: bool) -> None:
+    """When ``tr``'s run has finished a label model (a stopped run has not): each label's
+    reading of the contact output (``mrlib.sampling.contact_choice``), kept in ``tr`` and
+    saved."""
+    speech = tr.signal.dim != len(tr.data.labels)  # (before building a model to ask it)
+    if not tr.done or tr.contact_at_rate is not None or speech:
         return
     from mrlib.model.trained import model_from_trainer
     from mrlib.sampling.contact_choice import settle_contact_reading

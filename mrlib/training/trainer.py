@@ -217,7 +217,7 @@ class Trainer:
         ckpt = self.out_dir / "checkpoint.pt"
         with self.folder.fitting(overwrite, progress_text(self)):
             result = run_blocks(self, progress, callback)
-            checkpoints.record_contact_reading(self, result.interrupted, progress)
+            checkpoints.record_contact_reading(self, progress)
             if self.folder.saves == 0 and not same_file(ckpt, self.folder.resumed_from or ckpt):
                 self.save()  # resumed from a finished run into another folder: copy it there
         return result
